@@ -1,0 +1,109 @@
+//! The configuration of a run: which system, how long, how many vectors.
+//!
+//! One serialisable value that says everything needed to redo a run (it is printed with
+//! `--json` and, from the storage stage on, kept with the run's files).
+
+use crate::error::{Error, Result};
+use crate::rng::Rng;
+use crate::system::disks::{box_sides, HardDisks};
+use crate::system::henon::Henon;
+use crate::system::DynamicalSystem;
+use serde::{Deserialize, Serialize};
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum SystemConfig {
+    /// The Henon map x' = a - x^2 + b y, y' = x (paper section 4).
+    Henon { a: f64, b: f64 },
+    /// N hard disks in a periodic Lx x Ly box (paper section 5); density = N/(Lx Ly) and
+    /// aspect = Ly/Lx are kept for the record.
+    Disks { n: usize, lx: f64, ly: f64, density: f64, aspect: f64 },
+}
+
+impl SystemConfig {
+    pub fn henon() -> Self {
+        SystemConfig::Henon { a: Henon::A, b: Henon::B }
+    }
+
+    /// Disks from N, density and aspect ratio Ly/Lx.
+    pub fn disks(n: usize, density: f64, aspect: f64) -> Result<Self> {
+        if !(density > 0.0 && density.is_finite()) {
+            return Err(Error::param("density", format!("must be positive, got {density}")));
+        }
+        if !(aspect > 0.0 && aspect.is_finite()) {
+            return Err(Error::param("aspect", format!("must be positive, got {aspect}")));
+        }
+        let (lx, ly) = box_sides(n, density, aspect);
+        Ok(SystemConfig::Disks { n, lx, ly, density, aspect })
+    }
+
+    /// Disks in a box with given sides.
+    pub fn disks_in_box(n: usize, lx: f64, ly: f64) -> Self {
+        SystemConfig::Disks { n, lx, ly, density: n as f64 / (lx * ly), aspect: ly / lx }
+    }
+
+    /// Phase-space dimension D.
+    pub fn dim(&self) -> usize {
+        match self {
+            SystemConfig::Henon { .. } => 2,
+            SystemConfig::Disks { n, .. } => 4 * n,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunConfig {
+    pub system: SystemConfig,
+    /// Interval between re-orthonormalisations (one iteration for maps).
+    pub tau: f64,
+    /// Steps with re-orthonormalisation but no accumulation, to relax G onto the attractor.
+    pub relax_steps: u64,
+    /// Steps whose ln R_ii are accumulated into the spectrum.
+    pub steps: u64,
+    /// Number k of tangent vectors (k <= D).
+    pub vectors: usize,
+    pub seed: u64,
+    /// Worker threads of the linear algebra; part of the run because results differ in the
+    /// last bits between settings.
+    pub threads: usize,
+    /// Number of blocks for the standard error of the exponents.
+    pub blocks: usize,
+}
+
+impl RunConfig {
+    pub fn validate(&self) -> Result<()> {
+        let d = self.system.dim();
+        if self.vectors == 0 || self.vectors > d {
+            return Err(Error::param("vectors", format!("must be between 1 and D = {d}, got {}", self.vectors)));
+        }
+        if !(self.tau > 0.0 && self.tau.is_finite()) {
+            return Err(Error::param("tau", format!("must be a positive number, got {}", self.tau)));
+        }
+        if matches!(self.system, SystemConfig::Henon { .. }) && self.tau != 1.0 {
+            return Err(Error::param("tau", "the Henon map advances one iteration per step: tau must be 1"));
+        }
+        if self.steps == 0 {
+            return Err(Error::param("steps", "must be at least 1"));
+        }
+        if self.threads == 0 {
+            return Err(Error::param("threads", "must be at least 1"));
+        }
+        if self.blocks < 2 {
+            return Err(Error::param("blocks", "need at least 2 blocks for a standard error"));
+        }
+        Ok(())
+    }
+
+    /// The system in its initial state, made from the seed.
+    pub fn build_system(&self) -> Result<Box<dyn DynamicalSystem>> {
+        self.validate()?;
+        Ok(match self.system {
+            SystemConfig::Henon { a, b } => {
+                let mut rng = Rng::new(self.seed);
+                let (x, y) = (0.2 * rng.uniform() - 0.1, 0.2 * rng.uniform() - 0.1);
+                Box::new(Henon::new(a, b, x, y))
+            }
+            SystemConfig::Disks { n, lx, ly, .. } => Box::new(HardDisks::new(n, lx, ly, self.tau, self.seed)?),
+        })
+    }
+}

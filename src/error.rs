@@ -1,0 +1,56 @@
+//! One error type for the whole tool.
+//!
+//! Every error says what was wrong, where (parameter, file, offset, step) and, where there is
+//! one, what to do about it. Nothing here panics on user input.
+
+use std::fmt;
+use std::path::PathBuf;
+
+#[derive(Debug)]
+pub enum Error {
+    /// A parameter the user gave (or a combination of them) is not acceptable.
+    Param { name: &'static str, msg: String },
+    /// An I/O operation on a named file failed.
+    Io { path: PathBuf, source: std::io::Error },
+    /// The dynamics cannot go on (diverged orbit, overlapping disks, stalled event loop).
+    Dynamics(String),
+    /// A file is damaged or not what it claims to be.
+    Corrupt { path: PathBuf, msg: String },
+    /// Anything else, already phrased for the user.
+    Other(String),
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    pub fn param(name: &'static str, msg: impl Into<String>) -> Self {
+        Error::Param { name, msg: msg.into() }
+    }
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io { path: path.into(), source }
+    }
+    pub fn corrupt(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
+        Error::Corrupt { path: path.into(), msg: msg.into() }
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::Param { name, msg } => write!(f, "invalid --{name}: {msg}"),
+            Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
+            Error::Dynamics(msg) => write!(f, "dynamics: {msg}"),
+            Error::Corrupt { path, msg } => write!(f, "{}: corrupt or unreadable: {msg}", path.display()),
+            Error::Other(msg) => f.write_str(msg),
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}

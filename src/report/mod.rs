@@ -1,0 +1,74 @@
+//! What a person sees: the spectrum table and the JSON summary of a run.
+
+use crate::config::RunConfig;
+use crate::system::Invariants;
+use serde::Serialize;
+use std::fmt::Write;
+
+/// Run statistics a user checks before trusting a spectrum.
+#[derive(Clone, Debug, Serialize)]
+pub struct Statistics {
+    /// Accumulated steps (relaxation excluded).
+    pub steps: u64,
+    pub relax_steps: u64,
+    /// Simulated time of the accumulated steps, steps * tau.
+    pub simulated_time: f64,
+    /// Collisions (events) over the whole run, relaxation included.
+    pub collisions: u64,
+    pub wall_seconds: f64,
+    pub energy_initial: f64,
+    pub energy_final: f64,
+    /// |E_final - E_initial| / |E_initial| (NaN for systems without an energy).
+    pub energy_drift: f64,
+    pub momentum_final: [f64; 2],
+}
+
+impl Statistics {
+    pub fn new(config: &RunConfig, start: &Invariants, end: &Invariants, wall_seconds: f64) -> Self {
+        Statistics {
+            steps: config.steps,
+            relax_steps: config.relax_steps,
+            simulated_time: config.steps as f64 * config.tau,
+            collisions: end.events,
+            wall_seconds,
+            energy_initial: start.energy,
+            energy_final: end.energy,
+            energy_drift: ((end.energy - start.energy) / start.energy).abs(),
+            momentum_final: end.momentum,
+        }
+    }
+}
+
+/// The result of a forward pass, as printed by `clv forward --json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct SpectrumReport {
+    pub config: RunConfig,
+    /// lambda_1 >= ... >= lambda_k.
+    pub exponents: Vec<f64>,
+    /// Standard error of each exponent (block averages).
+    pub stderr: Vec<f64>,
+    pub statistics: Statistics,
+}
+
+impl SpectrumReport {
+    /// A plain-text table: index, exponent, error; then the sum and, for a full spectrum of a
+    /// symplectic system, the conjugate-pair sums lambda_i + lambda_{D+1-i}.
+    pub fn table(&self) -> String {
+        let mut s = String::new();
+        let l = &self.exponents;
+        let full = self.config.vectors == self.config.system.dim() && self.config.system.dim() % 4 == 0;
+        let _ = writeln!(s, "{:>6}  {:>14}  {:>10}{}", "i", "lambda_i", "stderr", if full { "   lambda_i + lambda_(D+1-i)" } else { "" });
+        for (i, (x, e)) in l.iter().zip(&self.stderr).enumerate() {
+            let pair = if full && i < l.len() / 2 { format!("   {:>+12.3e}", x + l[l.len() - 1 - i]) } else { String::new() };
+            let _ = writeln!(s, "{:>6}  {:>14.8}  {:>10.2e}{pair}", i + 1, x, e);
+        }
+        let st = &self.statistics;
+        let _ = writeln!(s, "sum of exponents: {:+.3e}", l.iter().sum::<f64>());
+        let _ = writeln!(
+            s,
+            "{} steps (t = {}), {} collisions, {:.1} s wall, energy drift {:.1e}",
+            st.steps, st.simulated_time, st.collisions, st.wall_seconds, st.energy_drift
+        );
+        s
+    }
+}

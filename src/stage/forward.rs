@@ -1,0 +1,116 @@
+//! The forward Gram-Schmidt pass (paper section 3): Gbar_n = J G_{n-1}, Gbar_n = G_n R_n,
+//! lambda_i = lim (1 / n tau) sum ln [R_n]_ii.
+//!
+//! The pass is a value ([`Forward`]) advanced one step at a time, so that whoever drives it
+//! (the CLI, a test, the run store) decides what to keep of each G_n and R_n.
+
+use crate::config::RunConfig;
+use crate::error::Result;
+use crate::linalg::{par, Qr};
+use crate::system::{DynamicalSystem, Tangent};
+use faer::Mat;
+use serde::{Deserialize, Serialize};
+
+/// Running sums of ln R_ii, with block sums for the standard error (batch means).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Accumulator {
+    /// Sum over all accumulated steps of ln [R_n]_ii.
+    pub sum: Vec<f64>,
+    pub steps: u64,
+    /// Steps per block.
+    pub block_len: u64,
+    /// Sums of completed blocks.
+    pub blocks: Vec<Vec<f64>>,
+    /// Sum of the block in progress.
+    pub current: Vec<f64>,
+}
+
+impl Accumulator {
+    pub fn new(k: usize, block_len: u64) -> Self {
+        Accumulator { sum: vec![0.0; k], steps: 0, block_len: block_len.max(1), blocks: Vec::new(), current: vec![0.0; k] }
+    }
+
+    pub fn add(&mut self, r: &Mat<f64>) {
+        for (i, (s, c)) in self.sum.iter_mut().zip(self.current.iter_mut()).enumerate() {
+            let l = r[(i, i)].ln();
+            *s += l;
+            *c += l;
+        }
+        self.steps += 1;
+        if self.steps % self.block_len == 0 {
+            let k = self.current.len();
+            self.blocks.push(std::mem::replace(&mut self.current, vec![0.0; k]));
+        }
+    }
+
+    /// lambda_i = sum ln R_ii / (steps tau).
+    pub fn exponents(&self, tau: f64) -> Vec<f64> {
+        let t = self.steps.max(1) as f64 * tau;
+        self.sum.iter().map(|s| s / t).collect()
+    }
+
+    /// Standard error of each exponent from the spread of the block averages (NaN with
+    /// fewer than two completed blocks).
+    pub fn stderr(&self, tau: f64) -> Vec<f64> {
+        let nb = self.blocks.len();
+        let t = self.block_len as f64 * tau;
+        (0..self.sum.len())
+            .map(|i| {
+                if nb < 2 {
+                    return f64::NAN;
+                }
+                let e: Vec<f64> = self.blocks.iter().map(|b| b[i] / t).collect();
+                let mean = e.iter().sum::<f64>() / nb as f64;
+                let var = e.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (nb - 1) as f64;
+                (var / nb as f64).sqrt()
+            })
+            .collect()
+    }
+}
+
+/// The state of a forward pass between two steps.
+pub struct Forward {
+    pub system: Box<dyn DynamicalSystem>,
+    /// G_n, the current orthonormal (Gram-Schmidt) basis, in the system's row layout.
+    pub g: Tangent,
+    /// R_n of the last step (k x k, upper triangular, positive diagonal).
+    pub r: Mat<f64>,
+    /// Steps done since the start of the run, relaxation included; t_n = step tau.
+    pub step: u64,
+    pub acc: Accumulator,
+    relax_steps: u64,
+    qr: Qr,
+}
+
+impl Forward {
+    pub fn new(config: &RunConfig) -> Result<Self> {
+        let system = config.build_system()?;
+        let (d, k) = (system.dim(), config.vectors);
+        let g = Tangent::identity(system.as_ref(), k);
+        let block_len = config.steps.div_ceil(config.blocks as u64);
+        Ok(Forward {
+            system,
+            g,
+            r: Mat::identity(k, k),
+            step: 0,
+            acc: Accumulator::new(k, block_len),
+            relax_steps: config.relax_steps,
+            qr: Qr::new(d, k, par(config.threads)),
+        })
+    }
+
+    /// One step: propagate over tau, re-orthonormalise, accumulate ln R_ii once relaxed.
+    pub fn step(&mut self) -> Result<()> {
+        self.system.advance(&mut self.g)?;
+        self.qr.factor(&mut self.g, &mut self.r);
+        if self.step >= self.relax_steps {
+            self.acc.add(&self.r);
+        }
+        self.step += 1;
+        Ok(())
+    }
+
+    pub fn time(&self) -> f64 {
+        self.step as f64 * self.system.tau()
+    }
+}

@@ -1,0 +1,4 @@
+//! The stages of the pipeline: forward Gram-Schmidt pass (and, in later stages, the backward
+//! Ginelli pass and the analyses that consume its frames).
+
+pub mod forward;
