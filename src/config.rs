@@ -107,3 +107,58 @@ impl RunConfig {
         })
     }
 }
+
+/// The configurations embedded in the binary.
+pub const PRESETS: [&str; 3] = ["default", "paper", "henon"];
+
+impl RunConfig {
+    /// A named preset: `default` (a small hard-disk system in the paper's geometry that still
+    /// shows Lyapunov modes, about a minute end to end), `paper` (the paper's 198-disk system,
+    /// 2.5e5 steps of tau = 0.6) or `henon`.
+    pub fn preset(name: &str) -> Result<Self> {
+        let disks = |n, relax_steps, steps| -> Result<Self> {
+            Ok(RunConfig {
+                system: SystemConfig::disks(n, 0.7, 2.0 / 11.0)?,
+                tau: 0.6,
+                relax_steps,
+                steps,
+                vectors: 4 * n,
+                seed: 1,
+                threads: 1,
+                blocks: 20,
+            })
+        };
+        match name {
+            "default" => disks(40, 1000, 10_000),
+            "paper" => disks(198, 10_000, 250_000),
+            "henon" => Ok(RunConfig {
+                system: SystemConfig::henon(),
+                tau: 1.0,
+                relax_steps: 1000,
+                steps: 1_000_000,
+                vectors: 2,
+                seed: 1,
+                threads: 1,
+                blocks: 20,
+            }),
+            other => Err(Error::param("preset", format!("unknown preset {other:?}; choose one of {}", PRESETS.join(", ")))),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_are_valid_and_unknown_names_are_refused() {
+        for name in PRESETS {
+            RunConfig::preset(name).unwrap().validate().unwrap();
+        }
+        let paper = RunConfig::preset("paper").unwrap();
+        let SystemConfig::Disks { lx, ly, .. } = paper.system else { panic!() };
+        // Paper section 5 (and PHYSICS.md): Lx = 39.442544, Ly = 7.171372.
+        assert!((lx - 39.442544).abs() < 1e-6 && (ly - 7.171372).abs() < 1e-6);
+        assert!(RunConfig::preset("nope").unwrap_err().to_string().contains("default, paper, henon"));
+    }
+}

@@ -66,11 +66,12 @@ impl Qr {
         }
 
         for j in 0..k {
-            let flip = self.a[(j, j)] < 0.0;
             for i in 0..k {
                 r[(i, j)] = if i <= j { self.a[(i, j)] } else { 0.0 };
             }
-            if flip {
+        }
+        for j in 0..k {
+            if r[(j, j)] < 0.0 {
                 for c in j..k {
                     r[(j, c)] = -r[(j, c)];
                 }

@@ -19,6 +19,18 @@ struct Cli {
 enum Command {
     /// Forward Gram-Schmidt pass: the Lyapunov spectrum with standard errors.
     Forward(ForwardArgs),
+    /// The main job on an embedded preset (today: the forward pass and its spectrum).
+    Run(RunArgs),
+}
+
+#[derive(Args)]
+struct RunArgs {
+    /// Embedded configuration: default, paper or henon.
+    #[arg(long, default_value = "default")]
+    preset: String,
+    /// Print one JSON object to stdout instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -122,7 +134,18 @@ fn progress(len: u64, what: &str) -> ProgressBar {
 }
 
 fn forward(args: &ForwardArgs) -> Result<()> {
-    let config = args.config()?;
+    spectrum(args.config()?, args.json)
+}
+
+fn run(args: &RunArgs) -> Result<()> {
+    let config = RunConfig::preset(&args.preset)?;
+    if !args.json {
+        eprintln!("clv run: preset {:?}: {}", args.preset, serde_json::to_string(&config).unwrap_or_default());
+    }
+    spectrum(config, args.json)
+}
+
+fn spectrum(config: RunConfig, json: bool) -> Result<()> {
     let started = Instant::now();
     let mut fwd = Forward::new(&config)?;
     let start = fwd.system.invariants();
@@ -139,7 +162,7 @@ fn forward(args: &ForwardArgs) -> Result<()> {
         statistics: Statistics::new(&config, &start, &fwd.system.invariants(), started.elapsed().as_secs_f64()),
         config,
     };
-    if args.json {
+    if json {
         println!("{}", serde_json::to_string(&report).map_err(|e| Error::Other(e.to_string()))?);
     } else {
         print!("{}", report.table());
@@ -151,6 +174,7 @@ fn main() {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Forward(args) => forward(args),
+        Command::Run(args) => run(args),
     };
     if let Err(e) = result {
         eprintln!("clv: error: {e}");

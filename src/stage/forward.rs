@@ -5,9 +5,9 @@
 //! (the CLI, a test, the run store) decides what to keep of each G_n and R_n.
 
 use crate::config::RunConfig;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::linalg::{par, Qr};
-use crate::system::{DynamicalSystem, Tangent};
+use crate::system::{DynamicalSystem, Snapshot, Tangent};
 use faer::Mat;
 use serde::{Deserialize, Serialize};
 
@@ -68,6 +68,17 @@ impl Accumulator {
     }
 }
 
+/// The complete state of a forward pass at a step boundary (what a checkpoint holds).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ForwardState {
+    /// Steps done, relaxation included.
+    pub step: u64,
+    pub system: Snapshot,
+    /// G_n in the paper's ordering, column-major D x k.
+    pub g: Vec<f64>,
+    pub acc: Accumulator,
+}
+
 /// The state of a forward pass between two steps.
 pub struct Forward {
     pub system: Box<dyn DynamicalSystem>,
@@ -108,6 +119,33 @@ impl Forward {
         }
         self.step += 1;
         Ok(())
+    }
+
+    /// Everything needed to continue this pass bit for bit.
+    pub fn state(&self) -> ForwardState {
+        ForwardState {
+            step: self.step,
+            system: self.system.snapshot(),
+            g: self.g.to_paper_columns(self.system.as_ref()),
+            acc: self.acc.clone(),
+        }
+    }
+
+    /// A pass continued from `state`, which must come from a run with the same `config`.
+    pub fn resume(config: &RunConfig, state: &ForwardState) -> Result<Self> {
+        let mut fwd = Forward::new(config)?;
+        let (d, k) = (fwd.system.dim(), config.vectors);
+        if state.g.len() != d * k || state.acc.sum.len() != k {
+            return Err(Error::Other(format!(
+                "the saved state at step {} holds {} basis numbers and {} sums, but the configuration needs D x k = {d} x {k}",
+                state.step, state.g.len(), state.acc.sum.len()
+            )));
+        }
+        fwd.system.restore(&state.system)?;
+        fwd.g = Tangent::from_paper_columns(fwd.system.as_ref(), k, &state.g);
+        fwd.acc = state.acc.clone();
+        fwd.step = state.step;
+        Ok(fwd)
     }
 
     pub fn time(&self) -> f64 {

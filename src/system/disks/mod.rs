@@ -222,3 +222,6 @@ impl DynamicalSystem for HardDisks {
         inv
     }
 }
+
+#[cfg(test)]
+mod tests;

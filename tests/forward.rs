@@ -1,0 +1,120 @@
+//! The forward Gram-Schmidt pass end to end: published Henon exponents, the symmetries of
+//! hard-disk spectra, determinism and exact continuation, and the command line.
+
+use clv::config::{RunConfig, SystemConfig};
+use clv::stage::forward::Forward;
+use std::process::Command;
+
+fn config(system: SystemConfig, tau: f64, relax: u64, steps: u64, seed: u64) -> RunConfig {
+    let vectors = system.dim();
+    RunConfig { system, tau, relax_steps: relax, steps, vectors, seed, threads: 1, blocks: 20 }
+}
+
+fn run(c: &RunConfig) -> Forward {
+    let mut f = Forward::new(c).unwrap();
+    while f.step < c.relax_steps + c.steps {
+        f.step().unwrap();
+    }
+    f
+}
+
+/// Published values: lambda_1 = 0.41922 (Sprott, "Chaos and Time-Series Analysis"), and
+/// lambda_1 + lambda_2 = ln b exactly since |det J| = b.
+#[test]
+fn henon_exponents_match_published_values() {
+    let c = config(SystemConfig::henon(), 1.0, 1000, 2_000_000, 3);
+    let f = run(&c);
+    let l = f.acc.exponents(1.0);
+    assert!((l[0] - 0.41922).abs() < 5e-4, "lambda_1 = {}", l[0]);
+    assert!((l[1] - (0.3f64.ln() - 0.41922)).abs() < 5e-4, "lambda_2 = {}", l[1]);
+    assert!((l[0] + l[1] - 0.3f64.ln()).abs() < 1e-12, "sum = {}", l[0] + l[1]);
+}
+
+/// Sum zero, conjugate pairing lambda_i + lambda_{4N+1-i} = 0 within the error, and six
+/// vanishing exponents at indices 2N-2 .. 2N+3.
+fn check_disk_spectrum(n: usize, steps: u64) {
+    let c = config(SystemConfig::disks(n, 0.7, 1.0).unwrap(), 0.6, 200, steps, 7);
+    let f = run(&c);
+    let (l, e) = (f.acc.exponents(0.6), f.acc.stderr(0.6));
+    let d = 4 * n;
+    assert!(l.windows(2).all(|w| w[0] >= w[1] - 1e-9 || w[0].abs() < 1e-9), "not ordered: {l:?}");
+    assert!(l.iter().sum::<f64>().abs() < 1e-9, "sum = {}", l.iter().sum::<f64>());
+    assert!(l[0] > 1.0, "lambda_1 = {} is not positive enough for a dense gas", l[0]);
+    for i in 0..d / 2 {
+        let pair = l[i] + l[d - 1 - i];
+        let tol = 4.0 * (e[i].powi(2) + e[d - 1 - i].powi(2)).sqrt() + 1e-9;
+        assert!(pair.abs() < tol, "N = {n}: lambda_{} + lambda_{} = {pair} (tolerance {tol})", i + 1, d - i);
+    }
+    for i in (2 * n - 3)..(2 * n + 3) {
+        assert!(l[i].abs() < 1e-10, "N = {n}: lambda_{} = {} should vanish", i + 1, l[i]);
+    }
+    assert!(l[2 * n - 4] > 0.01 && l[2 * n + 3] < -0.01, "more than six vanishing exponents");
+}
+
+#[test]
+fn disk_spectrum_n4_has_the_symmetries() {
+    check_disk_spectrum(4, 20_000);
+}
+
+#[test]
+fn disk_spectrum_n16_has_the_symmetries() {
+    check_disk_spectrum(16, 5_000);
+}
+
+#[test]
+fn same_seed_same_bits_and_resume_equals_never_stopping() {
+    let c = config(SystemConfig::disks(16, 0.7, 1.0).unwrap(), 0.6, 10, 40, 5);
+    let a = run(&c);
+    let b = run(&c);
+    assert_eq!(a.state(), b.state());
+    let mut first = Forward::new(&c).unwrap();
+    while first.step < 27 {
+        first.step().unwrap();
+    }
+    let saved = first.state();
+    drop(first);
+    let mut resumed = Forward::resume(&c, &saved).unwrap();
+    while resumed.step < 50 {
+        resumed.step().unwrap();
+    }
+    assert_eq!(resumed.state(), a.state());
+    let other = run(&RunConfig { seed: 6, ..c.clone() });
+    assert_ne!(other.state().system, a.state().system);
+}
+
+fn clv(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_clv")).args(args).output().unwrap()
+}
+
+#[test]
+fn cli_json_reports_spectrum_configuration_and_statistics() {
+    let out = clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "200", "--relax-steps", "10", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["exponents"].as_array().unwrap().len(), 16);
+    assert_eq!(v["stderr"].as_array().unwrap().len(), 16);
+    assert_eq!(v["config"]["system"]["n"], 4);
+    assert_eq!(v["config"]["steps"], 200);
+    let st = &v["statistics"];
+    assert_eq!(st["steps"], 200);
+    assert!(st["collisions"].as_u64().unwrap() > 100);
+    assert!(st["energy_drift"].as_f64().unwrap() < 1e-12);
+    assert!(st["wall_seconds"].as_f64().is_some());
+    assert!((st["simulated_time"].as_f64().unwrap() - 120.0).abs() < 1e-9);
+}
+
+#[test]
+fn cli_refuses_bad_input_with_a_clear_message() {
+    for (args, needle) in [
+        (vec!["forward", "--density", "1.2"], "--density"),
+        (vec!["forward", "--n", "4", "--vectors", "17"], "--vectors"),
+        (vec!["forward", "--system", "henon", "--tau", "0.5"], "--tau"),
+        (vec!["forward", "--aspect", "2/0"], "--aspect"),
+        (vec!["forward", "--n", "4", "--density", "5"], "--"),
+    ] {
+        let out = clv(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert!(err.contains(needle) && !err.contains("panicked"), "{args:?}: {err}");
+    }
+}
