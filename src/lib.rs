@@ -12,6 +12,7 @@ pub mod linalg;
 pub mod report;
 pub mod rng;
 pub mod stage;
+pub mod store;
 pub mod system;
 
 pub use error::{Error, Result};

@@ -1,11 +1,15 @@
-//! The `clv` command line.
+//! The `clv` command line: parses flags into configurations and hands them to the stages.
 
-use clap::{Args, Parser, Subcommand, ValueEnum};
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand, ValueEnum};
 use clv::config::{RunConfig, SystemConfig};
-use clv::report::{SpectrumReport, Statistics};
+use clv::report::{inspect, SpectrumReport, Statistics};
 use clv::stage::forward::Forward;
+use clv::stage::forward_run::{self, Feedback};
+use clv::store::run::{BuildInfo, RunMeta, StoreConfig, StoreR, FORMAT};
 use clv::{Error, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Parser)]
@@ -17,26 +21,24 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Forward Gram-Schmidt pass: the Lyapunov spectrum with standard errors.
+    /// Forward Gram-Schmidt pass: the Lyapunov spectrum; with --out, a resumable run directory.
     Forward(ForwardArgs),
+    /// What a run directory holds, and whether every file is intact.
+    Inspect(InspectArgs),
     /// The main job on an embedded preset (today: the forward pass and its spectrum).
     Run(RunArgs),
-}
-
-#[derive(Args)]
-struct RunArgs {
-    /// Embedded configuration: default, paper or henon.
-    #[arg(long, default_value = "default")]
-    preset: String,
-    /// Print one JSON object to stdout instead of the table.
-    #[arg(long)]
-    json: bool,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
 enum SystemKind {
     Henon,
     Disks,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum StoreRArg {
+    Checkpoints,
+    All,
 }
 
 #[derive(Args)]
@@ -79,18 +81,61 @@ struct ForwardArgs {
     /// Blocks for the standard error.
     #[arg(long, default_value_t = 20)]
     blocks: usize,
+    /// Write a run directory (checkpoints, R matrices, running spectrum) for the backward stage.
+    #[arg(long, conflicts_with = "resume")]
+    out: Option<PathBuf>,
+    /// Continue the interrupted run in this directory (its configuration is read from it).
+    #[arg(long)]
+    resume: Option<PathBuf>,
+    /// Steps between checkpoints.
+    #[arg(long, default_value_t = 100)]
+    checkpoint_every: u64,
+    /// Checkpoints per segment file.
+    #[arg(long, default_value_t = 10)]
+    segment_checkpoints: u64,
+    /// Close a segment file once it holds this many MB.
+    #[arg(long, default_value_t = 1024)]
+    segment_mb: u64,
+    /// Which R matrices to store: at checkpoints, or at every step of the CLV window too.
+    #[arg(long, value_enum, default_value = "checkpoints")]
+    store_r: StoreRArg,
+    /// Steps at the end of the run for which covariant vectors are wanted (default steps/10).
+    #[arg(long)]
+    clv_steps: Option<u64>,
+    /// Backward-sweep steps discarded before the CLV window (default clv-steps/2).
+    #[arg(long)]
+    transient: Option<u64>,
+    /// Print one JSON object to stdout instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// No progress bar or notices.
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct InspectArgs {
+    /// The run directory.
+    dir: PathBuf,
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct RunArgs {
+    /// Embedded configuration: default, paper or henon.
+    #[arg(long, default_value = "default")]
+    preset: String,
     /// Print one JSON object to stdout instead of the table.
     #[arg(long)]
     json: bool,
 }
 
 fn parse_ratio(s: &str) -> std::result::Result<f64, String> {
+    let num = |x: &str| x.trim().parse::<f64>().map_err(|e| format!("{x:?}: {e}"));
     let value = match s.split_once('/') {
-        Some((a, b)) => {
-            let (a, b): (f64, f64) = (a.trim().parse().map_err(|e| format!("{e}"))?, b.trim().parse().map_err(|e| format!("{e}"))?);
-            a / b
-        }
-        None => s.trim().parse().map_err(|e| format!("{e}"))?,
+        Some((a, b)) => num(a)? / num(b)?,
+        None => num(s)?,
     };
     if value.is_finite() && value > 0.0 { Ok(value) } else { Err(format!("must be a positive number or fraction, got {s}")) }
 }
@@ -121,20 +166,142 @@ impl ForwardArgs {
         config.validate()?;
         Ok(config)
     }
+
+    fn meta(&self) -> Result<RunMeta> {
+        let config = self.config()?;
+        let mut store = StoreConfig::for_run(&config);
+        store.checkpoint_every = self.checkpoint_every;
+        store.segment_checkpoints = self.segment_checkpoints;
+        store.segment_bytes = self.segment_mb.saturating_mul(1 << 20);
+        store.store_r = match self.store_r {
+            StoreRArg::Checkpoints => StoreR::Checkpoints,
+            StoreRArg::All => StoreR::All,
+        };
+        if let Some(c) = self.clv_steps {
+            store.clv_steps = c;
+            store.transient = (c / 2).max(1);
+        }
+        if let Some(t) = self.transient {
+            store.transient = t;
+        }
+        store.validate(&config)?;
+        Ok(RunMeta { format: FORMAT.into(), config, store, build: BuildInfo::current() })
+    }
 }
 
-fn progress(len: u64, what: &str) -> ProgressBar {
-    let bar = ProgressBar::new(len);
+/// The values of the flags that define a run, as they would be given on the command line.
+fn flag_values(m: &RunMeta) -> Vec<(&'static str, String)> {
+    let c = &m.config;
+    let mut v = vec![
+        ("tau", c.tau.to_string()),
+        ("relax_steps", c.relax_steps.to_string()),
+        ("steps", c.steps.to_string()),
+        ("vectors", c.vectors.to_string()),
+        ("seed", c.seed.to_string()),
+        ("threads", c.threads.to_string()),
+        ("blocks", c.blocks.to_string()),
+        ("checkpoint_every", m.store.checkpoint_every.to_string()),
+        ("segment_checkpoints", m.store.segment_checkpoints.to_string()),
+        ("segment_mb", (m.store.segment_bytes >> 20).to_string()),
+        ("store_r", format!("{:?}", m.store.store_r)),
+        ("clv_steps", m.store.clv_steps.to_string()),
+        ("transient", m.store.transient.to_string()),
+    ];
+    match &c.system {
+        SystemConfig::Henon { .. } => v.push(("system", "henon".into())),
+        SystemConfig::Disks { n, lx, ly, density, aspect } => v.extend([
+            ("system", "disks".into()),
+            ("n", n.to_string()),
+            ("lx", lx.to_string()),
+            ("ly", ly.to_string()),
+            ("density", density.to_string()),
+            ("aspect", aspect.to_string()),
+        ]),
+    }
+    v
+}
+
+/// Refuse flags given with --resume that disagree with the stored run.
+fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path::Path) -> Result<()> {
+    let (_, stored) = clv::store::RunDir::open(dir)?;
+    let given: Vec<&str> = flag_values(&stored)
+        .iter()
+        .map(|(id, _)| *id)
+        .chain(["system"])
+        .filter(|id| matches.value_source(id) == Some(ValueSource::CommandLine))
+        .collect();
+    if given.is_empty() {
+        return Ok(());
+    }
+    let wanted = flag_values(&args.meta()?);
+    let stored = flag_values(&stored);
+    for id in given {
+        let w = wanted.iter().find(|(k, _)| *k == id).map(|(_, v)| v.as_str());
+        let s = stored.iter().find(|(k, _)| *k == id).map(|(_, v)| v.as_str());
+        if w != s {
+            let flag = id.replace('_', "-");
+            return Err(Error::param(
+                "resume",
+                format!(
+                    "--{flag} {} conflicts with the run in {}, which was made with --{flag} {}; drop the flag to resume it, or start a new run with --out",
+                    w.unwrap_or("?"),
+                    dir.display(),
+                    s.unwrap_or("(not set)")
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn progress(what: &str, quiet: bool) -> Option<ProgressBar> {
+    if quiet {
+        return None;
+    }
+    let bar = ProgressBar::new(0);
     bar.set_style(
-        ProgressStyle::with_template("{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} steps ({eta} left)")
+        ProgressStyle::with_template("{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} steps, {per_sec} ({eta} left)")
             .expect("static template"),
     );
     bar.set_message(what.to_string());
-    bar
+    Some(bar)
 }
 
-fn forward(args: &ForwardArgs) -> Result<()> {
-    spectrum(args.config()?, args.json)
+fn print_report(report: &SpectrumReport, json: bool) -> Result<()> {
+    if json {
+        println!("{}", serde_json::to_string(report).map_err(|e| Error::Other(e.to_string()))?);
+    } else {
+        print!("{}", report.table());
+    }
+    Ok(())
+}
+
+fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
+    if let Some(dir) = &args.resume {
+        check_resume_flags(args, matches, dir)?;
+        let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
+        let outcome = forward_run::resume(dir, &mut feedback)?;
+        if let Some(bar) = &feedback.bar {
+            bar.finish_and_clear();
+        }
+        if outcome.already_finished && !args.quiet {
+            eprintln!("clv: the run in {} is already complete; nothing to do", dir.display());
+        }
+        return print_report(&outcome.report, args.json);
+    }
+    if let Some(dir) = &args.out {
+        let meta = args.meta()?;
+        if !args.quiet {
+            eprintln!("clv: writing {}: {}", dir.display(), meta.store.footprint(&meta.config).1);
+        }
+        let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
+        let outcome = forward_run::create(dir, &meta, &mut feedback)?;
+        if let Some(bar) = &feedback.bar {
+            bar.finish_and_clear();
+        }
+        return print_report(&outcome.report, args.json);
+    }
+    spectrum(args.config()?, args.json, args.quiet)
 }
 
 fn run(args: &RunArgs) -> Result<()> {
@@ -142,38 +309,56 @@ fn run(args: &RunArgs) -> Result<()> {
     if !args.json {
         eprintln!("clv run: preset {:?}: {}", args.preset, serde_json::to_string(&config).unwrap_or_default());
     }
-    spectrum(config, args.json)
+    spectrum(config, args.json, false)
 }
 
-fn spectrum(config: RunConfig, json: bool) -> Result<()> {
+/// The forward pass in memory, nothing written.
+fn spectrum(config: RunConfig, json: bool, quiet: bool) -> Result<()> {
     let started = Instant::now();
     let mut fwd = Forward::new(&config)?;
     let start = fwd.system.invariants();
     let total = config.relax_steps + config.steps;
-    let bar = progress(total, "forward");
+    let bar = progress("forward", quiet);
+    if let Some(bar) = &bar {
+        bar.set_length(total);
+    }
     while fwd.step < total {
         fwd.step()?;
-        bar.inc(1);
+        if let Some(bar) = &bar {
+            bar.inc(1);
+        }
     }
-    bar.finish_and_clear();
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
     let report = SpectrumReport {
         exponents: fwd.acc.exponents(config.tau),
         stderr: fwd.acc.stderr(config.tau),
         statistics: Statistics::new(&config, &start, &fwd.system.invariants(), started.elapsed().as_secs_f64()),
         config,
     };
-    if json {
-        println!("{}", serde_json::to_string(&report).map_err(|e| Error::Other(e.to_string()))?);
+    print_report(&report, json)
+}
+
+fn inspect_cmd(args: &InspectArgs) -> Result<()> {
+    let found = inspect::inspect(&args.dir)?;
+    if args.json {
+        println!("{}", serde_json::to_string(&found).map_err(|e| Error::Other(e.to_string()))?);
     } else {
-        print!("{}", report.table());
+        print!("{}", found.text());
     }
-    Ok(())
+    if found.intact { Ok(()) } else { Err(Error::Other(format!("{}: damaged files found (see above)", args.dir.display()))) }
 }
 
 fn main() {
-    let cli = Cli::parse();
+    let matches = Cli::command().get_matches();
+    let cli = match Cli::from_arg_matches(&matches) {
+        Ok(cli) => cli,
+        Err(e) => e.exit(),
+    };
     let result = match &cli.command {
-        Command::Forward(args) => forward(args),
+        Command::Forward(args) => forward(args, matches.subcommand_matches("forward").expect("subcommand parsed")),
+        Command::Inspect(args) => inspect_cmd(args),
         Command::Run(args) => run(args),
     };
     if let Err(e) = result {

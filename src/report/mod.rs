@@ -1,5 +1,7 @@
 //! What a person sees: the spectrum table and the JSON summary of a run.
 
+pub mod inspect;
+
 use crate::config::RunConfig;
 use crate::system::Invariants;
 use serde::Serialize;

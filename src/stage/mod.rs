@@ -2,3 +2,4 @@
 //! Ginelli pass and the analyses that consume its frames).
 
 pub mod forward;
+pub mod forward_run;

@@ -1,0 +1,131 @@
+//! `clv inspect`: what a run directory holds and whether every file is intact.
+
+use crate::error::Result;
+use crate::store::records::{Checkpoint, Stats};
+use crate::store::run::{human, RunDir, RunMeta};
+use crate::store::schema::{CHECKPOINT, R, STATS};
+use crate::store::segment::read_segment;
+use serde::Serialize;
+use std::fmt::Write;
+use std::path::Path;
+
+#[derive(Debug, Serialize)]
+pub struct SegmentReport {
+    pub file: String,
+    pub first_step: u64,
+    pub last_step: u64,
+    pub bytes: u64,
+    pub checkpoints: u64,
+    pub r_matrices: u64,
+    /// None if intact, else what is wrong (CRC, truncation, undecodable message).
+    pub damage: Option<String>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Inspection {
+    pub run: RunMeta,
+    pub total_steps: u64,
+    /// Step of the newest intact checkpoint.
+    pub steps_done: Option<u64>,
+    pub finished: bool,
+    pub checkpoints: u64,
+    pub segments: Vec<SegmentReport>,
+    pub partial_segments: Vec<String>,
+    pub disk_bytes: u64,
+    /// Spectrum at the newest intact checkpoint.
+    pub exponents: Vec<f64>,
+    pub stderr: Vec<f64>,
+    pub intact: bool,
+}
+
+pub fn inspect(path: &Path) -> Result<Inspection> {
+    let (dir, meta) = RunDir::open(path)?;
+    let mut segments = Vec::new();
+    let mut newest: Option<(u64, Stats)> = None;
+    for seg in dir.segments()? {
+        let (mut checkpoints, mut rs) = (0, 0);
+        let mut last_stats = None;
+        let result = read_segment(&seg.path, false, |m| {
+            let check = |r: std::result::Result<(), String>| r.map_err(|e| crate::Error::corrupt(&seg.path, format!("step {}: {e}", m.step)));
+            if m.topic == CHECKPOINT.topic {
+                check(Checkpoint::decode(m.data).map(|_| ()))?;
+                checkpoints += 1;
+            } else if m.topic == R.topic {
+                check(crate::store::records::decode_r(m.data).map(|_| ()))?;
+                rs += 1;
+            } else if m.topic == STATS.topic {
+                last_stats = Some(Stats::decode(m.data).map_err(|e| crate::Error::corrupt(&seg.path, e))?);
+            }
+            Ok(())
+        });
+        let damage = result.err().map(|e| e.to_string());
+        if damage.is_none() {
+            if let Some(s) = last_stats {
+                if newest.as_ref().is_none_or(|(step, _)| s.step > *step) {
+                    newest = Some((s.step, s));
+                }
+            }
+        }
+        segments.push(SegmentReport {
+            file: seg.path.file_name().unwrap_or_default().to_string_lossy().into(),
+            first_step: seg.first,
+            last_step: seg.last,
+            bytes: seg.bytes,
+            checkpoints,
+            r_matrices: rs,
+            damage,
+        });
+    }
+    let partial_segments: Vec<String> = dir.partial_segments()?.iter().map(|p| p.display().to_string()).collect();
+    let mut disk_bytes = 0;
+    for entry in std::fs::read_dir(&dir.path).map_err(|e| crate::Error::io(&dir.path, e))?.flatten() {
+        disk_bytes += entry.metadata().map(|m| m.len()).unwrap_or(0);
+    }
+    let total_steps = meta.config.relax_steps + meta.config.steps;
+    let (exponents, stderr) = newest.as_ref().map(|(_, s)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
+    Ok(Inspection {
+        total_steps,
+        steps_done: newest.as_ref().map(|(s, _)| *s),
+        finished: dir.spectrum_path().exists() && newest.as_ref().is_some_and(|(s, _)| *s == total_steps),
+        checkpoints: segments.iter().map(|s| s.checkpoints).sum(),
+        intact: segments.iter().all(|s| s.damage.is_none()) && partial_segments.is_empty(),
+        segments,
+        partial_segments,
+        disk_bytes,
+        exponents,
+        stderr,
+        run: meta,
+    })
+}
+
+impl Inspection {
+    pub fn text(&self) -> String {
+        let mut s = String::new();
+        let c = &self.run.config;
+        let _ = writeln!(s, "run: {} (D = {}, k = {}), tau = {}, seed {}", serde_json::to_string(&c.system).unwrap_or_default(), c.system.dim(), c.vectors, c.tau, c.seed);
+        let _ = writeln!(
+            s,
+            "steps: {} of {} ({}), checkpoint every {}, CLV window {} + transient {}",
+            self.steps_done.map_or("none".into(), |x| x.to_string()),
+            self.total_steps,
+            if self.finished { "finished" } else { "not finished: clv forward --resume" },
+            self.run.store.checkpoint_every,
+            self.run.store.clv_steps,
+            self.run.store.transient
+        );
+        let _ = writeln!(s, "files: {} segments, {} checkpoints, {} on disk", self.segments.len(), self.checkpoints, human(self.disk_bytes));
+        for seg in &self.segments {
+            let state = seg.damage.as_deref().unwrap_or("intact");
+            let _ = writeln!(s, "  {}  steps {}..{}  {} checkpoints, {} R  {}  {state}", seg.file, seg.first_step, seg.last_step, seg.checkpoints, seg.r_matrices, human(seg.bytes));
+        }
+        for p in &self.partial_segments {
+            let _ = writeln!(s, "  {p}  interrupted (discarded on --resume)");
+        }
+        if !self.exponents.is_empty() {
+            let show: Vec<String> = self.exponents.iter().take(4).map(|x| format!("{x:.5}")).collect();
+            let _ = writeln!(s, "spectrum so far: lambda_1.. = {} ... lambda_k = {:.5}", show.join(", "), self.exponents.last().unwrap_or(&f64::NAN));
+        }
+        let _ = writeln!(s, "{}", if self.intact { "all files intact" } else { "DAMAGE FOUND (see above)" });
+        s
+    }
+}

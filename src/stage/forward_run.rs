@@ -1,0 +1,203 @@
+//! The forward stage as a long job: writes a run directory, survives being killed.
+//!
+//! A new run writes run.json, then a checkpoint at step 0 and one every `checkpoint_every`
+//! steps, with R_n at checkpoints (and every step of the window with `--store-r all`) and
+//! the running spectrum. A resumed run discards an interrupted `.tmp` segment, continues from
+//! the last checkpoint of the newest intact segment, and writes exactly what the
+//! uninterrupted run would have written.
+
+use super::forward::Forward;
+use crate::error::{Error, Result};
+use crate::report::{SpectrumReport, Statistics};
+use crate::store::records::{encode_r, Checkpoint, Stats};
+use crate::store::run::{write_atomic, RunDir, RunMeta, StoreR};
+use crate::store::schema::{CHECKPOINT, R, STATS};
+use crate::store::segment::read_segment;
+use crate::store::sink::{Policy, Sink};
+use crate::system::Invariants;
+use indicatif::ProgressBar;
+use std::path::Path;
+use std::time::Instant;
+
+/// How a forward job ended.
+pub struct Outcome {
+    pub report: SpectrumReport,
+    /// The step a resumed run continued from.
+    pub resumed_from: Option<u64>,
+    /// The run was complete before this call; nothing was done.
+    pub already_finished: bool,
+}
+
+/// What a person sees: a progress bar, and notices printed beside it (with no bar the
+/// run is quiet and notices are only collected).
+#[derive(Default)]
+pub struct Feedback {
+    pub bar: Option<ProgressBar>,
+    pub notices: Vec<String>,
+}
+
+impl Feedback {
+    fn notice(&mut self, msg: String) {
+        if let Some(bar) = &self.bar {
+            bar.suspend(|| eprintln!("clv: {msg}"));
+        }
+        self.notices.push(msg);
+    }
+}
+
+/// Start a new run in `path`.
+pub fn create(path: &Path, meta: &RunMeta, feedback: &mut Feedback) -> Result<Outcome> {
+    meta.config.validate()?;
+    meta.store.validate(&meta.config)?;
+    let dir = RunDir::create(path, meta)?;
+    let fwd = Forward::new(&meta.config)?;
+    let energy0 = fwd.system.invariants().energy;
+    drive(&dir, meta, fwd, energy0, 0.0, true, feedback).map(|report| Outcome { report, resumed_from: None, already_finished: false })
+}
+
+/// What the newest intact segment says about where the run stands.
+struct LastCheckpoint {
+    checkpoint: Checkpoint,
+    stats: Stats,
+}
+
+/// Continue an interrupted run in `path` (or report a finished one).
+pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
+    let (dir, meta) = RunDir::open(path)?;
+    for partial in dir.partial_segments()? {
+        let mut checkpoints = 0u64;
+        let mut last = None;
+        let report = read_segment(&partial, true, |m| {
+            if m.topic == CHECKPOINT.topic {
+                checkpoints += 1;
+                last = Some(m.step);
+            }
+            Ok(())
+        });
+        let what = match (report, last) {
+            (Ok(_), Some(step)) => format!("{checkpoints} complete checkpoints up to step {step}"),
+            _ => "no complete checkpoint".to_string(),
+        };
+        feedback.notice(format!("discarding the interrupted segment {} ({what}); they will be recomputed", partial.display()));
+        std::fs::remove_file(&partial).map_err(|e| Error::io(&partial, e))?;
+    }
+    let mut last: Option<LastCheckpoint> = None;
+    for seg in dir.segments()?.iter().rev() {
+        match read_last(&seg.path) {
+            Ok(found) => {
+                last = Some(found);
+                break;
+            }
+            Err(e) => {
+                let aside = seg.path.with_extension("mcap.corrupt");
+                feedback.notice(format!("{e}; moving it aside to {} and falling back to the previous segment", aside.display()));
+                std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
+            }
+        }
+    }
+    let total = meta.config.relax_steps + meta.config.steps;
+    let Some(last) = last else {
+        feedback.notice("no intact checkpoint found; starting the run over from step 0".into());
+        let fwd = Forward::new(&meta.config)?;
+        let energy0 = fwd.system.invariants().energy;
+        return drive(&dir, &meta, fwd, energy0, 0.0, true, feedback).map(|report| Outcome { report, resumed_from: Some(0), already_finished: false });
+    };
+    let step = last.checkpoint.state.step;
+    let fwd = Forward::resume(&meta.config, &last.checkpoint.state)?;
+    if step >= total {
+        let report = report_of(&meta, &fwd, last.stats.energy_initial, last.stats.wall_seconds);
+        return Ok(Outcome { report, resumed_from: Some(step), already_finished: true });
+    }
+    feedback.notice(format!("resuming {} at step {step} of {total}", path.display()));
+    drive(&dir, &meta, fwd, last.stats.energy_initial, last.stats.wall_seconds, false, feedback)
+        .map(|report| Outcome { report, resumed_from: Some(step), already_finished: false })
+}
+
+/// The last checkpoint and stats of a finished segment, reading it whole (CRCs checked).
+fn read_last(path: &Path) -> Result<LastCheckpoint> {
+    let (mut cp, mut stats) = (None, None);
+    read_segment(path, false, |m| {
+        let bad = |e: String| Error::corrupt(path, format!("step {}: {e}", m.step));
+        if m.topic == CHECKPOINT.topic {
+            cp = Some(Checkpoint::decode(m.data).map_err(bad)?);
+        } else if m.topic == STATS.topic {
+            stats = Some(Stats::decode(m.data).map_err(bad)?);
+        }
+        Ok(())
+    })?;
+    match (cp, stats) {
+        (Some(checkpoint), Some(stats)) if stats.step == checkpoint.state.step => Ok(LastCheckpoint { checkpoint, stats }),
+        _ => Err(Error::corrupt(path, "no complete checkpoint with its statistics")),
+    }
+}
+
+fn report_of(meta: &RunMeta, fwd: &Forward, energy0: f64, wall: f64) -> SpectrumReport {
+    let start = Invariants { energy: energy0, ..Default::default() };
+    SpectrumReport {
+        config: meta.config.clone(),
+        exponents: fwd.acc.exponents(meta.config.tau),
+        stderr: fwd.acc.stderr(meta.config.tau),
+        statistics: Statistics::new(&meta.config, &start, &fwd.system.invariants(), wall),
+    }
+}
+
+fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f64, write_first: bool, feedback: &mut Feedback) -> Result<SpectrumReport> {
+    let (config, store) = (&meta.config, &meta.store);
+    let total = config.relax_steps + config.steps;
+    let window = store.window_start(config);
+    let c = store.checkpoint_every;
+    let policy = Policy {
+        segment_checkpoints: store.segment_checkpoints,
+        segment_bytes: store.segment_bytes,
+        total_steps: total,
+        prune_before: window / c * c,
+        keep_segments: store.keep_segments,
+    };
+    let mut sink = Sink::spawn(dir.path.clone(), RunDir::meta_json(meta), policy);
+    let started = Instant::now();
+    let (d, k) = (fwd.system.dim(), config.vectors);
+    let checkpoint = |fwd: &Forward, sink: &mut Sink| -> Result<()> {
+        let n = fwd.step;
+        let inv = fwd.system.invariants();
+        let stats = Stats {
+            step: n,
+            time: fwd.time(),
+            exponents: fwd.acc.exponents(config.tau),
+            stderr: fwd.acc.stderr(config.tau),
+            energy: inv.energy,
+            energy_initial: energy0,
+            momentum: inv.momentum,
+            collisions: inv.events,
+            wall_seconds: wall0 + started.elapsed().as_secs_f64(),
+        };
+        sink.send(STATS.topic, n, stats.encode())?;
+        let cp = Checkpoint { state: fwd.state(), time: fwd.time(), system: fwd.system.name().into(), d, k };
+        sink.send(CHECKPOINT.topic, n, cp.encode())
+    };
+    if write_first {
+        checkpoint(&fwd, &mut sink)?;
+    }
+    if let Some(bar) = &feedback.bar {
+        bar.set_length(total);
+        bar.set_position(fwd.step);
+    }
+    while fwd.step < total {
+        fwd.step()?;
+        let n = fwd.step;
+        let is_cp = store.is_checkpoint(n, total);
+        if is_cp || (store.store_r == StoreR::All && n > window) {
+            sink.send(R.topic, n, encode_r(n, &fwd.r))?;
+        }
+        if is_cp {
+            checkpoint(&fwd, &mut sink)?;
+        }
+        if let Some(bar) = &feedback.bar {
+            bar.set_position(n);
+        }
+    }
+    sink.close()?;
+    let report = report_of(meta, &fwd, energy0, wall0 + started.elapsed().as_secs_f64());
+    let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Other(e.to_string()))?;
+    write_atomic(&dir.spectrum_path(), json.as_bytes())?;
+    Ok(report)
+}

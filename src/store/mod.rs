@@ -1,0 +1,23 @@
+//! How data lives on disk: a run directory of chunked MCAP segment files.
+//!
+//! ```text
+//! RUN_DIR/run.json                  configuration + store layout + build (also inside every segment)
+//! RUN_DIR/seg-FIRST-LAST.mcap       finished segments: checkpoints FIRST..=LAST (steps)
+//! RUN_DIR/seg-FIRST.mcap.tmp        the segment being written (a leftover means a crash)
+//! RUN_DIR/spectrum.json             the final forward spectrum, once the run is complete
+//! ```
+//!
+//! Why this shape: the Ginelli backward pass needs, newest first, what the forward pass
+//! computed, and for the paper's system that is far too much to keep in memory. Checkpoints
+//! every `checkpoint_every` steps hold the exact state, so anything between two of them can be
+//! recomputed; files are only ever created whole (tmp + fsync + rename), so a killed run loses
+//! at most the segment in progress and resumes bit for bit.
+
+pub mod cbor;
+pub mod records;
+pub mod run;
+pub mod schema;
+pub mod segment;
+pub mod sink;
+
+pub use run::{RunDir, RunMeta, StoreConfig, StoreR};

@@ -1,0 +1,128 @@
+//! Typed messages of a run directory and their encoding through the schemas.
+
+use super::schema::{CHECKPOINT, R, STATS};
+use crate::stage::forward::{Accumulator, ForwardState};
+use crate::system::Snapshot;
+use faer::Mat;
+
+/// A checkpoint: the forward state plus what a reader needs to interpret it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Checkpoint {
+    pub state: ForwardState,
+    pub time: f64,
+    pub system: String,
+    pub d: usize,
+    pub k: usize,
+}
+
+impl Checkpoint {
+    pub fn encode(&self) -> Vec<u8> {
+        let s = &self.state;
+        let blocks: Vec<f64> = s.acc.blocks.iter().flatten().copied().collect();
+        CHECKPOINT
+            .encoder(8 * (s.g.len() + s.system.phase.len() + blocks.len() + 3 * self.k))
+            .u64("step", s.step)
+            .f64("time", self.time)
+            .text("system", &self.system)
+            .u64("d", self.d as u64)
+            .u64("k", self.k as u64)
+            .u64("events", s.system.events)
+            .f64s("phase", &s.system.phase)
+            .f64s("g", &s.g)
+            .u64("acc_steps", s.acc.steps)
+            .u64("acc_block_len", s.acc.block_len)
+            .f64s("acc_sum", &s.acc.sum)
+            .f64s("acc_current", &s.acc.current)
+            .f64s("acc_blocks", &blocks)
+            .finish()
+    }
+
+    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
+        let mut m = CHECKPOINT.decode(bytes)?;
+        let (d, k) = (m.u64("d") as usize, m.u64("k") as usize);
+        let phase = m.take_f64s("phase");
+        let g = m.take_f64s("g");
+        let sum = m.take_f64s("acc_sum");
+        let current = m.take_f64s("acc_current");
+        let blocks = m.take_f64s("acc_blocks");
+        let step = m.u64("step");
+        if phase.len() != d || g.len() != d * k || sum.len() != k || current.len() != k || (k > 0 && blocks.len() % k != 0) {
+            return Err(format!("checkpoint at step {step}: array lengths do not match D = {d}, k = {k}"));
+        }
+        let acc = Accumulator {
+            sum,
+            steps: m.u64("acc_steps"),
+            block_len: m.u64("acc_block_len").max(1),
+            blocks: blocks.chunks(k.max(1)).map(<[f64]>::to_vec).collect(),
+            current,
+        };
+        Ok(Checkpoint {
+            state: ForwardState { step, system: Snapshot { phase, events: m.u64("events") }, g, acc },
+            time: m.f64("time"),
+            system: m.text("system").to_string(),
+            d,
+            k,
+        })
+    }
+}
+
+pub fn encode_r(step: u64, r: &Mat<f64>) -> Vec<u8> {
+    let packed = crate::linalg::pack_upper(r.as_ref());
+    R.encoder(8 * packed.len()).u64("step", step).u64("k", r.ncols() as u64).f64s("r", &packed).finish()
+}
+
+/// (step, R_n).
+pub fn decode_r(bytes: &[u8]) -> Result<(u64, Mat<f64>), String> {
+    let mut m = R.decode(bytes)?;
+    let (step, k) = (m.u64("step"), m.u64("k") as usize);
+    let r = crate::linalg::unpack_upper(&m.take_f64s("r")).filter(|r| r.ncols() == k);
+    r.map(|r| (step, r)).ok_or_else(|| format!("R at step {step}: packed length does not match k = {k}"))
+}
+
+/// The running spectrum and statistics at a checkpoint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stats {
+    pub step: u64,
+    pub time: f64,
+    pub exponents: Vec<f64>,
+    pub stderr: Vec<f64>,
+    pub energy: f64,
+    pub energy_initial: f64,
+    pub momentum: [f64; 2],
+    pub collisions: u64,
+    pub wall_seconds: f64,
+}
+
+impl Stats {
+    pub fn encode(&self) -> Vec<u8> {
+        STATS
+            .encoder(16 * self.exponents.len())
+            .u64("step", self.step)
+            .f64("time", self.time)
+            .f64s("exponents", &self.exponents)
+            .f64s("stderr", &self.stderr)
+            .f64("energy", self.energy)
+            .f64("energy_initial", self.energy_initial)
+            .f64s("momentum", &self.momentum)
+            .u64("collisions", self.collisions)
+            .f64("wall_seconds", self.wall_seconds)
+            .finish()
+    }
+
+    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
+        let mut m = STATS.decode(bytes)?;
+        let momentum = m.take_f64s("momentum");
+        let momentum: [f64; 2] = momentum.try_into().map_err(|_| "stats: momentum must hold 2 values".to_string())?;
+        Ok(Stats {
+            step: m.u64("step"),
+            time: m.f64("time"),
+            exponents: m.take_f64s("exponents"),
+            stderr: m.take_f64s("stderr"),
+            energy: m.f64("energy"),
+            energy_initial: m.f64("energy_initial"),
+            momentum,
+            collisions: m.u64("collisions"),
+            wall_seconds: m.f64("wall_seconds"),
+        })
+    }
+}

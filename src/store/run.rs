@@ -1,0 +1,254 @@
+//! The run directory: its description (run.json) and its segment files.
+
+use super::segment::{self, parse_final_name};
+use crate::config::RunConfig;
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::fs;
+use std::path::{Path, PathBuf};
+
+pub const FORMAT: &str = "clv-run/1";
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StoreR {
+    /// R_n at checkpoints only; the backward stage recomputes the rest.
+    Checkpoints,
+    /// R_n at every step of the CLV window as well.
+    All,
+}
+
+/// How a run is laid out on disk and what is kept.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StoreConfig {
+    /// Steps between checkpoints (the paper's 100 tau).
+    pub checkpoint_every: u64,
+    /// Checkpoints per segment file.
+    pub segment_checkpoints: u64,
+    /// A segment is also closed once it holds this many bytes of messages.
+    pub segment_bytes: u64,
+    pub store_r: StoreR,
+    /// The last steps of the run for which covariant vectors are wanted.
+    pub clv_steps: u64,
+    /// Steps of the backward sweep discarded as transient, before the CLV window.
+    pub transient: u64,
+    /// Segments kept before the window (for resuming), older ones are pruned.
+    pub keep_segments: u64,
+}
+
+impl StoreConfig {
+    /// The defaults for a run: checkpoints every 100 steps, 10 per segment, the CLV window
+    /// the last tenth of the accumulated steps (as in the paper), a transient of half that.
+    pub fn for_run(config: &RunConfig) -> Self {
+        let clv_steps = (config.steps / 10).max(1);
+        StoreConfig {
+            checkpoint_every: 100,
+            segment_checkpoints: 10,
+            segment_bytes: 1 << 30,
+            store_r: StoreR::Checkpoints,
+            clv_steps,
+            transient: (clv_steps / 2).max(1),
+            keep_segments: 2,
+        }
+    }
+
+    pub fn validate(&self, config: &RunConfig) -> Result<()> {
+        if self.checkpoint_every == 0 {
+            return Err(Error::param("checkpoint-every", "must be at least 1"));
+        }
+        if self.segment_checkpoints == 0 {
+            return Err(Error::param("segment-checkpoints", "must be at least 1"));
+        }
+        if self.clv_steps + self.transient > config.steps {
+            return Err(Error::param("clv-steps", format!(
+                "the CLV window ({}) plus the backward transient ({}) must fit in the accumulated --steps ({})",
+                self.clv_steps, self.transient, config.steps
+            )));
+        }
+        Ok(())
+    }
+
+    /// First step of the part of the run the backward stage needs (transient + window).
+    pub fn window_start(&self, config: &RunConfig) -> u64 {
+        let total = config.relax_steps + config.steps;
+        total - self.clv_steps - self.transient
+    }
+
+    /// Steps at which checkpoints are written: 0, C, 2C, ... and always the last step.
+    pub fn is_checkpoint(&self, step: u64, total: u64) -> bool {
+        step % self.checkpoint_every == 0 || step == total
+    }
+
+    /// Bytes a checkpoint (with its R and stats) takes before compression.
+    pub fn checkpoint_bytes(&self, config: &RunConfig) -> u64 {
+        let (d, k) = (config.system.dim() as u64, config.vectors as u64);
+        let blocks = config.blocks as u64 + 1;
+        8 * (d * k + d + k * (3 + blocks)) + 4 * k * (k + 1) + 8 * 3 * k + 600
+    }
+
+    /// Estimated disk footprint of the finished run and a sentence that explains it.
+    pub fn footprint(&self, config: &RunConfig) -> (u64, String) {
+        let per = self.checkpoint_bytes(config);
+        let window = self.clv_steps + self.transient;
+        let kept = window.div_ceil(self.checkpoint_every) + 1 + self.keep_segments * self.segment_checkpoints;
+        let total_cps = (config.relax_steps + config.steps).div_ceil(self.checkpoint_every) + 1;
+        let kept = kept.min(total_cps);
+        let k = config.vectors as u64;
+        let r_all = if self.store_r == StoreR::All { window * 4 * k * (k + 1) } else { 0 };
+        let bytes = kept * per + r_all;
+        let mut msg = format!("about {} on disk: {kept} checkpoints of {} kept", human(bytes), human(per));
+        if r_all > 0 {
+            msg += &format!(" + {} of R matrices for {window} steps (--store-r all)", human(r_all));
+        }
+        (bytes, msg)
+    }
+}
+
+pub fn human(bytes: u64) -> String {
+    let b = bytes as f64;
+    if b >= 1e9 {
+        format!("{:.2} GB", b / 1e9)
+    } else if b >= 1e6 {
+        format!("{:.1} MB", b / 1e6)
+    } else {
+        format!("{:.0} kB", (b / 1e3).ceil())
+    }
+}
+
+/// Facts about the build that determine the bits of a run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BuildInfo {
+    pub clv_version: String,
+    pub arch: String,
+    /// CPU features faer may dispatch to; a run continued on a machine with others may
+    /// differ in the last bits.
+    pub cpu_features: Vec<String>,
+}
+
+impl BuildInfo {
+    pub fn current() -> Self {
+        let mut cpu_features = Vec::new();
+        #[cfg(target_arch = "x86_64")]
+        {
+            for (name, on) in [
+                ("avx2", std::arch::is_x86_feature_detected!("avx2")),
+                ("fma", std::arch::is_x86_feature_detected!("fma")),
+                ("avx512f", std::arch::is_x86_feature_detected!("avx512f")),
+            ] {
+                if on {
+                    cpu_features.push(name.to_string());
+                }
+            }
+        }
+        BuildInfo { clv_version: env!("CARGO_PKG_VERSION").into(), arch: std::env::consts::ARCH.into(), cpu_features }
+    }
+}
+
+/// Everything that says how a run was made (run.json).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunMeta {
+    pub format: String,
+    pub config: RunConfig,
+    pub store: StoreConfig,
+    pub build: BuildInfo,
+}
+
+/// A finished segment file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SegmentFile {
+    pub path: PathBuf,
+    pub first: u64,
+    pub last: u64,
+    pub bytes: u64,
+}
+
+pub struct RunDir {
+    pub path: PathBuf,
+}
+
+impl RunDir {
+    pub fn meta_path(&self) -> PathBuf {
+        self.path.join("run.json")
+    }
+    pub fn spectrum_path(&self) -> PathBuf {
+        self.path.join("spectrum.json")
+    }
+
+    /// Create a new run directory (it must not exist, or be empty).
+    pub fn create(path: &Path, meta: &RunMeta) -> Result<Self> {
+        if path.exists() {
+            let mut entries = fs::read_dir(path).map_err(|e| Error::io(path, e))?;
+            if entries.next().is_some() {
+                return Err(Error::Other(format!(
+                    "{} already exists and is not empty; resume it with `clv forward --resume {}` or choose another --out",
+                    path.display(),
+                    path.display()
+                )));
+            }
+        }
+        fs::create_dir_all(path).map_err(|e| Error::io(path, e))?;
+        let dir = RunDir { path: path.to_path_buf() };
+        let json = serde_json::to_string_pretty(meta).map_err(|e| Error::Other(e.to_string()))?;
+        write_atomic(&dir.meta_path(), json.as_bytes())?;
+        Ok(dir)
+    }
+
+    pub fn open(path: &Path) -> Result<(Self, RunMeta)> {
+        let dir = RunDir { path: path.to_path_buf() };
+        let meta_path = dir.meta_path();
+        let text = fs::read_to_string(&meta_path).map_err(|e| {
+            Error::Other(format!("{}: {e}; is {} a run directory written by `clv forward --out`?", meta_path.display(), path.display()))
+        })?;
+        let meta: RunMeta = serde_json::from_str(&text).map_err(|e| Error::corrupt(&meta_path, e.to_string()))?;
+        if meta.format != FORMAT {
+            return Err(Error::corrupt(&meta_path, format!("format {:?}, this clv reads {FORMAT:?}", meta.format)));
+        }
+        Ok((dir, meta))
+    }
+
+    pub fn meta_json(meta: &RunMeta) -> String {
+        serde_json::to_string(meta).unwrap_or_default()
+    }
+
+    /// Finished segments, oldest first.
+    pub fn segments(&self) -> Result<Vec<SegmentFile>> {
+        let mut out = Vec::new();
+        for entry in fs::read_dir(&self.path).map_err(|e| Error::io(&self.path, e))? {
+            let entry = entry.map_err(|e| Error::io(&self.path, e))?;
+            let name = entry.file_name().to_string_lossy().to_string();
+            if let Some((first, last)) = parse_final_name(&name) {
+                let bytes = entry.metadata().map(|m| m.len()).unwrap_or(0);
+                out.push(SegmentFile { path: entry.path(), first, last, bytes });
+            }
+        }
+        out.sort_by_key(|s| s.first);
+        Ok(out)
+    }
+
+    /// Leftover `.tmp` segments (interrupted writes).
+    pub fn partial_segments(&self) -> Result<Vec<PathBuf>> {
+        let mut out = Vec::new();
+        for entry in fs::read_dir(&self.path).map_err(|e| Error::io(&self.path, e))? {
+            let entry = entry.map_err(|e| Error::io(&self.path, e))?;
+            let name = entry.file_name().to_string_lossy().to_string();
+            if name.starts_with("seg-") && name.ends_with(".mcap.tmp") {
+                out.push(entry.path());
+            }
+        }
+        out.sort();
+        Ok(out)
+    }
+}
+
+/// Write a small file whole or not at all: tmp, fsync, rename, fsync the directory.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let tmp = path.with_extension("tmp");
+    let mut f = fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    f.write_all(bytes).and_then(|_| f.sync_all()).map_err(|e| Error::io(&tmp, e))?;
+    fs::rename(&tmp, path).map_err(|e| Error::io(path, e))?;
+    if let Some(dir) = path.parent() {
+        segment::sync_dir(if dir.as_os_str().is_empty() { Path::new(".") } else { dir })?;
+    }
+    Ok(())
+}

@@ -1,0 +1,188 @@
+//! The schemas of `schemas/`, embedded in the binary and in every MCAP file, and checked
+//! against every message written and read: the schema files are the single source of truth
+//! for field names, types, units and orderings.
+
+use super::cbor::{self, MapWriter, Value};
+use std::collections::BTreeMap;
+use std::sync::OnceLock;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FieldType {
+    U64,
+    F64,
+    F64s,
+    Text,
+}
+
+pub struct Schema {
+    /// MCAP topic of the channel.
+    pub topic: &'static str,
+    /// Schema name (the JSON schema's title).
+    pub name: &'static str,
+    /// The schema file, verbatim.
+    pub text: &'static str,
+    fields: OnceLock<Vec<(String, FieldType)>>,
+}
+
+impl Schema {
+    const fn new(topic: &'static str, name: &'static str, text: &'static str) -> Self {
+        Schema { topic, name, text, fields: OnceLock::new() }
+    }
+
+    /// The declared fields (all are required).
+    pub fn fields(&self) -> &[(String, FieldType)] {
+        self.fields.get_or_init(|| {
+            let v: serde_json::Value = serde_json::from_str(self.text).expect("embedded schema is valid JSON");
+            let props = v["properties"].as_object().expect("schema has properties");
+            props
+                .iter()
+                .map(|(name, p)| {
+                    let t = match p["x-type"].as_str() {
+                        Some("u64") => FieldType::U64,
+                        Some("f64") => FieldType::F64,
+                        Some("f64[]") => FieldType::F64s,
+                        Some("text") => FieldType::Text,
+                        other => panic!("schema {}: field {name} has unknown x-type {other:?}", self.name),
+                    };
+                    (name.clone(), t)
+                })
+                .collect()
+        })
+    }
+
+    fn field(&self, name: &str) -> Option<FieldType> {
+        self.fields().iter().find(|(n, _)| n == name).map(|(_, t)| *t)
+    }
+
+    /// Start a message of this schema.
+    pub fn encoder(&'static self, capacity: usize) -> Encoder {
+        Encoder { schema: self, map: MapWriter::new(self.fields().len(), capacity), written: 0 }
+    }
+
+    /// Decode and check a message of this schema.
+    pub fn decode(&'static self, bytes: &[u8]) -> Result<Decoded, String> {
+        let map = cbor::decode_map(bytes).map_err(|e| format!("{} message: {e}", self.name))?;
+        for (name, t) in self.fields() {
+            match (map.get(name), t) {
+                (Some(Value::U64(_)), FieldType::U64)
+                | (Some(Value::F64(_)), FieldType::F64)
+                | (Some(Value::F64s(_)), FieldType::F64s)
+                | (Some(Value::Text(_)), FieldType::Text) => {}
+                (None, _) => return Err(format!("{} message lacks field {name:?}", self.name)),
+                (Some(v), _) => return Err(format!("{} message: field {name:?} should be {t:?}, found {v:?}", self.name)),
+            }
+        }
+        Ok(Decoded { schema: self, map })
+    }
+}
+
+pub static CHECKPOINT: Schema = Schema::new("checkpoint", "clv.Checkpoint", include_str!("../../schemas/checkpoint.json"));
+pub static R: Schema = Schema::new("r", "clv.R", include_str!("../../schemas/r.json"));
+pub static STATS: Schema = Schema::new("stats", "clv.Stats", include_str!("../../schemas/stats.json"));
+
+/// Every schema a run directory uses.
+pub static RUN_SCHEMAS: [&Schema; 3] = [&CHECKPOINT, &R, &STATS];
+
+/// Writes one message, refusing (by panic: a programming error, not user input) any field
+/// the schema does not declare or with another type, and any message missing a field.
+pub struct Encoder {
+    schema: &'static Schema,
+    map: MapWriter,
+    written: usize,
+}
+
+impl Encoder {
+    fn check(&mut self, name: &str, t: FieldType) {
+        assert_eq!(self.schema.field(name), Some(t), "schema {} does not declare field {name} as {t:?}", self.schema.name);
+        self.written += 1;
+    }
+    pub fn u64(mut self, name: &str, v: u64) -> Self {
+        self.check(name, FieldType::U64);
+        self.map.u64(name, v);
+        self
+    }
+    pub fn f64(mut self, name: &str, v: f64) -> Self {
+        self.check(name, FieldType::F64);
+        self.map.f64(name, v);
+        self
+    }
+    pub fn f64s(mut self, name: &str, v: &[f64]) -> Self {
+        self.check(name, FieldType::F64s);
+        self.map.f64s(name, v);
+        self
+    }
+    pub fn text(mut self, name: &str, v: &str) -> Self {
+        self.check(name, FieldType::Text);
+        self.map.text(name, v);
+        self
+    }
+    pub fn finish(self) -> Vec<u8> {
+        assert_eq!(self.written, self.schema.fields().len(), "message of {} misses fields", self.schema.name);
+        self.map.finish()
+    }
+}
+
+/// A decoded message whose fields have been checked against its schema.
+pub struct Decoded {
+    schema: &'static Schema,
+    map: BTreeMap<String, Value>,
+}
+
+impl Decoded {
+    pub fn u64(&self, name: &str) -> u64 {
+        match self.map.get(name) {
+            Some(Value::U64(x)) => *x,
+            _ => panic!("{}: {name} is not a declared u64 field", self.schema.name),
+        }
+    }
+    pub fn f64(&self, name: &str) -> f64 {
+        match self.map.get(name) {
+            Some(Value::F64(x)) => *x,
+            _ => panic!("{}: {name} is not a declared f64 field", self.schema.name),
+        }
+    }
+    pub fn take_f64s(&mut self, name: &str) -> Vec<f64> {
+        match self.map.remove(name) {
+            Some(Value::F64s(x)) => x,
+            _ => panic!("{}: {name} is not a declared f64[] field (or was taken)", self.schema.name),
+        }
+    }
+    pub fn text(&self, name: &str) -> &str {
+        match self.map.get(name) {
+            Some(Value::Text(x)) => x,
+            _ => panic!("{}: {name} is not a declared text field", self.schema.name),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn schema_files_parse_and_declare_every_field_as_required() {
+        for s in RUN_SCHEMAS {
+            let v: serde_json::Value = serde_json::from_str(s.text).unwrap();
+            assert_eq!(v["title"], s.name);
+            assert_eq!(v["x-topic"], s.topic);
+            let mut required: Vec<String> = serde_json::from_value(v["required"].clone()).unwrap();
+            let mut declared: Vec<String> = s.fields().iter().map(|(n, _)| n.clone()).collect();
+            required.sort();
+            declared.sort();
+            assert_eq!(required, declared, "{}", s.name);
+            for (name, _) in s.fields() {
+                let desc = v["properties"][name]["description"].as_str().unwrap_or("");
+                assert!(desc.len() > 3, "{}: field {name} has no description", s.name);
+            }
+        }
+    }
+
+    #[test]
+    fn a_message_missing_a_field_is_refused_on_decode() {
+        let mut w = MapWriter::new(2, 0);
+        w.u64("step", 3);
+        w.u64("k", 1);
+        let err = R.decode(&w.finish()).err().unwrap();
+        assert!(err.contains("\"r\""), "{err}");
+    }
+}

@@ -1,0 +1,203 @@
+//! Segment files: one MCAP file per run of consecutive checkpoints.
+//!
+//! The mcap writer cannot append, and a file cut short by a crash still yields its complete
+//! chunks, so a segment is written under `NAME.mcap.tmp`, finished, fsynced and only then
+//! renamed to its final name (`seg-FIRST-LAST.mcap`, the steps of its first and last
+//! checkpoint), and the directory is fsynced. A finished segment is never rewritten; a
+//! `.tmp` file is by construction an interrupted one.
+
+use super::schema::{Schema, RUN_SCHEMAS};
+use crate::error::{Error, Result};
+use mcap::records::{MessageHeader, Metadata, Record};
+use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
+use mcap::write::{WriteOptions, Writer};
+use std::collections::BTreeMap;
+use std::fs::{self, File};
+use std::io::{BufWriter, Read};
+use std::path::{Path, PathBuf};
+
+/// Name of the MCAP metadata record holding the run description (run.json) in every file.
+pub const RUN_METADATA: &str = "clv.run";
+
+pub fn tmp_name(first_step: u64) -> String {
+    format!("seg-{first_step:012}.mcap.tmp")
+}
+
+pub fn final_name(first_step: u64, last_step: u64) -> String {
+    format!("seg-{first_step:012}-{last_step:012}.mcap")
+}
+
+/// (first, last) checkpoint steps from a finished segment's file name.
+pub fn parse_final_name(name: &str) -> Option<(u64, u64)> {
+    let core = name.strip_prefix("seg-")?.strip_suffix(".mcap")?;
+    let (a, b) = core.split_once('-')?;
+    Some((a.parse().ok()?, b.parse().ok()?))
+}
+
+pub struct SegmentWriter {
+    dir: PathBuf,
+    tmp: PathBuf,
+    first_step: u64,
+    last_checkpoint: Option<u64>,
+    writer: Writer<BufWriter<File>>,
+    channels: BTreeMap<&'static str, u16>,
+    sequence: u32,
+    /// Bytes of message data written (before compression).
+    pub bytes: u64,
+    pub checkpoints: u64,
+}
+
+fn mcap_err(path: &Path, e: mcap::McapError) -> Error {
+    match e {
+        mcap::McapError::Io(io) => Error::io(path, io),
+        other => Error::Other(format!("{}: {other}", path.display())),
+    }
+}
+
+impl SegmentWriter {
+    /// Start `seg-FIRST.mcap.tmp` in `dir`, refusing to overwrite anything.
+    pub fn create(dir: &Path, first_step: u64, run_json: &str, schemas: &[&'static Schema]) -> Result<Self> {
+        let tmp = dir.join(tmp_name(first_step));
+        let file = File::options().write(true).create_new(true).open(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        let options = WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_level(1)
+            .chunk_size(Some(4 << 20))
+            .profile("clv");
+        let mut writer = options.create(BufWriter::with_capacity(1 << 20, file)).map_err(|e| mcap_err(&tmp, e))?;
+        let meta = Metadata { name: RUN_METADATA.into(), metadata: BTreeMap::from([("run.json".to_string(), run_json.to_string())]) };
+        writer.write_metadata(&meta).map_err(|e| mcap_err(&tmp, e))?;
+        let mut channels = BTreeMap::new();
+        for s in schemas {
+            let schema = writer.add_schema(s.name, "jsonschema", s.text.as_bytes()).map_err(|e| mcap_err(&tmp, e))?;
+            let id = writer.add_channel(schema, s.topic, "cbor", &BTreeMap::new()).map_err(|e| mcap_err(&tmp, e))?;
+            channels.insert(s.topic, id);
+        }
+        Ok(SegmentWriter { dir: dir.to_path_buf(), tmp, first_step, last_checkpoint: None, writer, channels, sequence: 0, bytes: 0, checkpoints: 0 })
+    }
+
+    pub fn write(&mut self, topic: &str, step: u64, data: &[u8]) -> Result<()> {
+        let channel_id = *self.channels.get(topic).ok_or_else(|| Error::Other(format!("no channel {topic:?} in this file")))?;
+        self.sequence += 1;
+        let header = MessageHeader { channel_id, sequence: self.sequence, log_time: step, publish_time: step };
+        self.writer.write_to_known_channel(&header, data).map_err(|e| mcap_err(&self.tmp, e))?;
+        self.bytes += data.len() as u64;
+        if topic == super::schema::CHECKPOINT.topic {
+            self.checkpoints += 1;
+            self.last_checkpoint = Some(step);
+        }
+        Ok(())
+    }
+
+    /// Finish, fsync and rename to the final name; returns the final path.
+    pub fn finish(mut self) -> Result<PathBuf> {
+        self.writer.finish().map_err(|e| mcap_err(&self.tmp, e))?;
+        let file = self.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
+        drop(file);
+        let last = self.last_checkpoint.unwrap_or(self.first_step);
+        let path = self.dir.join(final_name(self.first_step, last));
+        if path.exists() {
+            return Err(Error::Other(format!("{} already exists; refusing to overwrite a finished segment", path.display())));
+        }
+        fs::rename(&self.tmp, &path).map_err(|e| Error::io(&path, e))?;
+        sync_dir(&self.dir)?;
+        Ok(path)
+    }
+}
+
+pub fn sync_dir(dir: &Path) -> Result<()> {
+    File::open(dir).and_then(|d| d.sync_all()).map_err(|e| Error::io(dir, e))
+}
+
+/// A message read back from a segment.
+pub struct Message<'a> {
+    pub topic: &'a str,
+    pub step: u64,
+    pub data: &'a [u8],
+}
+
+/// What a read found besides the messages.
+#[derive(Debug, Default)]
+pub struct ReadReport {
+    /// The run description embedded in the file.
+    pub run_json: Option<String>,
+    /// Messages delivered.
+    pub messages: u64,
+    /// The damage found, if any (the messages before it were delivered).
+    pub damage: Option<String>,
+}
+
+/// Read every message of a segment in file order, checking the chunk, data-section and
+/// summary CRCs. With `partial`, a file cut short (no end magic) is read up to its last
+/// complete chunk and the cut is reported in `damage`; otherwise any damage is an error
+/// naming the file. Errors from `visit` stop the read and are returned as they are.
+pub fn read_segment(path: &Path, partial: bool, visit: impl FnMut(Message) -> Result<()>) -> Result<ReadReport> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    read_stream(path, std::io::BufReader::with_capacity(1 << 20, file), partial, visit)
+}
+
+/// [`read_segment`] over any byte stream (a file, or standard input); `name` is used in errors.
+pub fn read_stream(name: &Path, mut input: impl Read, partial: bool, mut visit: impl FnMut(Message) -> Result<()>) -> Result<ReadReport> {
+    let options = LinearReaderOptions::default()
+        .with_skip_end_magic(partial)
+        .with_validate_chunk_crcs(true)
+        .with_validate_data_section_crc(!partial)
+        .with_validate_summary_section_crc(!partial)
+        .with_record_length_limit(1 << 34);
+    let mut reader = LinearReader::new_with_options(options);
+    let mut report = ReadReport::default();
+    let mut topics: BTreeMap<u16, String> = BTreeMap::new();
+    let mut consumed = 0u64;
+    while let Some(event) = reader.next_event() {
+        let record = match event {
+            Ok(LinearReadEvent::ReadRequest(need)) => {
+                let buf = reader.insert(need);
+                let n = loop {
+                    match input.read(buf) {
+                        Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                        other => break other.map_err(|e| Error::io(name, e))?,
+                    }
+                };
+                consumed += n as u64;
+                reader.notify_read(n);
+                continue;
+            }
+            Ok(LinearReadEvent::Record { opcode, data }) => mcap::parse_record(opcode, data),
+            Err(e) => Err(e),
+        };
+        let record = match record {
+            Ok(r) => r,
+            Err(e) => {
+                report.damage = Some(format!("{e} (within the first {consumed} bytes, after {} complete messages)", report.messages));
+                break;
+            }
+        };
+        match record {
+            Record::Metadata(m) if m.name == RUN_METADATA => report.run_json = m.metadata.get("run.json").cloned(),
+            Record::Channel(c) => {
+                topics.insert(c.id, c.topic.to_string());
+            }
+            Record::Message { header, data } => {
+                let topic = topics.get(&header.channel_id).ok_or_else(|| {
+                    Error::corrupt(name, format!("message {} on unknown channel {}", header.sequence, header.channel_id))
+                })?;
+                visit(Message { topic, step: header.log_time, data: &data })?;
+                report.messages += 1;
+            }
+            _ => {}
+        }
+    }
+    if let (Some(d), false) = (&report.damage, partial) {
+        return Err(Error::corrupt(name, d.clone()));
+    }
+    if !partial && report.run_json.is_none() {
+        return Err(Error::corrupt(name, "no clv.run metadata record: not a clv segment"));
+    }
+    Ok(report)
+}
+
+/// Re-export for callers that only pass the standard set.
+pub fn run_schemas() -> &'static [&'static Schema] {
+    &RUN_SCHEMAS
+}

@@ -1,0 +1,291 @@
+//! The run store under normal use and under faults: round trips, SIGKILL at random points
+//! followed by --resume, truncated and corrupted segments, and MCAP validity.
+
+use clv::config::{RunConfig, SystemConfig};
+use clv::rng::Rng;
+use clv::stage::forward::{Forward, ForwardState};
+use clv::store::records::{decode_r, Checkpoint, Stats};
+use clv::store::schema::{CHECKPOINT, R, STATS};
+use clv::store::segment::read_segment;
+use clv::store::RunDir;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
+
+fn clv(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_clv")).args(args).output().unwrap()
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Everything a run directory holds that must be bit-identical between runs (decoded
+/// numbers, not file bytes: zstd output may differ), keyed by segment file and step.
+#[derive(Debug, PartialEq)]
+struct Contents {
+    files: Vec<String>,
+    checkpoints: BTreeMap<u64, ForwardState>,
+    rs: BTreeMap<u64, Vec<f64>>,
+    /// Stats without the wall-clock time (energy as bits: NaN for maps).
+    stats: BTreeMap<u64, (Vec<f64>, u64, u64)>,
+    exponents: Vec<f64>,
+}
+
+fn contents(dir: &Path) -> Contents {
+    let run = RunDir { path: dir.to_path_buf() };
+    let mut c = Contents { files: vec![], checkpoints: BTreeMap::new(), rs: BTreeMap::new(), stats: BTreeMap::new(), exponents: vec![] };
+    for seg in run.segments().unwrap() {
+        c.files.push(seg.path.file_name().unwrap().to_string_lossy().into());
+        read_segment(&seg.path, false, |m| {
+            if m.topic == CHECKPOINT.topic {
+                c.checkpoints.insert(m.step, Checkpoint::decode(m.data).unwrap().state);
+            } else if m.topic == R.topic {
+                let (_, r) = decode_r(m.data).unwrap();
+                c.rs.insert(m.step, clv::linalg::pack_upper(r.as_ref()));
+            } else if m.topic == STATS.topic {
+                let s = Stats::decode(m.data).unwrap();
+                c.stats.insert(m.step, (s.exponents, s.energy.to_bits(), s.collisions));
+            }
+            Ok(())
+        })
+        .unwrap();
+    }
+    let spectrum: serde_json::Value = serde_json::from_slice(&std::fs::read(run.spectrum_path()).unwrap()).unwrap();
+    c.exponents = serde_json::from_value(spectrum["exponents"].clone()).unwrap();
+    c
+}
+
+const RUN: [&str; 16] = [
+    "forward", "--n", "36", "--aspect", "1", "--steps", "3000", "--relax-steps", "100",
+    "--checkpoint-every", "50", "--segment-checkpoints", "4", "--clv-steps", "400", "--quiet",
+];
+
+/// The uninterrupted run every fault test compares with, made once per test binary.
+fn reference() -> (PathBuf, &'static Contents) {
+    static REF: std::sync::OnceLock<(PathBuf, Contents)> = std::sync::OnceLock::new();
+    let (dir, c) = REF.get_or_init(|| {
+        let dir = scratch("reference").join("run");
+        let out = clv(&[&RUN[..], &["--out", dir.to_str().unwrap()]].concat());
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let c = contents(&dir);
+        (dir, c)
+    });
+    (dir.clone(), c)
+}
+
+/// A private copy of the reference run, for tests that change it.
+fn reference_copy(name: &str) -> (PathBuf, &'static Contents) {
+    let (dir, c) = reference();
+    let copy = scratch(name).join("run");
+    copy_dir(&dir, &copy);
+    (copy, c)
+}
+
+#[test]
+fn checkpoint_round_trip_continues_bit_identically() {
+    let config = RunConfig {
+        system: SystemConfig::disks(16, 0.7, 1.0).unwrap(),
+        tau: 0.6,
+        relax_steps: 5,
+        steps: 60,
+        vectors: 40,
+        seed: 3,
+        threads: 1,
+        blocks: 7,
+    };
+    let mut a = Forward::new(&config).unwrap();
+    while a.step < 30 {
+        a.step().unwrap();
+    }
+    let cp = Checkpoint { state: a.state(), time: a.time(), system: "disks".into(), d: 64, k: 40 };
+    let back = Checkpoint::decode(&cp.encode()).unwrap();
+    assert_eq!(back, cp);
+    let mut b = Forward::resume(&config, &back.state).unwrap();
+    while a.step < 65 {
+        a.step().unwrap();
+        b.step().unwrap();
+    }
+    assert_eq!(a.state(), b.state());
+    assert_eq!(a.acc.exponents(0.6), b.acc.exponents(0.6));
+}
+
+#[test]
+fn killed_runs_resume_to_identical_results() {
+    let (_, want) = reference();
+    assert!(want.files.len() >= 3, "the reference should span several segments: {:?}", want.files);
+    // Pruning kept the window (last 400 + 200 steps) and two older segments only.
+    assert!(want.checkpoints.keys().next().copied().unwrap() > 0);
+    let mut interrupted = 0;
+    for (trial, delays) in [vec![150u64], vec![700], vec![400, 900], vec![1500]].into_iter().enumerate() {
+        let dir = scratch(&format!("killed-{trial}")).join("run");
+        for (i, delay) in delays.iter().enumerate() {
+            let mut args: Vec<&str> = RUN.to_vec();
+            let d = dir.to_str().unwrap().to_string();
+            if i == 0 {
+                args.extend(["--out", &d]);
+            } else {
+                args = vec!["forward", "--resume", &d, "--quiet"];
+            }
+            let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(&args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+            std::thread::sleep(Duration::from_millis(*delay));
+            child.kill().unwrap(); // SIGKILL
+            child.wait().unwrap();
+        }
+        if !dir.join("spectrum.json").exists() {
+            interrupted += 1;
+        }
+        let out = clv(&["forward", "--resume", dir.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let got = contents(&dir);
+        assert_eq!(got.files, want.files);
+        assert!(got == *want, "trial {trial}: resumed run differs from the uninterrupted one");
+    }
+    assert!(interrupted >= 3, "only {interrupted} kills landed before the end of the run");
+}
+
+#[test]
+fn resuming_a_finished_run_does_nothing_and_conflicts_are_refused() {
+    let (dir, want) = reference_copy("finished");
+    let d = dir.to_str().unwrap();
+    let out = clv(&["forward", "--resume", d]);
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("already complete"));
+    assert!(contents(&dir) == *want);
+    let out = clv(&["forward", "--resume", d, "--steps", "5000"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--steps 5000 conflicts") && err.contains("--steps 3000"), "{err}");
+    let out = clv(&["forward", "--resume", d, "--n", "36", "--seed", "1"]);
+    assert!(out.status.success(), "flags equal to the stored ones are fine: {}", String::from_utf8_lossy(&out.stderr));
+    let out = clv(&[&RUN[..], &["--out", d]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("not empty") && err.contains("--resume"), "{err}");
+    assert!(contents(&dir) == *want, "a refused command must not touch the run");
+}
+
+fn damage(path: &Path, rng: &mut Rng, truncate: bool) -> String {
+    let mut bytes = std::fs::read(path).unwrap();
+    if truncate {
+        let cut = rng.below(bytes.len());
+        bytes.truncate(cut);
+        std::fs::write(path, &bytes).unwrap();
+        format!("cut at {cut}")
+    } else {
+        let at = rng.below(bytes.len());
+        bytes[at] ^= 1 << rng.below(8);
+        std::fs::write(path, &bytes).unwrap();
+        format!("bit flipped at {at}")
+    }
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    let _ = std::fs::remove_dir_all(to);
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+    }
+}
+
+#[test]
+fn damaged_segments_are_named_and_resume_falls_back() {
+    let (dir, want) = reference();
+    let mut rng = Rng::new(2024);
+    let base = scratch("damaged");
+    // Any single damage to any segment is detected, with the file named.
+    for trial in 0..40 {
+        let copy = base.join(format!("inspect-{trial}"));
+        copy_dir(&dir, &copy);
+        let segs = RunDir { path: copy.clone() }.segments().unwrap();
+        let seg = &segs[rng.below(segs.len())];
+        let what = damage(&seg.path, &mut rng, trial % 2 == 0);
+        let out = clv(&["inspect", copy.to_str().unwrap()]);
+        let text = String::from_utf8_lossy(&out.stdout);
+        let name = seg.path.file_name().unwrap().to_string_lossy();
+        assert!(!out.status.success(), "{what} in {name} went unnoticed");
+        assert!(text.lines().any(|l| l.contains(&*name) && l.contains("corrupt")), "{what}: {text}");
+        assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
+    }
+    // Damage to the newest segment: resume moves it aside and recomputes it.
+    for trial in 0..4 {
+        let copy = base.join(format!("resume-{trial}"));
+        copy_dir(&dir, &copy);
+        let newest = RunDir { path: copy.clone() }.segments().unwrap().pop().unwrap();
+        let what = damage(&newest.path, &mut rng, trial % 2 == 0);
+        let out = clv(&["forward", "--resume", copy.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{what}: {err}");
+        assert!(err.contains("moving it aside"), "{what}: {err}");
+        assert!(contents(&copy) == *want, "{what}: resumed run differs");
+    }
+}
+
+#[test]
+fn files_are_valid_mcap_for_the_crate_reader_with_embedded_schemas() {
+    let (dir, want) = reference();
+    let run = RunDir { path: dir.clone() };
+    let seg = &run.segments().unwrap()[0];
+    let bytes = std::fs::read(&seg.path).unwrap();
+    let mut topics = BTreeMap::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let schema = m.channel.schema.as_ref().unwrap();
+        assert_eq!(m.channel.message_encoding, "cbor");
+        assert_eq!(schema.encoding, "jsonschema");
+        let text: serde_json::Value = serde_json::from_slice(&schema.data).unwrap();
+        assert_eq!(text["x-topic"], m.channel.topic.as_str());
+        *topics.entry(m.channel.topic.clone()).or_insert(0) += 1;
+    }
+    assert_eq!(topics.len(), 3, "{topics:?}");
+    let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+    let meta_index = summary.metadata_indexes.iter().find(|i| i.name == "clv.run").unwrap();
+    let meta = mcap::read::metadata(&bytes, meta_index).unwrap();
+    let run_json: serde_json::Value = serde_json::from_str(&meta.metadata["run.json"]).unwrap();
+    assert_eq!(run_json["config"]["system"]["n"], 36, "every file says how it was made");
+}
+
+#[test]
+fn python_reader_reads_every_channel() {
+    let ok = Command::new("python3").args(["-c", "import mcap, cbor2, numpy"]).output().map(|o| o.status.success()).unwrap_or(false);
+    if !ok {
+        eprintln!("SKIPPED: python3 with mcap, cbor2 and numpy is not available (.ci/run installs them)");
+        return;
+    }
+    let (dir, want) = reference();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/read_run.py");
+    let out = Command::new("python3").arg(script).arg(&dir).arg("--json").output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["checkpoints"].as_u64().unwrap() as usize, want.checkpoints.len());
+    assert_eq!(v["r_matrices"].as_u64().unwrap() as usize, want.rs.len());
+    let last = *want.checkpoints.keys().last().unwrap();
+    assert_eq!(v["last_step"], last);
+    let exps: Vec<f64> = serde_json::from_value(v["exponents"].clone()).unwrap();
+    assert_eq!(exps, want.stats[&last].0, "Python decodes the same bits");
+    assert!(v["max_orthonormality_error"].as_f64().unwrap() < 1e-12, "G read by Python is orthonormal");
+    assert!(v["r_upper_positive"].as_bool().unwrap());
+}
+
+#[test]
+fn henon_runs_through_the_same_store() {
+    let dir = scratch("henon").join("run");
+    let d = dir.to_str().unwrap();
+    let out = clv(&["forward", "--system", "henon", "--steps", "5000", "--relax-steps", "100", "--checkpoint-every", "100", "--out", d, "--quiet", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let want = contents(&dir);
+    assert!((want.exponents[0] + want.exponents[1] - 0.3f64.ln()).abs() < 1e-12);
+    // Lose the newest segment and the result; resume recomputes them identically.
+    let run = RunDir { path: dir.clone() };
+    std::fs::remove_file(run.segments().unwrap().pop().unwrap().path).unwrap();
+    std::fs::remove_file(run.spectrum_path()).unwrap();
+    assert!(clv(&["forward", "--resume", d, "--quiet"]).status.success());
+    assert!(contents(&dir) == want, "resumed Henon run differs");
+    let out = clv(&["inspect", d, "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["finished"], true);
+    assert_eq!(v["intact"], true);
+    assert_eq!(v["steps_done"], 5100);
+}
