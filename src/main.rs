@@ -23,6 +23,8 @@ struct Cli {
 enum Command {
     /// Forward Gram-Schmidt pass: the Lyapunov spectrum; with --out, a resumable run directory.
     Forward(ForwardArgs),
+    /// Backward Ginelli pass over a finished run: covariant Lyapunov vectors, frame by frame.
+    Backward(BackwardArgs),
     /// What a run directory holds, and whether every file is intact.
     Inspect(InspectArgs),
     /// The main job on an embedded preset (today: the forward pass and its spectrum).
@@ -109,6 +111,45 @@ struct ForwardArgs {
     #[arg(long)]
     json: bool,
     /// No progress bar or notices.
+    #[arg(long)]
+    quiet: bool,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum CInitArg {
+    Identity,
+    Random,
+}
+
+#[derive(Args)]
+struct BackwardArgs {
+    /// The run directory written by `clv forward --out`.
+    dir: PathBuf,
+    /// Where the frames go: a file, or - for standard output (an MCAP stream for `clv analyze -`).
+    /// Default: RUN_DIR/frames.mcap.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Backward steps discarded before frames are emitted (default: the run's --transient).
+    #[arg(long)]
+    transient: Option<u64>,
+    /// Initial upper-triangular C at the end of the window.
+    #[arg(long, value_enum, default_value = "identity")]
+    c_init: CInitArg,
+    /// Include the Gram-Schmidt vectors G_n in every frame (for GS-CLV comparisons).
+    #[arg(long)]
+    with_gs: bool,
+    /// Keep every m-th frame in the frame file (the stream on stdout always carries all).
+    #[arg(long, default_value_t = 1)]
+    save_every: u64,
+    /// Continue an interrupted backward sweep from its progress record.
+    #[arg(long)]
+    resume: bool,
+    /// Memory budget in MB; segments that do not fit are kept in a scratch file instead.
+    #[arg(long, default_value_t = 4096)]
+    memory: u64,
+    /// Print one JSON object (CLV and GS spectra, statistics) instead of the table.
+    #[arg(long)]
+    json: bool,
     #[arg(long)]
     quiet: bool,
 }
@@ -340,6 +381,67 @@ fn spectrum(config: RunConfig, json: bool, quiet: bool) -> Result<()> {
     print_report(&report, json)
 }
 
+fn backward(args: &BackwardArgs) -> Result<()> {
+    use clv::stage::backward::{self, BackwardOptions, CInit};
+    use clv::store::frames::{FrameStdout, Flow};
+    let (_, meta) = clv::store::RunDir::open(&args.dir)?;
+    let to_stdout = args.out.as_deref() == Some(std::path::Path::new("-"));
+    let mut opts = BackwardOptions::for_run(&meta);
+    opts.transient = args.transient.unwrap_or(opts.transient);
+    opts.c_init = match args.c_init {
+        CInitArg::Identity => CInit::Identity,
+        CInitArg::Random => CInit::Random,
+    };
+    opts.with_gs = args.with_gs;
+    opts.save_every = if to_stdout { 0 } else { args.save_every };
+    opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| args.dir.join("frames.mcap"))) };
+    let mut stdout = if to_stdout { Some(FrameStdout::new(&serde_json::to_string(&meta).unwrap_or_default())?) } else { None };
+    let bar = progress("backward", args.quiet);
+    if let Some(bar) = &bar {
+        bar.set_length(meta.store.clv_steps + meta.store.transient);
+        bar.set_message("backward (recompute + sweep)");
+    }
+    let mut consumer = |frame: std::sync::Arc<clv::stage::frame::Frame>| -> Result<Flow> {
+        match stdout.as_mut() {
+            Some(out) => out.write(&frame),
+            None => Ok(Flow::Continue),
+        }
+    };
+    let mut on_progress = |recomputed: u64, _frames: u64| {
+        if let Some(bar) = &bar {
+            bar.set_position(recomputed);
+        }
+    };
+    let report = backward::run(&args.dir, &opts, args.resume, args.memory << 20, &mut consumer, &mut on_progress)?;
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    if let Some(out) = stdout {
+        out.finish()?;
+    }
+    if report.statistics.stopped_early && !args.quiet {
+        eprintln!("clv: the reader closed the stream after {} frames; stopped (continue later with --resume)", report.statistics.frames);
+    }
+    if args.json {
+        println!("{}", serde_json::to_string(&report).map_err(|e| Error::Other(e.to_string()))?);
+    } else if !to_stdout {
+        println!("{:>6}  {:>14}  {:>10}  {:>14}  {:>10}", "i", "lambda_i (CLV)", "stderr", "lambda_i (GS)", "stderr");
+        for i in 0..report.exponents.len() {
+            println!(
+                "{:>6}  {:>14.8}  {:>10.2e}  {:>14.8}  {:>10.2e}",
+                i + 1,
+                report.exponents[i],
+                report.stderr[i],
+                report.gs_exponents.get(i).copied().unwrap_or(f64::NAN),
+                report.gs_stderr.get(i).copied().unwrap_or(f64::NAN)
+            );
+        }
+        let st = &report.statistics;
+        println!("{} frames (steps {}..{}), {} steps recomputed in {} segments, {:.1} s", st.frames, st.first_frame_step, st.last_frame_step, st.recomputed_steps, st.segments, st.wall_seconds);
+    }
+    Ok(())
+}
+
 fn inspect_cmd(args: &InspectArgs) -> Result<()> {
     let found = inspect::inspect(&args.dir)?;
     if args.json {
@@ -358,6 +460,7 @@ fn main() {
     };
     let result = match &cli.command {
         Command::Forward(args) => forward(args, matches.subcommand_matches("forward").expect("subcommand parsed")),
+        Command::Backward(args) => backward(args),
         Command::Inspect(args) => inspect_cmd(args),
         Command::Run(args) => run(args),
     };

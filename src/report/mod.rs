@@ -74,3 +74,17 @@ impl SpectrumReport {
         s
     }
 }
+
+/// The spectrum part of a report file (spectrum.json, clv_spectrum.json).
+#[derive(Clone, Debug, serde::Deserialize)]
+pub struct SpectrumSummary {
+    pub exponents: Vec<f64>,
+    pub stderr: Vec<f64>,
+}
+
+impl SpectrumSummary {
+    pub fn read(path: &std::path::Path) -> crate::Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| crate::Error::io(path, e))?;
+        serde_json::from_str(&text).map_err(|e| crate::Error::corrupt(path, e.to_string()))
+    }
+}

@@ -30,9 +30,14 @@ impl Accumulator {
         Accumulator { sum: vec![0.0; k], steps: 0, block_len: block_len.max(1), blocks: Vec::new(), current: vec![0.0; k] }
     }
 
+    /// Accumulate ln [R_n]_ii of one step.
     pub fn add(&mut self, r: &Mat<f64>) {
-        for (i, (s, c)) in self.sum.iter_mut().zip(self.current.iter_mut()).enumerate() {
-            let l = r[(i, i)].ln();
+        self.add_logs((0..self.sum.len()).map(|i| r[(i, i)].ln()));
+    }
+
+    /// Accumulate one step's logarithmic growth factors (one per vector).
+    pub fn add_logs(&mut self, logs: impl Iterator<Item = f64>) {
+        for ((s, c), l) in self.sum.iter_mut().zip(self.current.iter_mut()).zip(logs) {
             *s += l;
             *c += l;
         }

@@ -1,5 +1,7 @@
 //! The stages of the pipeline: forward Gram-Schmidt pass (and, in later stages, the backward
 //! Ginelli pass and the analyses that consume its frames).
 
+pub mod backward;
 pub mod forward;
 pub mod forward_run;
+pub mod frame;

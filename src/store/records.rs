@@ -126,3 +126,30 @@ impl Stats {
         })
     }
 }
+
+impl crate::stage::frame::Frame {
+    pub fn encode(&self) -> Vec<u8> {
+        let g: &[f64] = self.g.as_deref().unwrap_or(&[]);
+        super::schema::FRAME
+            .encoder(8 * (self.v.len() + g.len() + self.phase.len() + self.k))
+            .u64("step", self.step)
+            .f64("time", self.time)
+            .u64("d", self.d as u64)
+            .u64("k", self.k as u64)
+            .f64s("phase", &self.phase)
+            .f64s("v", &self.v)
+            .f64s("local", &self.local)
+            .f64s("g", g)
+            .finish()
+    }
+
+    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
+        let mut m = super::schema::FRAME.decode(bytes)?;
+        let (d, k, step) = (m.u64("d") as usize, m.u64("k") as usize, m.u64("step"));
+        let (phase, v, local, g) = (m.take_f64s("phase"), m.take_f64s("v"), m.take_f64s("local"), m.take_f64s("g"));
+        if phase.len() != d || v.len() != d * k || local.len() != k || !(g.is_empty() || g.len() == d * k) {
+            return Err(format!("frame at step {step}: array lengths do not match D = {d}, k = {k}"));
+        }
+        Ok(Self { step, time: m.f64("time"), d, k, phase, v, local, g: if g.is_empty() { None } else { Some(g) } })
+    }
+}

@@ -80,6 +80,8 @@ pub static CHECKPOINT: Schema = Schema::new("checkpoint", "clv.Checkpoint", incl
 pub static R: Schema = Schema::new("r", "clv.R", include_str!("../../schemas/r.json"));
 pub static STATS: Schema = Schema::new("stats", "clv.Stats", include_str!("../../schemas/stats.json"));
 
+pub static FRAME: Schema = Schema::new("frame", "clv.Frame", include_str!("../../schemas/frame.json"));
+
 /// Every schema a run directory uses.
 pub static RUN_SCHEMAS: [&Schema; 3] = [&CHECKPOINT, &R, &STATS];
 
@@ -161,7 +163,7 @@ mod tests {
 
     #[test]
     fn schema_files_parse_and_declare_every_field_as_required() {
-        for s in RUN_SCHEMAS {
+        for s in RUN_SCHEMAS.iter().chain([&&FRAME]) {
             let v: serde_json::Value = serde_json::from_str(s.text).unwrap();
             assert_eq!(v["title"], s.name);
             assert_eq!(v["x-topic"], s.topic);

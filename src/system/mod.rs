@@ -124,13 +124,19 @@ impl Tangent {
     /// All k vectors in the paper's ordering, column-major (D x k, vector j contiguous).
     pub fn to_paper_columns(&self, system: &dyn DynamicalSystem) -> Vec<f64> {
         let mut out = vec![0.0; self.d * self.k];
+        self.write_paper_columns(system, &mut out);
+        out
+    }
+
+    /// [`Tangent::to_paper_columns`] into a given buffer of D x k values.
+    pub fn write_paper_columns(&self, system: &dyn DynamicalSystem, out: &mut [f64]) {
+        assert_eq!(out.len(), self.d * self.k, "buffer must hold D x k values");
         for i in 0..self.d {
             let row = &self.rows[system.internal_row(i) * self.k..][..self.k];
             for (j, &x) in row.iter().enumerate() {
                 out[j * self.d + i] = x;
             }
         }
-        out
     }
 
     /// Inverse of [`Tangent::to_paper_columns`].

@@ -1,0 +1,490 @@
+//! The backward (Ginelli) pass: covariant Lyapunov vectors by reverse replay of a run.
+//!
+//! Ginelli et al. (paper section 3): with Gbar_n = G_n R_n from the forward pass,
+//! C_{n-1} = R_n^{-1} C_n keeps V_n = G_n C_n covariant, V_n = J_{n-1} V_{n-1}; the columns of
+//! C are renormalised every step and -ln |column| / tau are the local CLV exponents.
+//!
+//! Why it is built this way:
+//! - Only checkpoints are on disk. Each segment between two checkpoints is recomputed from
+//!   the older one with the forward code itself, and the recomputed state at the newer
+//!   checkpoint must equal the stored one bit for bit: a run can never be silently replayed
+//!   with other numbers (another build, another CPU, an altered file).
+//! - Segments are recomputed on a second thread while the sweep consumes the previous one,
+//!   so two segments are in memory at most; past the `--memory` budget the Gram-Schmidt
+//!   bases of a segment live in an unlinked scratch file (memmap2) instead.
+//! - After each segment the frame file is synced and a progress record (C at the segment's
+//!   older end, the accumulated exponents, frames written) is saved: `--resume` continues
+//!   bit for bit from there.
+
+use super::forward::{Accumulator, Forward, ForwardState};
+use super::frame::Frame;
+use crate::config::RunConfig;
+use crate::error::{Error, Result};
+use crate::linalg::{pack_upper, par, unpack_upper};
+use crate::rng::Rng;
+use crate::store::frames::{tmp_path, FrameFile, Flow};
+use crate::store::records::{decode_r, Checkpoint};
+use crate::store::run::{write_atomic, RunDir, RunMeta, SegmentFile, StoreR};
+use crate::store::schema::{CHECKPOINT, R};
+use crate::store::segment::read_segment;
+use faer::{Mat, MatMut, MatRef};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CInit {
+    /// C = 1 at the end of the window (the paper's choice).
+    Identity,
+    /// A random upper-triangular C with positive diagonal (generic), from the run's seed.
+    Random,
+}
+
+/// What the backward stage is asked to do (part of its progress record, so a resumed sweep
+/// cannot silently change it).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BackwardOptions {
+    /// Backward steps discarded before frames are emitted.
+    pub transient: u64,
+    pub c_init: CInit,
+    /// Put G_n into the frames too.
+    pub with_gs: bool,
+    /// Keep every m-th frame in the frame file (0: no frame file).
+    pub save_every: u64,
+    pub frames_path: Option<PathBuf>,
+}
+
+impl BackwardOptions {
+    pub fn for_run(meta: &RunMeta) -> Self {
+        BackwardOptions { transient: meta.store.transient, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None }
+    }
+}
+
+/// Statistics of a backward sweep.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct BackwardStats {
+    pub frames: u64,
+    pub first_frame_step: u64,
+    pub last_frame_step: u64,
+    pub segments: u64,
+    pub recomputed_steps: u64,
+    pub wall_seconds: f64,
+    /// The consumer stopped the stream before the end (a closed pipe).
+    pub stopped_early: bool,
+}
+
+/// The result of a backward sweep, as `clv backward --json` prints it.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct BackwardReport {
+    /// The CLV spectrum: time averages of the local exponents over the emitted frames.
+    pub exponents: Vec<f64>,
+    pub stderr: Vec<f64>,
+    /// The forward Gram-Schmidt spectrum of the same run.
+    pub gs_exponents: Vec<f64>,
+    pub gs_stderr: Vec<f64>,
+    pub options: BackwardOptions,
+    pub statistics: BackwardStats,
+}
+
+/// Saved after every finished segment (RUN_DIR/backward.json).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct Progress {
+    options: BackwardOptions,
+    /// C_at, column-major k x k.
+    at: u64,
+    c: Vec<f64>,
+    acc: Accumulator,
+    stats: BackwardStats,
+    done: bool,
+}
+
+fn progress_path(dir: &RunDir) -> PathBuf {
+    dir.path.join("backward.json")
+}
+
+pub fn report_path(dir: &RunDir) -> PathBuf {
+    dir.path.join("clv_spectrum.json")
+}
+
+/// The window of a run: frames at steps first..=last (C starts at the run's last step).
+#[derive(Clone, Copy, Debug)]
+struct Window {
+    first: u64,
+    last: u64,
+}
+
+/// Reads checkpoints (and stored R) of a run by step, one segment file at a time.
+struct Checkpoints {
+    segments: Vec<SegmentFile>,
+    cached: Option<(PathBuf, BTreeMap<u64, ForwardState>)>,
+}
+
+impl Checkpoints {
+    fn segment_of(&self, step: u64) -> Result<&SegmentFile> {
+        self.segments.iter().find(|s| s.first <= step && step <= s.last).ok_or_else(|| {
+            Error::Other(format!("no segment holds the checkpoint at step {step}; the run directory is incomplete (see clv inspect)"))
+        })
+    }
+
+    fn get(&mut self, step: u64) -> Result<ForwardState> {
+        let seg = self.segment_of(step)?.path.clone();
+        if self.cached.as_ref().is_none_or(|(p, _)| *p != seg) {
+            let mut map = BTreeMap::new();
+            read_segment(&seg, false, |m| {
+                if m.topic == CHECKPOINT.topic {
+                    let cp = Checkpoint::decode(m.data).map_err(|e| Error::corrupt(&seg, format!("step {}: {e}", m.step)))?;
+                    map.insert(m.step, cp.state);
+                }
+                Ok(())
+            })?;
+            self.cached = Some((seg.clone(), map));
+        }
+        let (_, map) = self.cached.as_ref().expect("just loaded");
+        map.get(&step).cloned().ok_or_else(|| Error::corrupt(&seg, format!("no checkpoint at step {step}")))
+    }
+
+    /// Stored R_n (packed) for n in (from, to].
+    fn stored_r(&self, from: u64, to: u64) -> Result<BTreeMap<u64, Vec<f64>>> {
+        let mut out = BTreeMap::new();
+        for seg in self.segments.iter().filter(|s| s.last > from && s.first <= to) {
+            read_segment(&seg.path, false, |m| {
+                if m.topic == R.topic && m.step > from && m.step <= to {
+                    let (_, r) = decode_r(m.data).map_err(|e| Error::corrupt(&seg.path, e))?;
+                    out.insert(m.step, pack_upper(r.as_ref()));
+                }
+                Ok(())
+            })?;
+        }
+        Ok(out)
+    }
+}
+
+/// A contiguous buffer of f64, on the heap or in an unlinked scratch file.
+enum Storage {
+    Heap(Vec<f64>),
+    Mapped(memmap2::MmapMut),
+}
+
+impl Storage {
+    fn new(len: usize, out_of_core: Option<&Path>) -> Result<Self> {
+        let Some(dir) = out_of_core else { return Ok(Storage::Heap(vec![0.0; len])) };
+        static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let path = dir.join(format!(".scratch-{}-{n}", std::process::id()));
+        let file = std::fs::OpenOptions::new().read(true).write(true).create_new(true).open(&path).map_err(|e| Error::io(&path, e))?;
+        let result = file.set_len(8 * len as u64).map_err(|e| Error::io(&path, e)).and_then(|_| {
+            // SAFETY: the file was just created by us and is unlinked below; nobody else maps it.
+            unsafe { memmap2::MmapMut::map_mut(&file) }.map_err(|e| Error::io(&path, e))
+        });
+        let _ = std::fs::remove_file(&path);
+        Ok(Storage::Mapped(result?))
+    }
+
+    fn slice(&self) -> &[f64] {
+        match self {
+            Storage::Heap(v) => v,
+            // SAFETY: mappings are page-aligned (so aligned for f64) and hold 8 * len bytes.
+            Storage::Mapped(m) => unsafe { std::slice::from_raw_parts(m.as_ptr() as *const f64, m.len() / 8) },
+        }
+    }
+
+    fn slice_mut(&mut self) -> &mut [f64] {
+        match self {
+            Storage::Heap(v) => v,
+            // SAFETY: as above, and we hold the only reference.
+            Storage::Mapped(m) => unsafe { std::slice::from_raw_parts_mut(m.as_mut_ptr() as *mut f64, m.len() / 8) },
+        }
+    }
+}
+
+/// One recomputed segment [s0, s1]: G_n and Gamma_n for n = s0..=s1, R_n for n = s0+1..=s1.
+struct Segment {
+    s0: u64,
+    s1: u64,
+    g: Storage,
+    phase: Vec<Vec<f64>>,
+    r: Vec<Vec<f64>>,
+}
+
+fn describe_mismatch(want: &ForwardState, got: &ForwardState) -> String {
+    let first = |a: &[f64], b: &[f64]| a.iter().zip(b).position(|(x, y)| x.to_bits() != y.to_bits());
+    if want.system.events != got.system.events {
+        format!("collision count {} stored, {} recomputed", want.system.events, got.system.events)
+    } else if let Some(i) = first(&want.system.phase, &got.system.phase) {
+        format!("phase component {i}: {:e} stored, {:e} recomputed", want.system.phase[i], got.system.phase[i])
+    } else if let Some(i) = first(&want.g, &got.g) {
+        format!("G_n element {i}: {:e} stored, {:e} recomputed", want.g[i], got.g[i])
+    } else {
+        "the accumulated exponent sums differ".into()
+    }
+}
+
+/// Recompute one segment from its older checkpoint and verify it against the newer one.
+fn recompute(config: &RunConfig, store_r_all: bool, cps: &mut Checkpoints, s0: u64, s1: u64, out_of_core: Option<&Path>) -> Result<Segment> {
+    let start = cps.get(s0)?;
+    let want = cps.get(s1)?;
+    let mut fwd = Forward::resume(config, &start)?;
+    let dk = fwd.system.dim() * config.vectors;
+    let len = (s1 - s0 + 1) as usize;
+    let mut g = Storage::new(len * dk, out_of_core)?;
+    g.slice_mut()[..dk].copy_from_slice(&start.g);
+    let mut phase = vec![start.system.phase.clone()];
+    let mut r = Vec::with_capacity(len - 1);
+    for n in s0 + 1..=s1 {
+        fwd.step()?;
+        let at = (n - s0) as usize * dk;
+        fwd.g.write_paper_columns(fwd.system.as_ref(), &mut g.slice_mut()[at..at + dk]);
+        phase.push(fwd.system.snapshot().phase);
+        r.push(pack_upper(fwd.r.as_ref()));
+    }
+    let got = fwd.state();
+    if got != want {
+        let seg = cps.segment_of(s1).map(|s| s.path.display().to_string()).unwrap_or_default();
+        return Err(Error::Dynamics(format!(
+            "recomputation from step {s0} does not reproduce the checkpoint at step {s1} stored in {seg}: {}. \
+             The run was made by another build or on a CPU with other features (see run.json), or the file was altered; \
+             the backward stage refuses to continue with numbers it cannot verify",
+            describe_mismatch(&want, &got)
+        )));
+    }
+    if store_r_all {
+        for (n, packed) in cps.stored_r(s0, s1)? {
+            r[(n - s0 - 1) as usize] = packed;
+        }
+    }
+    Ok(Segment { s0, s1, g, phase, r })
+}
+
+/// Progress hooks: called with (steps recomputed, frames emitted) as the sweep advances.
+pub type OnProgress<'a> = &'a mut dyn FnMut(u64, u64);
+
+/// Run the backward pass over the run in `path`, handing every frame to `consumer`
+/// (newest first). Frames are also saved to the frame file if the options ask for one.
+pub fn run(
+    path: &Path,
+    opts: &BackwardOptions,
+    resume: bool,
+    memory_bytes: u64,
+    consumer: &mut dyn FnMut(Arc<Frame>) -> Result<Flow>,
+    on_progress: OnProgress,
+) -> Result<BackwardReport> {
+    let started = Instant::now();
+    let (dir, meta) = RunDir::open(path)?;
+    let (config, store) = (&meta.config, &meta.store);
+    let total = config.relax_steps + config.steps;
+    let gs: crate::report::SpectrumSummary = crate::report::SpectrumSummary::read(&dir.spectrum_path()).map_err(|_| {
+        Error::Other(format!("the forward run in {} is not complete (no spectrum.json); finish it with `clv forward --resume {}`", path.display(), path.display()))
+    })?;
+    let kept = store.clv_steps + store.transient;
+    if opts.transient >= kept {
+        return Err(Error::param("transient", format!("must be below the {kept} steps the run kept for the backward stage (--clv-steps + --transient of the forward run)")));
+    }
+    let window = Window { first: total - kept, last: total - opts.transient };
+    let c_every = store.checkpoint_every;
+    let mut bounds: Vec<u64> = (window.first / c_every * c_every..total).step_by(c_every as usize).collect();
+    bounds.push(total);
+    let k = config.vectors;
+    let d = config.system.dim();
+    let tau = config.tau;
+
+    let frames_path = opts.frames_path.clone();
+    let saving = opts.save_every > 0 && frames_path.is_some();
+    let run_json = RunDir::meta_json(&meta);
+    let progress_file = progress_path(&dir);
+    let prior: Option<Progress> = if resume {
+        let text = std::fs::read_to_string(&progress_file).map_err(|e| {
+            Error::Other(format!("{}: {e}; there is no interrupted backward sweep to resume (run without --resume)", progress_file.display()))
+        })?;
+        let p: Progress = serde_json::from_str(&text).map_err(|e| Error::corrupt(&progress_file, e.to_string()))?;
+        if p.options != *opts {
+            return Err(Error::param("resume", format!(
+                "the interrupted sweep in {} was started with other options ({:?}); run without --resume to start over",
+                progress_file.display(),
+                p.options
+            )));
+        }
+        Some(p)
+    } else {
+        if let Some(f) = frames_path.as_ref().filter(|_| saving) {
+            if tmp_path(f).exists() {
+                return Err(Error::Other(format!(
+                    "{} holds the frames of an interrupted backward sweep; continue it with --resume, or delete it to start over",
+                    tmp_path(f).display()
+                )));
+            }
+        }
+        None
+    };
+    if let Some(p) = prior.as_ref().filter(|p| p.done) {
+        let report: BackwardReport = serde_json::from_str(&std::fs::read_to_string(report_path(&dir)).map_err(|e| Error::io(report_path(&dir), e))?)
+            .map_err(|e| Error::corrupt(report_path(&dir), e.to_string()))?;
+        let _ = p;
+        return Ok(report);
+    }
+
+    let mut frame_file = match (&frames_path, saving, &prior) {
+        (Some(f), true, Some(p)) => Some(FrameFile::salvage(f, &run_json, p.stats.frames.div_ceil(opts.save_every))?),
+        (Some(f), true, None) => Some(FrameFile::create(f, &run_json)?),
+        _ => None,
+    };
+
+    let mut c = match &prior {
+        Some(p) => MatRef::from_column_major_slice(&p.c, k, k).to_owned(),
+        None => initial_c(k, opts.c_init, config.seed),
+    };
+    let n_frames = window.last - window.first + 1;
+    let mut acc = prior.as_ref().map(|p| p.acc.clone()).unwrap_or_else(|| Accumulator::new(k, n_frames.div_ceil(config.blocks as u64)));
+    let mut stats = prior.as_ref().map(|p| p.stats.clone()).unwrap_or_default();
+    let resume_at = prior.as_ref().map(|p| p.at).unwrap_or(total);
+    let todo: Vec<(u64, u64)> = bounds.windows(2).rev().map(|w| (w[0], w[1])).filter(|&(_, s1)| s1 <= resume_at).collect();
+
+    let segment_bytes = 8 * (c_every + 1) * (d * k) as u64;
+    let out_of_core = (3 * segment_bytes > memory_bytes).then(|| dir.path.clone());
+    let store_r_all = store.store_r == StoreR::All;
+    let par = par(config.threads);
+
+    let (tx, rx) = crossbeam_channel::bounded::<Result<Segment>>(0);
+    let producer_config = config.clone();
+    let segments = dir.segments()?;
+    let producer_todo = todo.clone();
+    let producer = std::thread::Builder::new()
+        .name("clv-recompute".into())
+        .spawn(move || {
+            let mut cps = Checkpoints { segments, cached: None };
+            for (s0, s1) in producer_todo {
+                let seg = recompute(&producer_config, store_r_all, &mut cps, s0, s1, out_of_core.as_deref());
+                let failed = seg.is_err();
+                if tx.send(seg).is_err() || failed {
+                    break;
+                }
+            }
+        })
+        .map_err(|e| Error::Other(format!("cannot start the recomputation thread: {e}")))?;
+
+    let mut r = Mat::<f64>::zeros(k, k);
+    let mut v = vec![0.0; d * k];
+    let mut stopped = false;
+    let mut failure = None;
+    for segment in rx.iter() {
+        let seg = match segment {
+            Ok(s) => s,
+            Err(e) => {
+                failure = Some(e);
+                break;
+            }
+        };
+        stats.segments += 1;
+        stats.recomputed_steps += seg.s1 - seg.s0;
+        for n in (seg.s0 + 1..=seg.s1).rev() {
+            let packed = &seg.r[(n - seg.s0 - 1) as usize];
+            let rn = unpack_upper(packed).ok_or_else(|| Error::Other(format!("R at step {n} is not triangular")))?;
+            r.copy_from(&rn);
+            faer::linalg::triangular_solve::solve_upper_triangular_in_place(r.as_ref(), c.as_mut(), par);
+            let mut logs = vec![0.0; k];
+            for (j, log) in logs.iter_mut().enumerate() {
+                let col = c.col_mut(j);
+                let norm = col.norm_l2();
+                col.iter_mut().for_each(|x| *x /= norm);
+                *log = -norm.ln();
+            }
+            let m = n - 1;
+            if m < window.first || m > window.last {
+                continue;
+            }
+            let at = ((m - seg.s0) as usize) * d * k;
+            let g = &seg.g.slice()[at..at + d * k];
+            faer::linalg::matmul::matmul(
+                MatMut::from_column_major_slice_mut(&mut v, d, k),
+                faer::Accum::Replace,
+                MatRef::from_column_major_slice(g, d, k),
+                c.as_ref(),
+                1.0,
+                par,
+            );
+            acc.add_logs(logs.iter().copied());
+            let frame = Arc::new(Frame {
+                step: m,
+                time: m as f64 * tau,
+                d,
+                k,
+                phase: seg.phase[(m - seg.s0) as usize].clone(),
+                v: v.clone(),
+                local: logs.iter().map(|l| l / tau).collect(),
+                g: opts.with_gs.then(|| g.to_vec()),
+            });
+            if stats.frames == 0 {
+                stats.last_frame_step = m;
+            }
+            stats.first_frame_step = m;
+            if let Some(file) = frame_file.as_mut() {
+                if stats.frames % opts.save_every == 0 {
+                    file.write(&frame)?;
+                }
+            }
+            stats.frames += 1;
+            if consumer(frame)? == Flow::Stop {
+                stopped = true;
+                break;
+            }
+        }
+        if stopped {
+            break;
+        }
+        on_progress(stats.recomputed_steps, stats.frames);
+        if let Some(file) = frame_file.as_mut() {
+            file.sync()?;
+        }
+        stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();
+        let p = Progress { options: opts.clone(), at: seg.s0, c: c.col_iter().flat_map(|col| col.iter().copied().collect::<Vec<_>>()).collect(), acc: acc.clone(), stats: stats.clone(), done: false };
+        write_atomic(&progress_file, &serde_json::to_vec(&p).map_err(|e| Error::Other(e.to_string()))?)?;
+    }
+    drop(rx);
+    let _ = producer.join();
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    stats.stopped_early = stopped;
+    stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();
+    let report = BackwardReport {
+        exponents: acc.exponents(tau),
+        stderr: acc.stderr(tau),
+        gs_exponents: gs.exponents,
+        gs_stderr: gs.stderr,
+        options: opts.clone(),
+        statistics: stats.clone(),
+    };
+    if stopped {
+        return Ok(report);
+    }
+    if let Some(file) = frame_file {
+        file.finish()?;
+    }
+    let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Other(e.to_string()))?;
+    write_atomic(&report_path(&dir), json.as_bytes())?;
+    let done = Progress { options: opts.clone(), at: window.first, c: Vec::new(), acc, stats, done: true };
+    write_atomic(&progress_file, &serde_json::to_vec(&done).map_err(|e| Error::Other(e.to_string()))?)?;
+    Ok(report)
+}
+
+/// C at the end of the window: the identity, or a random upper-triangular matrix with
+/// positive diagonal and unit columns.
+fn initial_c(k: usize, init: CInit, seed: u64) -> Mat<f64> {
+    match init {
+        CInit::Identity => Mat::identity(k, k),
+        CInit::Random => {
+            let mut rng = Rng::new(seed ^ 0x6769_6e65_6c6c_69);
+            let mut c = Mat::zeros(k, k);
+            for j in 0..k {
+                for i in 0..=j {
+                    c[(i, j)] = if i == j { 1.0 + rng.uniform() } else { rng.normal() };
+                }
+                let norm = c.col(j).norm_l2();
+                c.col_mut(j).iter_mut().for_each(|x| *x /= norm);
+            }
+            c
+        }
+    }
+}

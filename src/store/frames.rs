@@ -1,0 +1,201 @@
+//! Frame streams: the covariant vectors as MCAP, to a file, to standard output, and back.
+//!
+//! A frame file is written as `FILE.tmp`; at the end of every backward segment its chunk is
+//! closed and the file fsynced, so that a killed backward stage can salvage every frame up to
+//! its last progress record and continue. The finished file is renamed to `FILE`.
+//! Standard output carries the same MCAP stream without seeking, for shell pipes.
+
+use super::schema::FRAME;
+use super::segment::{read_stream, RUN_METADATA};
+use crate::error::{Error, Result};
+use crate::stage::frame::Frame;
+use mcap::records::{MessageHeader, Metadata};
+use mcap::write::{NoSeek, WriteOptions, Writer};
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufWriter, Seek, Write};
+use std::path::{Path, PathBuf};
+
+/// What a consumer of frames wants next.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Flow {
+    Continue,
+    /// The consumer is gone (closed pipe, early stop): end the stream cleanly.
+    Stop,
+}
+
+fn options(seekable: bool) -> WriteOptions {
+    WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .compression_level(1)
+        .chunk_size(Some(8 << 20))
+        .disable_seeking(!seekable)
+        .profile("clv")
+}
+
+struct McapOut<W: Write + Seek> {
+    writer: Writer<W>,
+    channel: u16,
+    sequence: u32,
+}
+
+impl<W: Write + Seek> McapOut<W> {
+    fn new(w: W, seekable: bool, run_json: &str) -> mcap::McapResult<Self> {
+        let mut writer = options(seekable).create(w)?;
+        let meta = Metadata { name: RUN_METADATA.into(), metadata: BTreeMap::from([("run.json".to_string(), run_json.to_string())]) };
+        writer.write_metadata(&meta)?;
+        let schema = writer.add_schema(FRAME.name, "jsonschema", FRAME.text.as_bytes())?;
+        let channel = writer.add_channel(schema, FRAME.topic, "cbor", &BTreeMap::new())?;
+        Ok(McapOut { writer, channel, sequence: 0 })
+    }
+
+    fn write(&mut self, step: u64, data: &[u8]) -> mcap::McapResult<()> {
+        self.sequence += 1;
+        let header = MessageHeader { channel_id: self.channel, sequence: self.sequence, log_time: step, publish_time: step };
+        self.writer.write_to_known_channel(&header, data)
+    }
+}
+
+fn mcap_err(path: &Path, e: mcap::McapError) -> Error {
+    match e {
+        mcap::McapError::Io(io) => Error::io(path, io),
+        other => Error::Other(format!("{}: {other}", path.display())),
+    }
+}
+
+/// A frame file being written (as FILE.tmp until finished).
+pub struct FrameFile {
+    path: PathBuf,
+    tmp: PathBuf,
+    out: McapOut<BufWriter<File>>,
+    /// A second handle on the same file, for fsync while the writer owns the first.
+    sync_handle: File,
+    /// Frames written so far.
+    pub frames: u64,
+}
+
+pub fn tmp_path(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".tmp");
+    path.with_file_name(name)
+}
+
+impl FrameFile {
+    /// Start FILE.tmp (replacing a stale one); refuses if FILE exists.
+    pub fn create(path: &Path, run_json: &str) -> Result<Self> {
+        if path.exists() {
+            return Err(Error::Other(format!("{} already exists; refusing to overwrite it (remove it or choose another --out)", path.display())));
+        }
+        let tmp = tmp_path(path);
+        let file = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        let sync_handle = file.try_clone().map_err(|e| Error::io(&tmp, e))?;
+        let out = McapOut::new(BufWriter::with_capacity(1 << 20, file), true, run_json).map_err(|e| mcap_err(&tmp, e))?;
+        Ok(FrameFile { path: path.to_path_buf(), tmp, out, sync_handle, frames: 0 })
+    }
+
+    /// Continue an interrupted file: keep its first `keep` frames (all complete chunks up to
+    /// the last progress record), rewrite them into a fresh FILE.tmp and append from there.
+    pub fn salvage(path: &Path, run_json: &str, keep: u64) -> Result<Self> {
+        let tmp = tmp_path(path);
+        let old = tmp.with_extension("tmp.old");
+        if keep > 0 {
+            std::fs::rename(&tmp, &old).map_err(|e| Error::io(&tmp, e))?;
+        }
+        let mut file = FrameFile::create(path, run_json)?;
+        if keep > 0 {
+            read_stream(&old, std::io::BufReader::new(File::open(&old).map_err(|e| Error::io(&old, e))?), true, |m| {
+                if m.topic == FRAME.topic && file.frames < keep {
+                    file.write_raw(m.step, m.data)?;
+                }
+                Ok(())
+            })?;
+            if file.frames < keep {
+                return Err(Error::corrupt(&old, format!("holds {} complete frames, the progress record says {keep}", file.frames)));
+            }
+            std::fs::remove_file(&old).map_err(|e| Error::io(&old, e))?;
+        }
+        Ok(file)
+    }
+
+    fn write_raw(&mut self, step: u64, data: &[u8]) -> Result<()> {
+        self.out.write(step, data).map_err(|e| mcap_err(&self.tmp, e))?;
+        self.frames += 1;
+        Ok(())
+    }
+
+    pub fn write(&mut self, frame: &Frame) -> Result<()> {
+        self.write_raw(frame.step, &frame.encode())
+    }
+
+    /// Close the current chunk and fsync: every frame so far survives a crash.
+    pub fn sync(&mut self) -> Result<()> {
+        self.out.writer.flush().map_err(|e| mcap_err(&self.tmp, e))?;
+        self.sync_handle.sync_all().map_err(|e| Error::io(&self.tmp, e))
+    }
+
+    pub fn finish(mut self) -> Result<PathBuf> {
+        self.out.writer.finish().map_err(|e| mcap_err(&self.tmp, e))?;
+        let file = self.out.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?;
+        file.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
+        std::fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;
+        Ok(self.path)
+    }
+}
+
+/// The frame stream on standard output.
+pub struct FrameStdout {
+    out: McapOut<NoSeek<BufWriter<std::io::Stdout>>>,
+}
+
+fn is_broken_pipe(e: &mcap::McapError) -> bool {
+    matches!(e, mcap::McapError::Io(io) if io.kind() == std::io::ErrorKind::BrokenPipe)
+}
+
+impl FrameStdout {
+    pub fn new(run_json: &str) -> Result<Self> {
+        let out = McapOut::new(NoSeek::new(BufWriter::with_capacity(1 << 20, std::io::stdout())), false, run_json)
+            .map_err(|e| mcap_err(Path::new("<stdout>"), e))?;
+        Ok(FrameStdout { out })
+    }
+
+    /// Write a frame; a closed pipe is `Flow::Stop`, not an error.
+    pub fn write(&mut self, frame: &Frame) -> Result<Flow> {
+        match self.out.write(frame.step, &frame.encode()) {
+            Ok(()) => Ok(Flow::Continue),
+            Err(e) if is_broken_pipe(&e) => Ok(Flow::Stop),
+            Err(e) => Err(mcap_err(Path::new("<stdout>"), e)),
+        }
+    }
+
+    pub fn finish(mut self) -> Result<()> {
+        match self.out.writer.finish() {
+            Ok(_) => Ok(()),
+            Err(e) if is_broken_pipe(&e) => Ok(()),
+            Err(e) => Err(mcap_err(Path::new("<stdout>"), e)),
+        }
+    }
+}
+
+/// Read frames from a file, or from standard input when `source` is "-", calling `visit`
+/// for each until it says stop. Returns the run description found in the stream and the
+/// damage (a stream cut short) if any.
+pub fn read_frames(source: &Path, mut visit: impl FnMut(Frame) -> Result<Flow>) -> Result<(Option<String>, Option<String>)> {
+    let mut stop = false;
+    let mut on_message = |m: super::segment::Message| -> Result<()> {
+        if stop || m.topic != FRAME.topic {
+            return Ok(());
+        }
+        let frame = Frame::decode(m.data).map_err(|e| Error::corrupt(source, format!("step {}: {e}", m.step)))?;
+        if visit(frame)? == Flow::Stop {
+            stop = true;
+        }
+        Ok(())
+    };
+    let report = if source == Path::new("-") {
+        read_stream(Path::new("<stdin>"), std::io::stdin().lock(), true, &mut on_message)?
+    } else {
+        let file = File::open(source).map_err(|e| Error::io(source, e))?;
+        read_stream(source, std::io::BufReader::with_capacity(1 << 20, file), true, &mut on_message)?
+    };
+    Ok((report.run_json, report.damage))
+}
