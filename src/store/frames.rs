@@ -158,9 +158,10 @@ impl FrameStdout {
         Ok(FrameStdout { out })
     }
 
-    /// Write a frame; a closed pipe is `Flow::Stop`, not an error.
+    /// Write a frame and flush it (its own chunk), so the reader sees it at once; a closed
+    /// pipe is `Flow::Stop`, not an error.
     pub fn write(&mut self, frame: &Frame) -> Result<Flow> {
-        match self.out.write(frame.step, &frame.encode()) {
+        match self.out.write(frame.step, &frame.encode()).and_then(|_| self.out.writer.flush()) {
             Ok(()) => Ok(Flow::Continue),
             Err(e) if is_broken_pipe(&e) => Ok(Flow::Stop),
             Err(e) => Err(mcap_err(Path::new("<stdout>"), e)),

@@ -1,0 +1,308 @@
+//! The backward (Ginelli) stage: covariance, the Henon manifolds, GS = CLV spectra, the
+//! bitwise recomputation check, out-of-core segments, resume after SIGKILL, and pipes.
+
+use clv::stage::frame::Frame;
+use clv::store::frames::{read_frames, Flow};
+use clv::system::henon::Henon;
+use clv::system::disks::HardDisks;
+use clv::system::{DynamicalSystem, Snapshot, Tangent};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+fn clv(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_clv")).args(args).output().unwrap()
+}
+
+fn ok(out: Output) -> Output {
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    out
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("backward").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A finished forward run with the given flags.
+fn forward(name: &str, flags: &[&str]) -> PathBuf {
+    let dir = scratch(name).join("run");
+    ok(clv(&[&["forward", "--quiet", "--out", dir.to_str().unwrap()], flags].concat()));
+    dir
+}
+
+fn backward_json(dir: &Path, flags: &[&str]) -> serde_json::Value {
+    let out = ok(clv(&[&["backward", dir.to_str().unwrap(), "--quiet", "--json"], flags].concat()));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// Frames of a file, in time order.
+fn frames(path: &Path) -> Vec<Frame> {
+    let mut all = Vec::new();
+    let (_, damage) = read_frames(path, |f| {
+        all.push(f);
+        Ok(Flow::Continue)
+    })
+    .unwrap();
+    assert!(damage.is_none(), "{damage:?}");
+    all.sort_by_key(|f| f.step);
+    all
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+fn unit(v: &[f64]) -> Vec<f64> {
+    let n = dot(v, v).sqrt();
+    v.iter().map(|x| x / n).collect()
+}
+
+fn vec_of(report: &serde_json::Value, key: &str) -> Vec<f64> {
+    serde_json::from_value(report[key].clone()).unwrap()
+}
+
+const HENON: [&str; 12] = ["--system", "henon", "--steps", "3000", "--relax-steps", "100", "--clv-steps", "600", "--transient", "300", "--checkpoint-every", "100"];
+
+/// v^1 lies along the unstable manifold (a vector iterated forward from far in the past) and
+/// v^2 along the stable one (a vector iterated backward from far in the future); the CLV
+/// exponents equal the GS ones.
+#[test]
+fn henon_clvs_are_the_manifold_directions() {
+    let dir = forward("henon", &HENON);
+    let report = backward_json(&dir, &["--with-gs"]);
+    let fs = frames(&dir.join("frames.mcap"));
+    assert_eq!(fs.len(), 601);
+    let (clv_l, gs_l) = (vec_of(&report, "exponents"), vec_of(&report, "gs_exponents"));
+    let err = vec_of(&report, "stderr");
+    for i in 0..2 {
+        assert!((clv_l[i] - gs_l[i]).abs() < 4.0 * err[i] + 0.02, "lambda_{}: CLV {} vs GS {}", i + 1, clv_l[i], gs_l[i]);
+    }
+    let m = 40;
+    for at in [m, fs.len() / 2, fs.len() - 1 - m] {
+        let x = |f: &Frame| (f.phase[0], f.phase[1]);
+        // Unstable direction at `at`: iterate (1, 0) forward through the m previous points.
+        let mut u = [1.0, 0.0];
+        for f in &fs[at - m..at] {
+            let (px, _) = x(f);
+            u = [-2.0 * px * u[0] + Henon::B * u[1], u[0]];
+            let n = (u[0] * u[0] + u[1] * u[1]).sqrt();
+            u = [u[0] / n, u[1] / n];
+        }
+        // Stable direction: iterate (1, 0) backward with J^{-1} = [[0, 1], [1/b, 2x/b]] from m
+        // points ahead (the Jacobian at step n uses x_n).
+        let mut s = [1.0, 0.0];
+        for f in fs[at..at + m].iter().rev() {
+            let (px, _) = x(f);
+            s = [s[1], (s[0] + 2.0 * px * s[1]) / Henon::B];
+            let n = (s[0] * s[0] + s[1] * s[1]).sqrt();
+            s = [s[0] / n, s[1] / n];
+        }
+        let f = &fs[at];
+        let c1 = dot(f.v(0), &u).abs();
+        let c2 = dot(f.v(1), &s).abs();
+        assert!(c1 > 1.0 - 1e-10, "step {}: v1 . unstable = {c1}", f.step);
+        assert!(c2 > 1.0 - 1e-10, "step {}: v2 . stable = {c2}", f.step);
+        // The GS vector g^2 is orthogonal to g^1 = v^1, so it is not the stable direction.
+        assert!(dot(f.g(1).unwrap(), &s).abs() < 1.0 - 1e-3);
+        assert!(dot(f.g(0).unwrap(), f.v(0)).abs() > 1.0 - 1e-12, "v1 = g1");
+    }
+}
+
+/// Propagating v_n^j over tau gives a vector parallel to v_{n+1}^j, for every j outside the
+/// degenerate (null-space) subspace.
+fn check_covariance(system: &mut dyn DynamicalSystem, fs: &[Frame], skip: &[usize]) {
+    let mut worst: f64 = 0.0;
+    for pair in fs.windows(2).step_by(7) {
+        let (a, b) = (&pair[0], &pair[1]);
+        assert_eq!(a.step + 1, b.step);
+        for j in (0..a.k).filter(|j| !skip.contains(j)) {
+            system.restore(&Snapshot { phase: a.phase.clone(), events: 0 }).unwrap();
+            let mut t = Tangent::zeros(a.d, 1);
+            t.set_vector(system, 0, a.v(j));
+            system.advance(&mut t).unwrap();
+            assert_eq!(system.snapshot().phase, b.phase, "restored dynamics must reproduce the next phase point");
+            let moved = unit(&t.vector(system, 0));
+            worst = worst.max(1.0 - dot(&moved, b.v(j)).abs());
+        }
+    }
+    assert!(worst < 1e-8, "covariance violated: 1 - |cos| up to {worst}");
+}
+
+#[test]
+fn henon_clvs_are_covariant() {
+    let dir = forward("henon-cov", &HENON);
+    backward_json(&dir, &[]);
+    let fs = frames(&dir.join("frames.mcap"));
+    check_covariance(&mut Henon::new(Henon::A, Henon::B, 0.0, 0.0), &fs, &[]);
+}
+
+fn disk_case(name: &str, n: usize, steps: &str) -> (PathBuf, serde_json::Value, Vec<Frame>) {
+    let ns = n.to_string();
+    let dir = forward(name, &["--n", &ns, "--aspect", "1", "--steps", steps, "--relax-steps", "300", "--clv-steps", "600", "--transient", "600"]);
+    let report = backward_json(&dir, &["--with-gs"]);
+    let fs = frames(&dir.join("frames.mcap"));
+    (dir, report, fs)
+}
+
+fn check_disks(n: usize, steps: &str) {
+    let (_, report, fs) = disk_case(&format!("disks-{n}"), n, steps);
+    let d = 4 * n;
+    let null: Vec<usize> = (2 * n - 3..2 * n + 3).collect();
+    // Covariance for every vector outside the null space.
+    let (lx, _) = clv::system::disks::box_sides(n, 0.7, 1.0);
+    let mut sys = HardDisks::new(n, lx, lx, 0.6, 1).unwrap();
+    check_covariance(&mut sys, &fs, &null);
+    // CLV spectrum = GS spectrum within the errors (outside the null space, where the
+    // Jordan block makes finite-time CLV averages decay only like ln t / t).
+    let (l, g, e, ge) = (vec_of(&report, "exponents"), vec_of(&report, "gs_exponents"), vec_of(&report, "stderr"), vec_of(&report, "gs_stderr"));
+    for i in (0..d).filter(|i| !null.contains(i)) {
+        let tol = 4.0 * (e[i].powi(2) + ge[i].powi(2)).sqrt() + 0.02 * g[i].abs();
+        assert!((l[i] - g[i]).abs() < tol, "N = {n}: lambda_{} CLV {} vs GS {}", i + 1, l[i], g[i]);
+    }
+    for f in fs.iter().step_by(50) {
+        // v^1 = g^1 and v^{2N-2} = g^{2N-2} up to sign (C starts as the identity).
+        assert!(dot(f.v(0), f.g(0).unwrap()).abs() > 1.0 - 1e-10);
+        let j = 2 * n - 3;
+        assert!(dot(f.v(j), f.g(j).unwrap()).abs() > 1.0 - 1e-8, "v^(2N-2) . g^(2N-2) = {}", dot(f.v(j), f.g(j).unwrap()));
+        // The six null-space CLVs lie in span{e_1..e_6}: orthogonal to the complement,
+        // which is spanned by the GS vectors with nonzero exponents.
+        for &j in &null {
+            for i in (0..d).filter(|i| !null.contains(i)) {
+                let x = dot(f.v(j), f.g(i).unwrap()).abs();
+                assert!(x < 1e-9, "null CLV {} has a component {x} along g^{}", j + 1, i + 1);
+            }
+        }
+    }
+}
+
+#[test]
+fn disk_clvs_n4_are_covariant_and_match_gs() {
+    check_disks(4, "6000");
+}
+
+#[test]
+fn disk_clvs_n16_are_covariant_and_match_gs() {
+    check_disks(16, "4000");
+}
+
+#[test]
+fn altered_checkpoint_stops_the_backward_stage_naming_the_step() {
+    use clv::store::records::Checkpoint;
+    use clv::store::schema::{CHECKPOINT, RUN_SCHEMAS};
+    use clv::store::segment::{read_segment, SegmentWriter};
+    let dir = forward("altered", &HENON);
+    let run = clv::store::RunDir { path: dir.clone() };
+    let seg = run.segments().unwrap().pop().unwrap();
+    // Rewrite the newest segment with one bit of one checkpoint's phase point changed.
+    let mut messages = Vec::new();
+    let report = read_segment(&seg.path, false, |m| {
+        messages.push((m.topic.to_string(), m.step, m.data.to_vec()));
+        Ok(())
+    })
+    .unwrap();
+    let target = messages.iter().filter(|m| m.0 == CHECKPOINT.topic).map(|m| m.1).nth(1).unwrap();
+    let altered = dir.join("altered");
+    std::fs::create_dir_all(&altered).unwrap();
+    let mut w = SegmentWriter::create(&altered, seg.first, report.run_json.as_deref().unwrap(), &RUN_SCHEMAS).unwrap();
+    for (topic, step, data) in &messages {
+        let data = if topic == CHECKPOINT.topic && *step == target {
+            let mut cp = Checkpoint::decode(data).unwrap();
+            cp.state.system.phase[0] = f64::from_bits(cp.state.system.phase[0].to_bits() ^ 1);
+            cp.encode()
+        } else {
+            data.clone()
+        };
+        w.write(topic, *step, &data).unwrap();
+    }
+    let written = w.finish().unwrap();
+    std::fs::rename(written, &seg.path).unwrap();
+    let out = clv(&["backward", dir.to_str().unwrap(), "--quiet"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "an altered checkpoint must stop the backward stage");
+    assert!(err.contains(&format!("step {target}")) && err.contains("does not reproduce"), "{err}");
+    assert!(!err.contains("panicked"));
+}
+
+#[test]
+fn out_of_core_segments_and_random_c_give_consistent_results() {
+    let dir = forward("ooc", &["--n", "8", "--aspect", "1", "--steps", "1500", "--clv-steps", "300", "--transient", "300"]);
+    let d = dir.to_str().unwrap();
+    let a = backward_json(&dir, &["--out", &format!("{d}/a.mcap")]);
+    let b = backward_json(&dir, &["--out", &format!("{d}/b.mcap"), "--memory", "0"]);
+    assert_eq!(a["exponents"], b["exponents"], "the scratch-file path must give the same bits");
+    let (fa, fb) = (frames(&dir.join("a.mcap")), frames(&dir.join("b.mcap")));
+    assert!(fa == fb);
+    // A generic (random) start converges to the same covariant vectors outside degenerate
+    // subspaces: compare v^1 and the most stable vector.
+    let c = backward_json(&dir, &["--out", &format!("{d}/c.mcap"), "--c-init", "random"]);
+    let fc = frames(&dir.join("c.mcap"));
+    for (x, y) in fa.iter().zip(&fc).step_by(20) {
+        for j in [0, x.k - 1] {
+            assert!(dot(x.v(j), y.v(j)).abs() > 1.0 - 1e-8, "v^{} differs between C starts", j + 1);
+        }
+    }
+    let (la, lc) = (vec_of(&a, "exponents"), vec_of(&c, "exponents"));
+    assert!((la[0] - lc[0]).abs() < 1e-6);
+}
+
+#[test]
+fn killed_backward_resumes_to_identical_frames() {
+    let dir = forward("resume", &["--n", "16", "--aspect", "1", "--steps", "6000", "--clv-steps", "1200", "--transient", "600"]);
+    let d = dir.to_str().unwrap().to_string();
+    let want_report = backward_json(&dir, &["--out", &format!("{d}/full.mcap")]);
+    let want = frames(&dir.join("full.mcap"));
+    let mut interrupted = 0;
+    for (trial, delay) in [150u64, 400].into_iter().enumerate() {
+        let out = format!("{d}/part-{trial}.mcap");
+        let _ = std::fs::remove_file(dir.join("backward.json"));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", &d, "--quiet", "--out", &out]).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay));
+        child.kill().unwrap();
+        child.wait().unwrap();
+        if !Path::new(&out).exists() {
+            interrupted += 1;
+            let report = backward_json(&dir, &["--out", &out, "--resume"]);
+            assert_eq!(report["exponents"], want_report["exponents"]);
+        } else {
+            backward_json(&dir, &["--out", &format!("{d}/again-{trial}.mcap")]);
+        }
+        assert!(frames(Path::new(&out)) == want, "trial {trial}: frames after resume differ");
+    }
+    assert!(interrupted >= 1, "no kill landed before the end of the sweep");
+}
+
+#[test]
+fn frames_flow_through_real_pipes_and_a_closed_pipe_ends_cleanly() {
+    let dir = forward("pipe", &["--n", "8", "--aspect", "1", "--steps", "1500", "--clv-steps", "300", "--transient", "300"]);
+    let d = dir.to_str().unwrap();
+    backward_json(&dir, &["--out", &format!("{d}/file.mcap")]);
+    let want = frames(&dir.join("file.mcap"));
+    // backward --out - | (a reader of the MCAP stream on stdin)
+    let mut producer = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", d, "--out", "-", "--quiet"]).stdout(Stdio::piped()).spawn().unwrap();
+    let piped = producer.stdout.take().unwrap();
+    let mut got = Vec::new();
+    read_frames_from(piped, &mut got);
+    assert!(producer.wait().unwrap().success());
+    got.sort_by_key(|f| f.step);
+    assert!(got == want, "the piped stream carries the same frames as the file");
+    // A reader that stops after a few bytes: the producer ends cleanly (exit 0).
+    let mut producer = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", d, "--out", "-"]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let mut head = producer.stdout.take().unwrap();
+    let mut buf = [0u8; 5000];
+    std::io::Read::read_exact(&mut head, &mut buf).unwrap();
+    drop(head);
+    let out = producer.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("closed the stream"), "{err}");
+}
+
+fn read_frames_from(input: impl std::io::Read, into: &mut Vec<Frame>) {
+    clv::store::segment::read_stream(Path::new("<pipe>"), input, false, |m| {
+        into.push(Frame::decode(m.data).unwrap());
+        Ok(())
+    })
+    .unwrap();
+}
