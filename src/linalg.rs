@@ -124,6 +124,32 @@ pub fn pack_upper(r: faer::MatRef<'_, f64>) -> Vec<f64> {
     out
 }
 
+/// [`pack_upper`] into a buffer of k (k + 1) / 2 values.
+pub fn pack_upper_into(r: faer::MatRef<'_, f64>, out: &mut [f64]) {
+    let k = r.ncols();
+    assert_eq!(out.len(), k * (k + 1) / 2, "buffer must hold k (k + 1) / 2 values");
+    let mut at = 0;
+    for j in 0..k {
+        for i in 0..=j {
+            out[at] = r[(i, j)];
+            at += 1;
+        }
+    }
+}
+
+/// Unpack into an existing k x k matrix (the strictly lower part is left untouched).
+pub fn unpack_upper_into(packed: &[f64], r: &mut Mat<f64>) {
+    let k = r.ncols();
+    assert_eq!(packed.len(), k * (k + 1) / 2, "packed length must be k (k + 1) / 2");
+    let mut at = 0;
+    for j in 0..k {
+        for i in 0..=j {
+            r[(i, j)] = packed[at];
+            at += 1;
+        }
+    }
+}
+
 /// Inverse of [`pack_upper`]; `None` if the length is not a triangular number.
 pub fn unpack_upper(packed: &[f64]) -> Option<Mat<f64>> {
     let k = ((((8 * packed.len() + 1) as f64).sqrt() - 1.0) / 2.0).round() as usize;

@@ -20,7 +20,7 @@ use super::forward::{Accumulator, Forward, ForwardState};
 use super::frame::Frame;
 use crate::config::RunConfig;
 use crate::error::{Error, Result};
-use crate::linalg::{pack_upper, par, unpack_upper};
+use crate::linalg::{pack_upper, par, unpack_upper_into};
 use crate::rng::Rng;
 use crate::store::frames::{tmp_path, FrameFile, Flow};
 use crate::store::records::{decode_r, Checkpoint};
@@ -200,13 +200,21 @@ impl Storage {
     }
 }
 
-/// One recomputed segment [s0, s1]: G_n and Gamma_n for n = s0..=s1, R_n for n = s0+1..=s1.
+/// One recomputed segment [s0, s1]: G_n and Gamma_n for n = s0..=s1 and packed R_n for
+/// n = s0+1..=s1, in flat buffers that are handed back and reused (two exist at most), so
+/// the memory of the sweep never depends on the window length.
 struct Segment {
     s0: u64,
     s1: u64,
     g: Storage,
-    phase: Vec<Vec<f64>>,
-    r: Vec<Vec<f64>>,
+    phase: Vec<f64>,
+    r: Vec<f64>,
+}
+
+impl Segment {
+    fn new(steps: usize, d: usize, k: usize, out_of_core: Option<&Path>) -> Result<Self> {
+        Ok(Segment { s0: 0, s1: 0, g: Storage::new((steps + 1) * d * k, out_of_core)?, phase: vec![0.0; (steps + 1) * d], r: vec![0.0; steps * k * (k + 1) / 2] })
+    }
 }
 
 fn describe_mismatch(want: &ForwardState, got: &ForwardState) -> String {
@@ -222,29 +230,31 @@ fn describe_mismatch(want: &ForwardState, got: &ForwardState) -> String {
     }
 }
 
-/// Recompute one segment from its older checkpoint and verify it against the newer one.
-fn recompute(config: &RunConfig, store_r_all: bool, cps: &mut Checkpoints, s0: u64, s1: u64, out_of_core: Option<&Path>) -> Result<Segment> {
+/// Recompute segment [s0, s1] into `seg` from the older checkpoint and verify it against
+/// the newer one.
+fn recompute(config: &RunConfig, store_r_all: bool, cps: &mut Checkpoints, s0: u64, s1: u64, seg: &mut Segment) -> Result<()> {
     let start = cps.get(s0)?;
     let want = cps.get(s1)?;
     let mut fwd = Forward::resume(config, &start)?;
-    let dk = fwd.system.dim() * config.vectors;
-    let len = (s1 - s0 + 1) as usize;
-    let mut g = Storage::new(len * dk, out_of_core)?;
-    g.slice_mut()[..dk].copy_from_slice(&start.g);
-    let mut phase = vec![start.system.phase.clone()];
-    let mut r = Vec::with_capacity(len - 1);
+    let (d, k) = (fwd.system.dim(), config.vectors);
+    let (dk, kk) = (d * k, k * (k + 1) / 2);
+    seg.s0 = s0;
+    seg.s1 = s1;
+    let g = seg.g.slice_mut();
+    g[..dk].copy_from_slice(&start.g);
+    seg.phase[..d].copy_from_slice(&start.system.phase);
     for n in s0 + 1..=s1 {
         fwd.step()?;
-        let at = (n - s0) as usize * dk;
-        fwd.g.write_paper_columns(fwd.system.as_ref(), &mut g.slice_mut()[at..at + dk]);
-        phase.push(fwd.system.snapshot().phase);
-        r.push(pack_upper(fwd.r.as_ref()));
+        let i = (n - s0) as usize;
+        fwd.g.write_paper_columns(fwd.system.as_ref(), &mut g[i * dk..(i + 1) * dk]);
+        seg.phase[i * d..(i + 1) * d].copy_from_slice(&fwd.system.snapshot().phase);
+        crate::linalg::pack_upper_into(fwd.r.as_ref(), &mut seg.r[(i - 1) * kk..i * kk]);
     }
     let got = fwd.state();
     if got != want {
-        let seg = cps.segment_of(s1).map(|s| s.path.display().to_string()).unwrap_or_default();
+        let file = cps.segment_of(s1).map(|s| s.path.display().to_string()).unwrap_or_default();
         return Err(Error::Dynamics(format!(
-            "recomputation from step {s0} does not reproduce the checkpoint at step {s1} stored in {seg}: {}. \
+            "recomputation from step {s0} does not reproduce the checkpoint at step {s1} stored in {file}: {}. \
              The run was made by another build or on a CPU with other features (see run.json), or the file was altered; \
              the backward stage refuses to continue with numbers it cannot verify",
             describe_mismatch(&want, &got)
@@ -252,10 +262,11 @@ fn recompute(config: &RunConfig, store_r_all: bool, cps: &mut Checkpoints, s0: u
     }
     if store_r_all {
         for (n, packed) in cps.stored_r(s0, s1)? {
-            r[(n - s0 - 1) as usize] = packed;
+            let i = (n - s0) as usize;
+            seg.r[(i - 1) * kk..i * kk].copy_from_slice(&packed);
         }
     }
-    Ok(Segment { s0, s1, g, phase, r })
+    Ok(())
 }
 
 /// Progress hooks: called with (steps recomputed, frames emitted) as the sweep advances.
@@ -347,6 +358,7 @@ pub fn run(
     let par = par(config.threads);
 
     let (tx, rx) = crossbeam_channel::bounded::<Result<Segment>>(0);
+    let (free_tx, free_rx) = crossbeam_channel::bounded::<Segment>(2);
     let producer_config = config.clone();
     let segments = dir.segments()?;
     let producer_todo = todo.clone();
@@ -354,8 +366,17 @@ pub fn run(
         .name("clv-recompute".into())
         .spawn(move || {
             let mut cps = Checkpoints { segments, cached: None };
+            let mut allocated = 0;
             for (s0, s1) in producer_todo {
-                let seg = recompute(&producer_config, store_r_all, &mut cps, s0, s1, out_of_core.as_deref());
+                let buffer = match free_rx.try_recv() {
+                    Ok(b) => Ok(b),
+                    Err(_) if allocated < 2 => {
+                        allocated += 1;
+                        Segment::new(c_every as usize, d, k, out_of_core.as_deref())
+                    }
+                    Err(_) => free_rx.recv().map_err(|_| Error::Other("the sweep stopped".into())),
+                };
+                let seg = buffer.and_then(|mut b| recompute(&producer_config, store_r_all, &mut cps, s0, s1, &mut b).map(|_| b));
                 let failed = seg.is_err();
                 if tx.send(seg).is_err() || failed {
                     break;
@@ -379,9 +400,9 @@ pub fn run(
         stats.segments += 1;
         stats.recomputed_steps += seg.s1 - seg.s0;
         for n in (seg.s0 + 1..=seg.s1).rev() {
-            let packed = &seg.r[(n - seg.s0 - 1) as usize];
-            let rn = unpack_upper(packed).ok_or_else(|| Error::Other(format!("R at step {n} is not triangular")))?;
-            r.copy_from(&rn);
+            let kk = k * (k + 1) / 2;
+            let i = (n - seg.s0) as usize;
+            unpack_upper_into(&seg.r[(i - 1) * kk..i * kk], &mut r);
             faer::linalg::triangular_solve::solve_upper_triangular_in_place(r.as_ref(), c.as_mut(), par);
             let mut logs = vec![0.0; k];
             for (j, log) in logs.iter_mut().enumerate() {
@@ -410,7 +431,7 @@ pub fn run(
                 time: m as f64 * tau,
                 d,
                 k,
-                phase: seg.phase[(m - seg.s0) as usize].clone(),
+                phase: seg.phase[(m - seg.s0) as usize * d..(m - seg.s0 + 1) as usize * d].to_vec(),
                 v: v.clone(),
                 local: logs.iter().map(|l| l / tau).collect(),
                 g: opts.with_gs.then(|| g.to_vec()),
@@ -438,7 +459,9 @@ pub fn run(
             file.sync()?;
         }
         stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();
-        let p = Progress { options: opts.clone(), at: seg.s0, c: c.col_iter().flat_map(|col| col.iter().copied().collect::<Vec<_>>()).collect(), acc: acc.clone(), stats: stats.clone(), done: false };
+        let at = seg.s0;
+        let _ = free_tx.try_send(seg);
+        let p = Progress { options: opts.clone(), at, c: c.col_iter().flat_map(|col| col.iter().copied().collect::<Vec<_>>()).collect(), acc: acc.clone(), stats: stats.clone(), done: false };
         write_atomic(&progress_file, &serde_json::to_vec(&p).map_err(|e| Error::Other(e.to_string()))?)?;
     }
     drop(rx);
