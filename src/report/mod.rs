@@ -1,6 +1,7 @@
 //! What a person sees: the spectrum table and the JSON summary of a run.
 
 pub mod inspect;
+pub mod plot;
 
 use crate::config::RunConfig;
 use crate::system::Invariants;

@@ -3,5 +3,6 @@
 
 pub mod backward;
 pub mod forward;
+pub mod analyze;
 pub mod forward_run;
 pub mod frame;

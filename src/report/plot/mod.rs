@@ -1,0 +1,651 @@
+//! Small, dependency-free plotting for `clv` reports (SVG and PNG output).
+//!
+//! The project may not pull in plotting or image crates, yet every analysis
+//! needs a figure. This module covers exactly what the reports use: x-y line
+//! and point series, step histograms, arrow fields and reference lines, with a
+//! framed axis box, "nice" ticks, labels, title and legend.
+//!
+//! Design: [`Figure`] first computes a layout and a backend-neutral list of
+//! primitives in pixel coordinates (`scene`); `svg` turns that list into SVG
+//! text, `raster` paints it onto an RGB canvas (with the bitmap glyphs from
+//! `font`), and `png` encodes the canvas with a hand-written deflate.
+//!
+//! ```ignore
+//! let mut fig = Figure::new("Lyapunov spectrum").x_label("i").y_label("λ_i");
+//! fig.series("N = 100", &idx, &lam, Marker::LinePoints).hline(0.0);
+//! fig.save(Path::new("out"), "spectrum")?;
+//! ```
+
+mod font;
+mod png;
+mod raster;
+mod svg;
+#[cfg(test)]
+mod tests;
+
+use std::path::Path;
+
+/// An sRGB colour.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Rgb(u8, u8, u8);
+
+/// Okabe-Ito colour-blind-safe palette (yellow last: weak on white).
+const PALETTE: [Rgb; 8] = [
+    Rgb(0x00, 0x72, 0xB2), // blue
+    Rgb(0xD5, 0x5E, 0x00), // vermillion
+    Rgb(0x00, 0x9E, 0x73), // bluish green
+    Rgb(0xCC, 0x79, 0xA7), // reddish purple
+    Rgb(0xE6, 0x9F, 0x00), // orange
+    Rgb(0x56, 0xB4, 0xE9), // sky blue
+    Rgb(0x00, 0x00, 0x00), // black
+    Rgb(0xF0, 0xE4, 0x42), // yellow
+];
+const INK: Rgb = Rgb(0x20, 0x20, 0x20);
+const GREY: Rgb = Rgb(0x99, 0x99, 0x99);
+const WHITE: Rgb = Rgb(0xFF, 0xFF, 0xFF);
+
+/// Horizontal alignment of a text label relative to its anchor point.
+#[derive(Clone, Copy, Debug)]
+enum Anchor {
+    Start,
+    Middle,
+    End,
+}
+
+/// A text label; `(x, y)` is the anchor point on the text's centre line.
+struct Label {
+    x: f64,
+    y: f64,
+    text: String,
+    /// Bitmap font scale (1 = 5x8 glyphs); SVG uses a matching font size.
+    scale: u32,
+    anchor: Anchor,
+    /// Rotated 90 degrees counter-clockwise (reads bottom to top).
+    vertical: bool,
+    bold: bool,
+    color: Rgb,
+}
+
+impl Label {
+    /// Horizontal, regular-weight label in the ink colour.
+    fn new(x: f64, y: f64, text: &str, scale: u32, anchor: Anchor) -> Self {
+        let (vertical, bold, color, text) = (false, false, INK, text.to_string());
+        Label {
+            x,
+            y,
+            text,
+            scale,
+            anchor,
+            vertical,
+            bold,
+            color,
+        }
+    }
+}
+
+/// Backend-neutral drawing primitive in pixel coordinates (y down).
+enum Prim {
+    /// Data polylines (one per part) with colour and width, clipped to the frame.
+    Path(Vec<Vec<(f64, f64)>>, Rgb, f64),
+    /// Straight line from `a` to `b` with colour and width (ticks, legend).
+    Line((f64, f64), (f64, f64), Rgb, f64),
+    /// Rectangle `[x0, y0, x1, y1]` with optional fill and stroke colours.
+    Rect([f64; 4], Option<Rgb>, Option<Rgb>),
+    /// Filled dots of radius [`DOT_R`]; the flag clips them to the frame.
+    Dots(Vec<(f64, f64)>, Rgb, bool),
+    Text(Label),
+}
+
+/// Radius of point markers in pixels.
+const DOT_R: f64 = 3.0;
+
+/// How an x-y series is drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Marker {
+    /// Straight line segments between consecutive points.
+    Line,
+    /// A filled dot at every point, no line.
+    Points,
+    /// Line segments plus a dot at every point.
+    LinePoints,
+    /// Post-step line: horizontal from each point to the next x, then vertical.
+    Steps,
+}
+
+enum Kind {
+    /// Points in data order; non-finite points break lines.
+    Xy(Vec<(f64, f64)>, Marker),
+    /// Arrows as (tail, head) pairs in data coordinates, all finite.
+    Arrows(Vec<((f64, f64), (f64, f64))>),
+}
+
+struct Series {
+    label: String,
+    color: Rgb,
+    kind: Kind,
+}
+
+/// A 2-D figure: build it with the chained setters, add data, then render
+/// with [`Figure::to_svg`], [`Figure::to_png`] or [`Figure::save`].
+pub struct Figure {
+    title: String,
+    w: u32,
+    h: u32,
+    x_label: String,
+    y_label: String,
+    x_range: Option<(f64, f64)>,
+    y_range: Option<(f64, f64)>,
+    series: Vec<Series>,
+    hlines: Vec<f64>,
+}
+
+/// Pixel rectangle of the plot frame, the data ranges, and the ticks.
+struct Layout {
+    l: f64,
+    t: f64,
+    r: f64,
+    b: f64,
+    x: (f64, f64),
+    y: (f64, f64),
+    xticks: Vec<(f64, String)>,
+    yticks: Vec<(f64, String)>,
+    /// Bitmap text scale used for all text.
+    scale: u32,
+}
+
+impl Layout {
+    fn px(&self, x: f64) -> f64 {
+        self.l + (x - self.x.0) / (self.x.1 - self.x.0) * (self.r - self.l)
+    }
+    fn py(&self, y: f64) -> f64 {
+        self.b - (y - self.y.0) / (self.y.1 - self.y.0) * (self.b - self.t)
+    }
+    fn map(&self, p: (f64, f64)) -> (f64, f64) {
+        (self.px(p.0), self.py(p.1))
+    }
+    fn frame(&self) -> [f64; 4] {
+        [self.l, self.t, self.r, self.b]
+    }
+}
+
+const TICK_LEN: f64 = 6.0;
+
+impl Figure {
+    /// New empty figure with a title, 900 x 600 pixels.
+    pub fn new(title: &str) -> Self {
+        Figure {
+            title: title.to_string(),
+            w: 900,
+            h: 600,
+            x_label: String::new(),
+            y_label: String::new(),
+            x_range: None,
+            y_range: None,
+            series: Vec::new(),
+            hlines: Vec::new(),
+        }
+    }
+
+    /// Image size in pixels (clamped to 120..=8000 on each side).
+    pub fn size(mut self, w: u32, h: u32) -> Self {
+        self.w = w.clamp(120, 8000);
+        self.h = h.clamp(120, 8000);
+        self
+    }
+
+    /// Label below the x axis.
+    pub fn x_label(mut self, s: &str) -> Self {
+        self.x_label = s.to_string();
+        self
+    }
+
+    /// Label left of the y axis (drawn vertically).
+    pub fn y_label(mut self, s: &str) -> Self {
+        self.y_label = s.to_string();
+        self
+    }
+
+    /// Fixed x range (default: data range with 3% padding). Reversed bounds
+    /// are swapped; non-finite bounds fall back to the automatic range.
+    pub fn x_range(mut self, lo: f64, hi: f64) -> Self {
+        self.x_range = Some((lo, hi));
+        self
+    }
+
+    /// Fixed y range, same rules as [`Figure::x_range`].
+    pub fn y_range(mut self, lo: f64, hi: f64) -> Self {
+        self.y_range = Some((lo, hi));
+        self
+    }
+
+    fn push(&mut self, label: &str, kind: Kind) -> &mut Self {
+        let color = PALETTE[self.series.len() % PALETTE.len()];
+        self.series.push(Series {
+            label: label.to_string(),
+            color,
+            kind,
+        });
+        self
+    }
+
+    /// Add an x-y series (pairs beyond the shorter slice are ignored).
+    /// Colours come from a colour-blind-safe palette in order of addition.
+    pub fn series(&mut self, label: &str, xs: &[f64], ys: &[f64], marker: Marker) -> &mut Self {
+        let pts = xs.iter().copied().zip(ys.iter().copied()).collect();
+        self.push(label, Kind::Xy(pts, marker))
+    }
+
+    /// Add arrows from each point of `from` by the vector in `delta`
+    /// (pairs with non-finite components are skipped).
+    pub fn arrows(&mut self, label: &str, from: &[(f64, f64)], delta: &[(f64, f64)]) -> &mut Self {
+        let arrows = from
+            .iter()
+            .zip(delta)
+            .map(|(&(x, y), &(dx, dy))| ((x, y), (x + dx, y + dy)))
+            .filter(|&((a, b), (c, d))| [a, b, c, d].iter().all(|v| v.is_finite()))
+            .collect();
+        self.push(label, Kind::Arrows(arrows))
+    }
+
+    /// Add a histogram of `values` with `bins` equal bins on `[lo, hi]`,
+    /// drawn as a step outline. Values outside the range or non-finite are
+    /// ignored. With `normalised` the heights are a probability density
+    /// (count / (number of binned values * bin width)).
+    pub fn histogram(
+        &mut self,
+        label: &str,
+        values: &[f64],
+        bins: usize,
+        lo: f64,
+        hi: f64,
+        normalised: bool,
+    ) -> &mut Self {
+        let mut outline = Vec::new();
+        if bins > 0 && lo.is_finite() && hi.is_finite() && lo < hi {
+            let width = (hi - lo) / bins as f64;
+            let mut counts = vec![0.0; bins];
+            for &v in values
+                .iter()
+                .filter(|v| v.is_finite() && **v >= lo && **v <= hi)
+            {
+                let k = ((v - lo) / width) as usize;
+                counts[k.min(bins - 1)] += 1.0;
+            }
+            let total: f64 = counts.iter().sum();
+            if normalised && total > 0.0 {
+                counts.iter_mut().for_each(|c| *c /= total * width);
+            }
+            outline.push((lo, 0.0));
+            for (k, &c) in counts.iter().enumerate() {
+                outline.push((lo + k as f64 * width, c));
+                outline.push((lo + (k + 1) as f64 * width, c));
+            }
+            outline.push((hi, 0.0));
+        }
+        self.push(label, Kind::Xy(outline, Marker::Line))
+    }
+
+    /// Add a thin grey horizontal reference line at `y` (included in the
+    /// automatic y range, so e.g. `hline(0.0)` always shows the zero line).
+    pub fn hline(&mut self, y: f64) -> &mut Self {
+        self.hlines.push(y);
+        self
+    }
+
+    /// Render as an SVG 1.1 document.
+    pub fn to_svg(&self) -> String {
+        let (layout, prims) = self.scene();
+        svg::render(self.w, self.h, layout.frame(), &prims)
+    }
+
+    /// Render as a PNG file (RGB, 8 bits per channel).
+    pub fn to_png(&self) -> Vec<u8> {
+        let canvas = self.raster();
+        png::encode(canvas.w, canvas.h, &canvas.px)
+    }
+
+    /// Write `stem.svg` and `stem.png` into `dir` (created if missing).
+    pub fn save(&self, dir: &Path, stem: &str) -> std::io::Result<()> {
+        std::fs::create_dir_all(dir)?;
+        std::fs::write(dir.join(format!("{stem}.svg")), self.to_svg())?;
+        std::fs::write(dir.join(format!("{stem}.png")), self.to_png())?;
+        Ok(())
+    }
+
+    fn raster(&self) -> raster::Canvas {
+        let (layout, prims) = self.scene();
+        let mut canvas = raster::Canvas::new(self.w, self.h);
+        for p in &prims {
+            canvas.draw(p, layout.frame());
+        }
+        canvas
+    }
+
+    /// Finite (min, max) of the data along x (`axis` 0) or y (`axis` 1).
+    fn data_bounds(&self, axis: usize) -> Option<(f64, f64)> {
+        let mut vals: Vec<f64> = Vec::new();
+        for s in &self.series {
+            match &s.kind {
+                Kind::Xy(pts, _) => vals.extend(
+                    pts.iter()
+                        .filter(|p| p.0.is_finite() && p.1.is_finite())
+                        .map(|p| pick(*p, axis)),
+                ),
+                Kind::Arrows(a) => {
+                    vals.extend(a.iter().flat_map(|&(p, q)| [pick(p, axis), pick(q, axis)]))
+                }
+            }
+        }
+        if axis == 1 {
+            vals.extend(self.hlines.iter().filter(|y| y.is_finite()));
+        }
+        let lo = vals.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = vals.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (lo <= hi).then_some((lo, hi))
+    }
+
+    fn layout(&self) -> Layout {
+        let scale = if self.w.min(self.h) < 400 { 1 } else { 2 };
+        let ch = f64::from(8 * scale); // text line height in pixels
+        let (w, h) = (f64::from(self.w), f64::from(self.h));
+        let x = axis_range(self.x_range, self.data_bounds(0));
+        let y = axis_range(self.y_range, self.data_bounds(1));
+        // Room for the title and the x label (height) and the y label (width).
+        let room = |s: &String, v: f64| if s.is_empty() { 0.0 } else { v };
+        let t = room(&self.title, (2.5 * ch).round()).max(16.0);
+        let (xl_h, yl_w) = (
+            room(&self.x_label, ch + 8.0),
+            room(&self.y_label, ch + 10.0),
+        );
+        let b = (h - (TICK_LEN + 6.0 + ch + xl_h + 10.0))
+            .round()
+            .max(t + 10.0);
+        // y ticks: keep labels at least a text line plus some air apart.
+        let yticks = fit_ticks(y, b - t, |_| ch + 12.0);
+        let label_w = yticks
+            .iter()
+            .map(|(_, s)| text_w(s, scale))
+            .fold(0.0, f64::max);
+        let l = (10.0 + yl_w + label_w + 6.0 + TICK_LEN)
+            .round()
+            .min(w / 2.0);
+        let mut r = (w - 24.0).round().max(l + 10.0);
+        let xticks = fit_ticks(x, r - l, |s| text_w(s, scale) + 3.0 * ch);
+        // Keep the rightmost tick label inside the image.
+        if let Some((v, s)) = xticks.last() {
+            let px = l + (v - x.0) / (x.1 - x.0) * (r - l);
+            let overflow = px + text_w(s, scale) / 2.0 + 4.0 - w;
+            if overflow > 0.0 {
+                r = (r - overflow).round().max(l + 10.0);
+            }
+        }
+        Layout {
+            l,
+            t,
+            r,
+            b,
+            x,
+            y,
+            xticks,
+            yticks,
+            scale,
+        }
+    }
+
+    /// Layout plus the primitives to draw, in painting order.
+    fn scene(&self) -> (Layout, Vec<Prim>) {
+        let lay = self.layout();
+        let (l, t, r, b, sc) = (lay.l, lay.t, lay.r, lay.b, lay.scale);
+        let (w, h, ch) = (f64::from(self.w), f64::from(self.h), f64::from(8 * sc));
+        let text = |x, y, s: &str, anchor| Label::new(x, y, s, sc, anchor);
+        let mut prims = Vec::new();
+        for &y in self.hlines.iter().filter(|y| y.is_finite()) {
+            let py = lay.py(y);
+            if py >= t && py <= b {
+                prims.push(Prim::Line((l, py), (r, py), GREY, 1.0));
+            }
+        }
+        for s in &self.series {
+            series_prims(&lay, s, &mut prims);
+        }
+        prims.push(Prim::Rect([l, t, r, b], None, Some(INK)));
+        for (v, s) in &lay.xticks {
+            let px = lay.px(*v).round();
+            prims.push(Prim::Line((px, b), (px, b + TICK_LEN), INK, 1.0));
+            let y = b + TICK_LEN + 4.0 + ch / 2.0;
+            prims.push(Prim::Text(text(px, y, s, Anchor::Middle)));
+        }
+        for (v, s) in &lay.yticks {
+            let py = lay.py(*v).round();
+            prims.push(Prim::Line((l - TICK_LEN, py), (l, py), INK, 1.0));
+            prims.push(Prim::Text(text(l - TICK_LEN - 4.0, py, s, Anchor::End)));
+        }
+        if !self.x_label.is_empty() {
+            let (x, y) = ((l + r) / 2.0, h - 10.0 - ch / 2.0);
+            prims.push(Prim::Text(text(x, y, &self.x_label, Anchor::Middle)));
+        }
+        if !self.y_label.is_empty() {
+            let mut label = text(
+                10.0 + ch / 2.0,
+                (t + b) / 2.0,
+                &self.y_label,
+                Anchor::Middle,
+            );
+            label.vertical = true;
+            prims.push(Prim::Text(label));
+        }
+        if !self.title.is_empty() {
+            // Centre on the plot frame if the title fits there, else on the image.
+            let cx = if text_w(&self.title, sc) < r - l {
+                (l + r) / 2.0
+            } else {
+                w / 2.0
+            };
+            let mut label = text(cx, (t / 2.0).round(), &self.title, Anchor::Middle);
+            label.bold = true;
+            prims.push(Prim::Text(label));
+        }
+        self.legend(&lay, &mut prims);
+        (lay, prims)
+    }
+
+    /// Legend box in the top-right corner when two or more series are labelled.
+    fn legend(&self, lay: &Layout, prims: &mut Vec<Prim>) {
+        let entries: Vec<&Series> = self.series.iter().filter(|s| !s.label.is_empty()).collect();
+        if entries.len() < 2 {
+            return;
+        }
+        let sc = lay.scale;
+        let line_h = f64::from(8 * sc) + 6.0;
+        let label_w = entries
+            .iter()
+            .map(|s| text_w(&s.label, sc))
+            .fold(0.0, f64::max);
+        let sample = 14.0 * f64::from(sc);
+        let (x1, y0) = (lay.r - 10.0, lay.t + 10.0);
+        let x0 = (x1 - (8.0 + sample + 8.0 + label_w + 8.0)).max(lay.l);
+        let y1 = y0 + 6.0 + line_h * entries.len() as f64;
+        prims.push(Prim::Rect([x0, y0, x1, y1], Some(WHITE), Some(GREY)));
+        for (k, s) in entries.iter().enumerate() {
+            let cy = (y0 + 3.0 + line_h * (k as f64 + 0.5)).round();
+            let (a, b) = ((x0 + 8.0, cy), (x0 + 8.0 + sample, cy));
+            let marker = match s.kind {
+                Kind::Xy(_, m) => m,
+                Kind::Arrows(_) => Marker::Line,
+            };
+            if marker != Marker::Points {
+                prims.push(Prim::Line(a, b, s.color, 2.0));
+            }
+            if matches!(marker, Marker::Points | Marker::LinePoints) {
+                prims.push(Prim::Dots(vec![((a.0 + b.0) / 2.0, cy)], s.color, false));
+            }
+            prims.push(Prim::Text(Label::new(
+                b.0 + 8.0,
+                cy,
+                &s.label,
+                sc,
+                Anchor::Start,
+            )));
+        }
+    }
+}
+
+fn pick(p: (f64, f64), axis: usize) -> f64 {
+    if axis == 0 { p.0 } else { p.1 }
+}
+
+/// Pixel width of `s` in the PNG font (also used as the SVG estimate).
+fn text_w(s: &str, scale: u32) -> f64 {
+    f64::from(font::text_width(&font::to_ascii(s), scale))
+}
+
+/// Primitives for one data series.
+fn series_prims(lay: &Layout, s: &Series, prims: &mut Vec<Prim>) {
+    let color = s.color;
+    let finite = |p: &(f64, f64)| p.0.is_finite() && p.1.is_finite();
+    match &s.kind {
+        Kind::Xy(pts, marker) => {
+            if *marker != Marker::Points {
+                // Split into runs of finite points: NaN/inf break the line.
+                let mut parts: Vec<Vec<(f64, f64)>> = Vec::new();
+                for run in pts.split(|p| !finite(p)).filter(|r| !r.is_empty()) {
+                    let mut part = Vec::with_capacity(run.len());
+                    for (i, &p) in run.iter().enumerate() {
+                        if *marker == Marker::Steps && i > 0 {
+                            part.push(lay.map((p.0, run[i - 1].1)));
+                        }
+                        part.push(lay.map(p));
+                    }
+                    parts.push(part);
+                }
+                let width = if *marker == Marker::LinePoints {
+                    1.5
+                } else {
+                    2.0
+                };
+                if !parts.is_empty() {
+                    prims.push(Prim::Path(parts, color, width));
+                }
+            }
+            if matches!(marker, Marker::Points | Marker::LinePoints) {
+                let pts: Vec<_> = pts
+                    .iter()
+                    .filter(|p| finite(p))
+                    .map(|&p| lay.map(p))
+                    .collect();
+                if !pts.is_empty() {
+                    prims.push(Prim::Dots(pts, color, true));
+                }
+            }
+        }
+        Kind::Arrows(arrows) => {
+            // Shaft plus two barbs at +-25 degrees, at most 10 px long.
+            let (cos, sin) = (25f64.to_radians().cos(), 25f64.to_radians().sin());
+            let mut parts = Vec::new();
+            for &(p, q) in arrows {
+                let (a, b) = (lay.map(p), lay.map(q));
+                parts.push(vec![a, b]);
+                let len = (b.0 - a.0).hypot(b.1 - a.1);
+                if len > 1.0 {
+                    let head = (0.35 * len).min(10.0);
+                    let (ux, uy) = ((b.0 - a.0) / len, (b.1 - a.1) / len);
+                    let barb = |sg: f64| {
+                        let (rx, ry) = (cos * ux - sg * sin * uy, sg * sin * ux + cos * uy);
+                        (b.0 - head * rx, b.1 - head * ry)
+                    };
+                    parts.push(vec![barb(1.0), b, barb(-1.0)]);
+                }
+            }
+            if !parts.is_empty() {
+                prims.push(Prim::Path(parts, color, 1.5));
+            }
+        }
+    }
+}
+
+/// Axis range: a valid fixed range wins; otherwise the data range with 3%
+/// padding; a degenerate range is widened around its value; no data -> [0, 1].
+fn axis_range(fixed: Option<(f64, f64)>, data: Option<(f64, f64)>) -> (f64, f64) {
+    let (lo, hi, pad) = match fixed {
+        Some((a, b)) if a.is_finite() && b.is_finite() => (a.min(b), a.max(b), 0.0),
+        _ => match data {
+            Some((a, b)) => (a, b, 0.03),
+            None => return (0.0, 1.0),
+        },
+    };
+    let span = hi - lo;
+    if span == 0.0 {
+        let d = if lo == 0.0 { 1.0 } else { 0.1 * lo.abs() };
+        return (lo - d, hi + d);
+    }
+    if !span.is_finite() {
+        // Extreme values: fall back to a symmetric range that still maps.
+        return (-f64::MAX / 4.0, f64::MAX / 4.0);
+    }
+    (lo - pad * span, hi + pad * span)
+}
+
+/// Nice step (1, 2 or 5 times a power of ten) giving about `target` intervals.
+fn nice_step(span: f64, target: usize) -> f64 {
+    let raw = span / target.max(1) as f64;
+    let mag = 10f64.powf(raw.log10().floor());
+    let norm = raw / mag;
+    let m = [1.0, 2.0, 5.0]
+        .into_iter()
+        .find(|&m| norm <= m)
+        .unwrap_or(10.0);
+    m * mag
+}
+
+/// Tick values (multiples of `step`) inside `[lo, hi]` with their labels.
+fn ticks(lo: f64, hi: f64, step: f64) -> Vec<(f64, String)> {
+    let (k0, k1) = ((lo / step - 1e-9).ceil(), (hi / step + 1e-9).floor());
+    if !(k0.is_finite() && k1.is_finite() && step > 0.0) || k1 < k0 || k1 - k0 > 100.0 {
+        return Vec::new();
+    }
+    (0..=(k1 - k0) as i64)
+        .map(|i| {
+            let v = (k0 + i as f64) * step;
+            (v, fmt_tick(v, step))
+        })
+        .collect()
+}
+
+/// Label for tick value `v` on a grid of spacing `step`: plain decimals with
+/// just enough digits, or scientific notation for very large/small values.
+fn fmt_tick(v: f64, step: f64) -> String {
+    if v.abs() < step * 1e-6 {
+        return "0".to_string();
+    }
+    let step_exp = step.log10().floor() as i32;
+    let v_exp = v.abs().log10().floor() as i32;
+    if v.abs() >= 1e5 || v_exp < -3 {
+        let digits = (v_exp - step_exp).clamp(0, 10) as usize;
+        let s = format!("{v:.digits$e}");
+        match s.split_once('e') {
+            Some((m, e)) if m.contains('.') => {
+                format!("{}e{e}", m.trim_end_matches('0').trim_end_matches('.'))
+            }
+            _ => s,
+        }
+    } else {
+        let digits = (-step_exp).clamp(0, 10) as usize;
+        format!("{v:.digits$}")
+    }
+}
+
+/// Ticks for `range` over `len_px` pixels, as dense as possible such that
+/// neighbouring labels are at least `need(label)` pixels apart.
+fn fit_ticks(range: (f64, f64), len_px: f64, need: impl Fn(&str) -> f64) -> Vec<(f64, String)> {
+    let span = range.1 - range.0;
+    let mut target = ((len_px / 40.0) as usize).clamp(2, 12);
+    loop {
+        let step = nice_step(span, target);
+        let ticks = ticks(range.0, range.1, step);
+        let step_px = step / span * len_px;
+        if target <= 2 || ticks.iter().all(|(_, s)| need(s) <= step_px) {
+            return ticks;
+        }
+        target -= 1;
+    }
+}

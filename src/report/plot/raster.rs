@@ -1,0 +1,216 @@
+//! Minimal RGB rasteriser for the PNG backend.
+//!
+//! Plots only need straight lines, filled rectangles and dots, and bitmap
+//! text, so a tiny canvas with Bresenham lines (no anti-aliasing) is enough.
+//! Line segments are clipped in floating point first, so wild data values far
+//! outside the axes never produce endless pixel loops.
+
+use super::font;
+use super::{Anchor, DOT_R, Label, Prim, Rgb};
+
+/// An RGB8 image plus an optional clip box `[x0, y0, x1, y1]` (inclusive).
+pub(super) struct Canvas {
+    pub(super) w: u32,
+    pub(super) h: u32,
+    /// Row-major RGB bytes, `3 * w * h` long.
+    pub(super) px: Vec<u8>,
+    clip: Option<[i64; 4]>,
+}
+
+impl Canvas {
+    /// White canvas of the given size.
+    pub(super) fn new(w: u32, h: u32) -> Self {
+        let px = vec![255; 3 * w as usize * h as usize];
+        Canvas {
+            w,
+            h,
+            px,
+            clip: None,
+        }
+    }
+
+    /// Colour at (x, y); used by tests.
+    #[cfg(test)]
+    pub(super) fn get(&self, x: u32, y: u32) -> Rgb {
+        let i = 3 * (y as usize * self.w as usize + x as usize);
+        Rgb(self.px[i], self.px[i + 1], self.px[i + 2])
+    }
+
+    /// Drawable box: the clip box, or the whole image.
+    fn bounds(&self) -> [i64; 4] {
+        let (w, h) = (i64::from(self.w) - 1, i64::from(self.h) - 1);
+        match self.clip {
+            Some([x0, y0, x1, y1]) => [x0.max(0), y0.max(0), x1.min(w), y1.min(h)],
+            None => [0, 0, w, h],
+        }
+    }
+
+    /// Fill the inclusive box `[x0, y0, x1, y1]`, limited to the bounds.
+    fn fill(&mut self, r: [i64; 4], c: Rgb) {
+        let [bx0, by0, bx1, by1] = self.bounds();
+        for y in r[1].max(by0)..=r[3].min(by1) {
+            for x in r[0].max(bx0)..=r[2].min(bx1) {
+                let i = 3 * (y as usize * self.w as usize + x as usize);
+                self.px[i..i + 3].copy_from_slice(&[c.0, c.1, c.2]);
+            }
+        }
+    }
+
+    /// Draw a segment `width` pixels thick (a square brush on a Bresenham path).
+    fn line(&mut self, a: (f64, f64), b: (f64, f64), width: f64, c: Rgb) {
+        let [x0, y0, x1, y1] = self.bounds().map(|v| v as f64);
+        let Some((a, b)) = clip_segment(a, b, [x0 - 2.0, y0 - 2.0, x1 + 2.0, y1 + 2.0]) else {
+            return;
+        };
+        let brush = (width.round() as i64).clamp(1, 4);
+        let off = (brush - 1) / 2;
+        let (mut x, mut y) = (a.0.round() as i64, a.1.round() as i64);
+        let (xe, ye) = (b.0.round() as i64, b.1.round() as i64);
+        let (dx, dy) = ((xe - x).abs(), -(ye - y).abs());
+        let (sx, sy) = ((xe - x).signum(), (ye - y).signum());
+        let mut err = dx + dy;
+        loop {
+            let (bx, by) = (x - off, y - off);
+            self.fill([bx, by, bx + brush - 1, by + brush - 1], c);
+            if x == xe && y == ye {
+                break;
+            }
+            let e2 = 2 * err;
+            if e2 >= dy {
+                err += dy;
+                x += sx;
+            }
+            if e2 <= dx {
+                err += dx;
+                y += sy;
+            }
+        }
+    }
+
+    /// Filled disc of radius `r` centred at `(cx, cy)`.
+    fn dot(&mut self, cx: f64, cy: f64, r: f64, c: Rgb) {
+        if !(cx.is_finite() && cy.is_finite()) {
+            return;
+        }
+        let (x, y, ri) = (cx.round() as i64, cy.round() as i64, r.ceil() as i64);
+        for dy in -ri..=ri {
+            for dx in -ri..=ri {
+                if ((dx * dx + dy * dy) as f64) <= r * r + 0.5 * r {
+                    self.fill([x + dx, y + dy, x + dx, y + dy], c);
+                }
+            }
+        }
+    }
+
+    /// Bitmap text; `(x, y)` is the anchor point, `y` the vertical centre of
+    /// the glyph box (for vertical text: `x` is the centre, `y` the anchor).
+    fn text(&mut self, t: &Label) {
+        let ascii = font::to_ascii(&t.text);
+        let sc = i64::from(t.scale);
+        let width = f64::from(font::text_width(&ascii, t.scale));
+        let shift = match t.anchor {
+            Anchor::Start => 0.0,
+            Anchor::Middle => width / 2.0,
+            Anchor::End => width,
+        };
+        let half_h = f64::from(font::GLYPH_H * t.scale) / 2.0;
+        // Device position of the top-left corner of the first glyph (as read).
+        let (ox, oy) = if t.vertical {
+            ((t.x - half_h).round() as i64, (t.y + shift).round() as i64)
+        } else {
+            ((t.x - shift).round() as i64, (t.y - half_h).round() as i64)
+        };
+        // Bold: each glyph pixel is one device pixel wider along the text.
+        let wide = if t.bold { sc + 1 } else { sc };
+        for (k, ch) in ascii.chars().enumerate() {
+            let base = k as i64 * i64::from(font::ADVANCE) * sc;
+            for (gx, col) in font::glyph(ch).iter().enumerate() {
+                for gy in (0..i64::from(font::GLYPH_H)).filter(|gy| col >> gy & 1 == 1) {
+                    // Text-space block: u along the text, v downwards.
+                    let (u, v) = (base + gx as i64 * sc, gy * sc);
+                    if t.vertical {
+                        // Rotated 90 degrees counter-clockwise: u points up.
+                        self.fill(
+                            [ox + v, oy - u - wide + 1, ox + v + sc - 1, oy - u],
+                            t.color,
+                        );
+                    } else {
+                        self.fill(
+                            [ox + u, oy + v, ox + u + wide - 1, oy + v + sc - 1],
+                            t.color,
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// Draw one scene primitive; `frame` is the plot box data is clipped to.
+    pub(super) fn draw(&mut self, p: &Prim, frame: [f64; 4]) {
+        let frame = Some(frame.map(|v| v.round() as i64));
+        self.clip = None;
+        match p {
+            Prim::Path(parts, color, width) => {
+                self.clip = frame;
+                for part in parts {
+                    for w in part.windows(2) {
+                        self.line(w[0], w[1], *width, *color);
+                    }
+                    if let [only] = part.as_slice() {
+                        self.dot(only.0, only.1, 1.0, *color);
+                    }
+                }
+            }
+            Prim::Line(a, b, color, width) => self.line(*a, *b, *width, *color),
+            Prim::Rect(r, fill, stroke) => {
+                let [l, t, r, b] = r.map(f64::round);
+                if let Some(f) = fill {
+                    self.fill([l, t, r, b].map(|v| v as i64), *f);
+                }
+                if let Some(s) = stroke {
+                    let corners = [(l, t), (r, t), (r, b), (l, b), (l, t)];
+                    for w in corners.windows(2) {
+                        self.line(w[0], w[1], 1.0, *s);
+                    }
+                }
+            }
+            Prim::Dots(pts, color, clip) => {
+                self.clip = if *clip { frame } else { None };
+                for &(x, y) in pts {
+                    self.dot(x, y, DOT_R, *color);
+                }
+            }
+            Prim::Text(t) => self.text(t),
+        }
+        self.clip = None;
+    }
+}
+
+/// Liang-Barsky clipping of segment a-b to the box `[x0, y0, x1, y1]`.
+fn clip_segment(a: (f64, f64), b: (f64, f64), bx: [f64; 4]) -> Option<((f64, f64), (f64, f64))> {
+    if ![a.0, a.1, b.0, b.1].iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let (mut t0, mut t1) = (0.0_f64, 1.0_f64);
+    for (p, q) in [
+        (-dx, a.0 - bx[0]),
+        (dx, bx[2] - a.0),
+        (-dy, a.1 - bx[1]),
+        (dy, bx[3] - a.1),
+    ] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+        } else if p < 0.0 {
+            t0 = t0.max(q / p);
+        } else {
+            t1 = t1.min(q / p);
+        }
+    }
+    (t0 <= t1).then_some((
+        (a.0 + t0 * dx, a.1 + t0 * dy),
+        (a.0 + t1 * dx, a.1 + t1 * dy),
+    ))
+}

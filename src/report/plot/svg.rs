@@ -1,0 +1,126 @@
+//! SVG 1.1 backend: turns the scene primitives into plain SVG text.
+//!
+//! SVG is the "publication" output: vector lines and real `<text>` elements,
+//! so Unicode labels (λ, η, Θ, ...) are kept as they are, only XML-escaped.
+
+use std::fmt::Write;
+
+use super::{Anchor, DOT_R, Label, Prim, Rgb};
+
+/// Escape the characters that are special in XML text and attributes.
+pub(super) fn escape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            _ => out.push(c),
+        }
+    }
+    out
+}
+
+fn hex(c: Rgb) -> String {
+    format!("#{:02x}{:02x}{:02x}", c.0, c.1, c.2)
+}
+
+/// Render `prims` as an SVG document of size `w` x `h`; `frame` is the
+/// `[left, top, right, bottom]` box that data primitives are clipped to.
+pub(super) fn render(w: u32, h: u32, frame: [f64; 4], prims: &[Prim]) -> String {
+    const CLIP: &str = " clip-path=\"url(#plotarea)\"";
+    let [l, t, r, b] = frame;
+    let mut s = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" \
+         width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\">\n\
+         <defs><clipPath id=\"plotarea\"><rect x=\"{l:.1}\" y=\"{t:.1}\" \
+         width=\"{:.1}\" height=\"{:.1}\"/></clipPath></defs>\n\
+         <rect width=\"100%\" height=\"100%\" fill=\"#ffffff\"/>\n",
+        r - l,
+        b - t
+    );
+    // `write!` into a String cannot fail, so its Result is ignored below.
+    for p in prims {
+        match p {
+            Prim::Path(parts, color, width) => {
+                let mut d = String::new();
+                for part in parts {
+                    for (k, (x, y)) in part.iter().enumerate() {
+                        let _ = write!(d, "{}{x:.2},{y:.2} ", if k == 0 { "M" } else { "L" });
+                    }
+                }
+                let _ = writeln!(
+                    s,
+                    "<path d=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"{width}\" \
+                     stroke-linejoin=\"round\"{CLIP}/>",
+                    d.trim_end(),
+                    hex(*color)
+                );
+            }
+            Prim::Line(a, b, color, width) => {
+                let _ = writeln!(
+                    s,
+                    "<line x1=\"{:.2}\" y1=\"{:.2}\" x2=\"{:.2}\" y2=\"{:.2}\" stroke=\"{}\" \
+                     stroke-width=\"{width}\" shape-rendering=\"crispEdges\"/>",
+                    a.0,
+                    a.1,
+                    b.0,
+                    b.1,
+                    hex(*color)
+                );
+            }
+            Prim::Rect([x0, y0, x1, y1], fill, stroke) => {
+                let fill = fill.map_or("none".to_string(), hex);
+                let stroke = stroke.map_or("none".to_string(), hex);
+                let _ = writeln!(
+                    s,
+                    "<rect x=\"{x0:.2}\" y=\"{y0:.2}\" width=\"{:.2}\" height=\"{:.2}\" \
+                     fill=\"{fill}\" stroke=\"{stroke}\" shape-rendering=\"crispEdges\"/>",
+                    x1 - x0,
+                    y1 - y0
+                );
+            }
+            Prim::Dots(pts, color, clip) => {
+                let clip = if *clip { CLIP } else { "" };
+                let _ = writeln!(s, "<g fill=\"{}\"{clip}>", hex(*color));
+                for (x, y) in pts {
+                    let _ = writeln!(s, "<circle cx=\"{x:.2}\" cy=\"{y:.2}\" r=\"{DOT_R}\"/>");
+                }
+                s.push_str("</g>\n");
+            }
+            Prim::Text(t) => text(&mut s, t),
+        }
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+fn text(s: &mut String, t: &Label) {
+    // Bitmap glyphs are 7 rows tall above the baseline; a sans-serif font of
+    // about 1.45x that size has a similar cap height.
+    let size = 10.0 * f64::from(t.scale);
+    let anchor = match t.anchor {
+        Anchor::Start => "start",
+        Anchor::Middle => "middle",
+        Anchor::End => "end",
+    };
+    let weight = if t.bold { " font-weight=\"bold\"" } else { "" };
+    // (x, y) is the centre line of the text; shift to the baseline.
+    let (x, y, rot) = if t.vertical {
+        let x = t.x + 0.35 * size;
+        (
+            x,
+            t.y,
+            format!(" transform=\"rotate(-90 {x:.2} {:.2})\"", t.y),
+        )
+    } else {
+        (t.x, t.y + 0.35 * size, String::new())
+    };
+    let _ = writeln!(
+        s,
+        "<text x=\"{x:.2}\" y=\"{y:.2}\" font-family=\"DejaVu Sans, Arial, Helvetica, sans-serif\" font-size=\"{size}\" fill=\"{}\" text-anchor=\"{anchor}\"{weight}{rot}>{}</text>",
+        hex(t.color),
+        escape(&t.text)
+    );
+}

@@ -1,0 +1,466 @@
+//! Tests: checksums, an independent INFLATE decoder for round trips, an
+//! external check with python3's zlib when available, and rendering checks.
+
+use super::*;
+use std::f64::consts::{PI, TAU};
+
+// ---- A minimal INFLATE decoder (stored and fixed-Huffman blocks only) ----
+
+const LEN_BASE: [u32; 29] = [
+    3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 15, 17, 19, 23, 27, 31, 35, 43, 51, 59, 67, 83, 99, 115, 131,
+    163, 195, 227, 258,
+];
+const LEN_EXTRA: [u32; 29] = [
+    0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 0,
+];
+const DIST_BASE: [u32; 30] = [
+    1, 2, 3, 4, 5, 7, 9, 13, 17, 25, 33, 49, 65, 97, 129, 193, 257, 385, 513, 769, 1025, 1537,
+    2049, 3073, 4097, 6145, 8193, 12289, 16385, 24577,
+];
+const DIST_EXTRA: [u32; 30] = [
+    0, 0, 0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7, 8, 8, 9, 9, 10, 10, 11, 11, 12, 12, 13,
+    13,
+];
+
+struct BitReader<'a> {
+    d: &'a [u8],
+    pos: usize,
+}
+
+impl BitReader<'_> {
+    fn bit(&mut self) -> Result<u32, String> {
+        let byte = *self
+            .d
+            .get(self.pos / 8)
+            .ok_or("unexpected end of deflate data")?;
+        self.pos += 1;
+        Ok(u32::from(byte >> ((self.pos - 1) % 8)) & 1)
+    }
+    /// Plain values are stored LSB-first.
+    fn bits(&mut self, n: u32) -> Result<u32, String> {
+        (0..n).try_fold(0, |v, i| Ok(v | self.bit()? << i))
+    }
+    /// Huffman codes are stored MSB-first.
+    fn code(&mut self, n: u32) -> Result<u32, String> {
+        (0..n).try_fold(0, |v, _| Ok(v << 1 | self.bit()?))
+    }
+    fn fixed_symbol(&mut self) -> Result<u32, String> {
+        let c = self.code(7)?;
+        if c <= 0x17 {
+            return Ok(256 + c);
+        }
+        let c = c << 1 | self.bit()?;
+        match c {
+            0x30..=0xBF => return Ok(c - 0x30),
+            0xC0..=0xC7 => return Ok(280 + c - 0xC0),
+            _ => {}
+        }
+        let c = c << 1 | self.bit()?;
+        if (0x190..=0x1FF).contains(&c) {
+            Ok(144 + c - 0x190)
+        } else {
+            Err(format!("bad code {c:#x}"))
+        }
+    }
+}
+
+/// Decode a raw deflate stream; returns the data and the bytes consumed.
+fn inflate(d: &[u8]) -> Result<(Vec<u8>, usize), String> {
+    let mut br = BitReader { d, pos: 0 };
+    let mut out: Vec<u8> = Vec::new();
+    loop {
+        let last = br.bits(1)?;
+        match br.bits(2)? {
+            0 => {
+                br.pos = br.pos.div_ceil(8) * 8;
+                let (len, nlen) = (br.bits(16)?, br.bits(16)?);
+                if len != !nlen & 0xFFFF {
+                    return Err("stored block LEN/NLEN mismatch".into());
+                }
+                for _ in 0..len {
+                    out.push(br.bits(8)? as u8);
+                }
+            }
+            1 => loop {
+                let sym = br.fixed_symbol()?;
+                match sym {
+                    0..=255 => out.push(sym as u8),
+                    256 => break,
+                    257..=285 => {
+                        let i = (sym - 257) as usize;
+                        let len = LEN_BASE[i] + br.bits(LEN_EXTRA[i])?;
+                        let dc = br.code(5)? as usize;
+                        let dist = *DIST_BASE.get(dc).ok_or("bad distance code")? as usize;
+                        let dist = dist + br.bits(DIST_EXTRA[dc])? as usize;
+                        if dist > out.len() || dist > 32768 {
+                            return Err(format!("distance {dist} too far back"));
+                        }
+                        for _ in 0..len {
+                            out.push(out[out.len() - dist]);
+                        }
+                    }
+                    _ => return Err(format!("invalid symbol {sym}")),
+                }
+            },
+            t => return Err(format!("unsupported block type {t}")),
+        }
+        if last == 1 {
+            return Ok((out, br.pos.div_ceil(8)));
+        }
+    }
+}
+
+fn zlib_decode(d: &[u8]) -> Result<Vec<u8>, String> {
+    if d.len() < 6 || d[0] & 0x0F != 8 || (u32::from(d[0]) * 256 + u32::from(d[1])) % 31 != 0 {
+        return Err("bad zlib header".into());
+    }
+    let (out, used) = inflate(&d[2..])?;
+    let tail = d.get(2 + used..2 + used + 4).ok_or("missing Adler-32")?;
+    if u32::from_be_bytes([tail[0], tail[1], tail[2], tail[3]]) != png::adler32(&out) {
+        return Err("Adler-32 mismatch".into());
+    }
+    Ok(out)
+}
+
+/// Check signature and chunk CRCs; return (width, height, IDAT bytes).
+fn parse_png(p: &[u8]) -> Result<(u32, u32, Vec<u8>), String> {
+    if p.get(..8) != Some(&[0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1A, b'\n'][..]) {
+        return Err("bad signature".into());
+    }
+    let be = |b: &[u8]| u32::from_be_bytes([b[0], b[1], b[2], b[3]]);
+    let (mut pos, mut size, mut idat, mut kinds) = (8, (0, 0), Vec::new(), Vec::new());
+    while pos < p.len() {
+        let n = be(p.get(pos..pos + 4).ok_or("truncated")?) as usize;
+        let body = p.get(pos + 4..pos + 8 + n).ok_or("truncated chunk")?;
+        let crc = be(p.get(pos + 8 + n..pos + 12 + n).ok_or("missing CRC")?);
+        if png::crc32(body) != crc {
+            return Err("chunk CRC mismatch".into());
+        }
+        let (kind, data) = body.split_at(4);
+        match kind {
+            b"IHDR" => {
+                size = (be(&data[0..4]), be(&data[4..8]));
+                assert_eq!(&data[8..13], &[8, 2, 0, 0, 0]);
+            }
+            b"IDAT" => idat.extend_from_slice(data),
+            _ => {}
+        }
+        kinds.push(kind.to_vec());
+        pos += 12 + n;
+    }
+    assert_eq!(kinds.first().map(|k| k.as_slice()), Some(&b"IHDR"[..]));
+    assert_eq!(kinds.last().map(|k| k.as_slice()), Some(&b"IEND"[..]));
+    Ok((size.0, size.1, idat))
+}
+
+/// Undo PNG filters 0 and 1.
+fn unfilter(w: u32, raw: &[u8]) -> Vec<u8> {
+    let stride = 3 * w as usize;
+    let mut out = Vec::new();
+    for row in raw.chunks(stride + 1) {
+        let start = out.len();
+        for (i, &b) in row[1..].iter().enumerate() {
+            let left = if row[0] == 1 && i >= 3 {
+                out[start + i - 3]
+            } else {
+                0
+            };
+            out.push(b.wrapping_add(left));
+        }
+        assert!(row[0] <= 1, "unexpected filter type {}", row[0]);
+    }
+    out
+}
+
+fn sine_figure() -> Figure {
+    let xs: Vec<f64> = (0..=500).map(|i| f64::from(i) * TAU / 500.0).collect();
+    let ys: Vec<f64> = xs.iter().map(|x| x.sin()).collect();
+    let mut fig = Figure::new("Sine wave λ & <test>")
+        .x_range(0.0, TAU)
+        .y_range(-1.5, 1.5)
+        .x_label("x")
+        .y_label("sin x");
+    fig.series("sin", &xs, &ys, Marker::Line);
+    fig.series(
+        "cos",
+        &xs,
+        &xs.iter().map(|x| x.cos()).collect::<Vec<_>>(),
+        Marker::Line,
+    );
+    fig.hline(0.0);
+    fig
+}
+
+// ---- Tests ----
+
+#[test]
+fn checksums_match_known_values() {
+    assert_eq!(png::crc32(b"123456789"), 0xCBF4_3926);
+    assert_eq!(png::crc32(b""), 0);
+    assert_eq!(png::crc32(b"IEND"), 0xAE42_6082);
+    assert_eq!(png::adler32(b"Wikipedia"), 0x11E6_0398);
+    assert_eq!(png::adler32(b""), 1);
+    // Long input exercises the modulo chunking against a naive reference.
+    let data: Vec<u8> = (0..100_000u32)
+        .map(|i| (i * 7 + 255) as u8 | 0xF0)
+        .collect();
+    let (mut a, mut b) = (1u64, 0u64);
+    for &x in &data {
+        a = (a + u64::from(x)) % 65521;
+        b = (b + a) % 65521;
+    }
+    assert_eq!(u64::from(png::adler32(&data)), b << 16 | a);
+}
+
+#[test]
+fn test_inflater_reads_stored_blocks() {
+    // zlib header, stored final block "hi", Adler-32 of "hi".
+    let mut z = vec![0x78, 0x01, 0x01, 0x02, 0x00, 0xFD, 0xFF, b'h', b'i'];
+    z.extend_from_slice(&png::adler32(b"hi").to_be_bytes());
+    assert_eq!(zlib_decode(&z), Ok(b"hi".to_vec()));
+    z[5] = 0; // corrupt NLEN
+    assert!(zlib_decode(&z).is_err());
+}
+
+#[test]
+fn deflate_round_trips() {
+    let mut seed = 0x2545_F491_4F6C_DD1Du64;
+    let mut rand = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed as u8
+    };
+    let noise: Vec<u8> = (0..40_000).map(|_| rand()).collect();
+    let far_repeat = [noise.clone(), noise.clone()].concat(); // repeat beyond the 32 KiB window
+    let mut cases: Vec<Vec<u8>> = vec![
+        vec![],
+        vec![42],
+        vec![7, 7],
+        b"abcabcabcabcabcabcabcabd".to_vec(),
+        vec![0xFF; 100_000],
+        (0..70_000u32).map(|i| (i % 251) as u8).collect(),
+        noise,
+        far_repeat,
+    ];
+    cases.push(
+        (0..5000)
+            .map(|i| if i % 300 < 290 { 0 } else { rand() })
+            .collect(),
+    );
+    for (k, data) in cases.iter().enumerate() {
+        let z = png::zlib(data);
+        assert_eq!(zlib_decode(&z).as_ref(), Ok(data), "case {k}");
+    }
+    // Compression actually happens on repetitive data.
+    assert!(png::zlib(&vec![0xFF; 100_000]).len() < 1000);
+}
+
+#[test]
+fn png_round_trip_reproduces_scanlines() {
+    let fig = sine_figure();
+    let canvas = fig.raster();
+    let raw = png::filter_rows(canvas.w, canvas.h, &canvas.px);
+    let bytes = fig.to_png();
+    let (w, h, idat) = parse_png(&bytes).expect("valid PNG structure");
+    assert_eq!((w, h), (900, 600));
+    let decoded = zlib_decode(&idat).expect("valid zlib stream");
+    assert_eq!(decoded.len(), (h * (1 + 3 * w)) as usize);
+    assert!(
+        decoded == raw,
+        "IDAT does not reproduce the filtered scanlines"
+    );
+    assert!(
+        unfilter(w, &decoded) == canvas.px,
+        "unfiltered pixels differ from the canvas"
+    );
+    assert!(
+        bytes.len() < 150_000,
+        "PNG too large: {} bytes",
+        bytes.len()
+    );
+}
+
+#[test]
+fn python_zlib_accepts_png() {
+    if std::process::Command::new("python3")
+        .arg("--version")
+        .output()
+        .is_err()
+    {
+        eprintln!("python3 not available; skipping external PNG check");
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("plotdev-test-{}", std::process::id()));
+    let fig = sine_figure().size(640, 480);
+    fig.save(&dir, "sine").expect("write figure");
+    let script = "import zlib,struct,sys\n\
+        d=open(sys.argv[1],'rb').read()\n\
+        assert d[:8]==b'\\x89PNG\\r\\n\\x1a\\n'\n\
+        p=8; idat=b''; kinds=[]\n\
+        while p<len(d):\n\
+        \x20   n,=struct.unpack('>I',d[p:p+4]); t=d[p+4:p+8]; c=d[p+8:p+8+n]\n\
+        \x20   assert zlib.crc32(t+c)&0xffffffff==struct.unpack('>I',d[p+8+n:p+12+n])[0], t\n\
+        \x20   if t==b'IHDR': w,h,bd,ct=struct.unpack('>IIBB',c[:10]); assert (bd,ct)==(8,2)\n\
+        \x20   if t==b'IDAT': idat+=c\n\
+        \x20   kinds.append(t); p+=12+n\n\
+        assert kinds[0]==b'IHDR' and kinds[-1]==b'IEND'\n\
+        raw=zlib.decompress(idat)\n\
+        assert len(raw)==h*(1+3*w), (len(raw), w, h)\n\
+        assert all(raw[r*(1+3*w)] in (0,1) for r in range(h))\n\
+        print('ok', w, h)\n";
+    let out = std::process::Command::new("python3")
+        .arg("-c")
+        .arg(script)
+        .arg(dir.join("sine.png"))
+        .output();
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = out.expect("run python3");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "python check failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(stdout.trim(), "ok 640 480");
+}
+
+#[test]
+fn sine_curve_and_title_are_drawn() {
+    let fig = sine_figure();
+    let lay = fig.layout();
+    let c = fig.raster();
+    let near = |px: f64, py: f64, col: Rgb| {
+        let (x, y) = (px.round() as i64, py.round() as i64);
+        (-2..=2).any(|dy| (-2..=2).any(|dx| c.get((x + dx) as u32, (y + dy) as u32) == col))
+    };
+    for x in [0.3, 1.0, PI / 2.0, 2.5, 4.0, 4.7, 5.5] {
+        let (px, py) = lay.map((x, f64::sin(x)));
+        assert!(near(px, py, PALETTE[0]), "no curve pixel near x = {x}");
+    }
+    // Away from both curves and the zero line the plot area stays white.
+    let (px, py) = lay.map((PI / 2.0, -1.2));
+    assert!(
+        !near(px, py, PALETTE[0]) && near(px, py, WHITE) && c.get(px as u32, py as u32) == WHITE
+    );
+    // Title text: dark pixels in the band above the frame.
+    // (Only the middle columns: the top y tick label may reach above the frame.)
+    let dark = |c: &raster::Canvas, y_max: u32| {
+        let cols = c.w / 4..3 * c.w / 4;
+        (0..y_max)
+            .flat_map(|y| cols.clone().map(move |x| (x, y)))
+            .filter(|&(x, y)| c.get(x, y).0 < 80)
+            .count()
+    };
+    assert!(dark(&c, lay.t as u32 - 2) > 100, "title not drawn");
+    let untitled = Figure::new("");
+    let blank = untitled.raster();
+    assert_eq!(dark(&blank, untitled.layout().t as u32 - 2), 0);
+}
+
+#[test]
+fn svg_is_well_formed() {
+    let mut fig = sine_figure();
+    fig.series("dots", &[1.0, 2.0], &[0.5, 0.2], Marker::Points);
+    let s = fig.to_svg();
+    assert!(s.starts_with("<svg"));
+    assert!(s.trim_end().ends_with("</svg>"));
+    assert!(s.contains(">Sine wave λ &amp; &lt;test&gt;</text>"));
+    assert_eq!(
+        s.matches("<path").count(),
+        2,
+        "one path per line series:\n{s}"
+    );
+    assert_eq!(
+        s.matches("<circle").count(),
+        3,
+        "two data dots and one legend dot"
+    );
+    assert_eq!(s.matches("<text").count(), s.matches("</text>").count());
+    let mut h = Figure::new("\"q\"");
+    h.histogram("h", &[0.1, 0.2, 0.25, 0.9], 4, 0.0, 1.0, true);
+    let s = h.to_svg();
+    assert!(s.contains("&quot;q&quot;") && s.matches("<path").count() == 1);
+}
+
+#[test]
+fn nonfinite_and_empty_data_do_not_panic() {
+    let (nan, inf) = (f64::NAN, f64::INFINITY);
+    let mut fig = Figure::new("bad data").x_range(nan, 1.0).y_range(inf, -inf);
+    fig.series(
+        "nan",
+        &[0.0, nan, 2.0, 3.0, inf],
+        &[1.0, 2.0, nan, 4.0, 5.0],
+        Marker::Line,
+    );
+    fig.series("empty", &[], &[], Marker::LinePoints);
+    fig.series("all nan", &[nan, nan], &[nan, inf], Marker::Steps);
+    fig.series("huge", &[0.0, 1.0], &[-1e300, 1e300], Marker::Points);
+    fig.histogram("h", &[nan, inf, 0.5], 0, 0.0, 1.0, true);
+    fig.histogram("h2", &[nan, inf], 10, 1.0, nan, false);
+    fig.arrows("arr", &[(0.0, 0.0), (nan, 1.0)], &[(1.0, 1.0), (0.0, 0.0)]);
+    fig.hline(nan).hline(1e308);
+    let s = fig.to_svg();
+    assert!(!s.contains("NaN") && !s.contains("inf"));
+    for f in [fig, Figure::new(""), Figure::new("tiny").size(0, 0)] {
+        let bytes = f.to_png();
+        let (w, _, idat) = parse_png(&bytes).expect("valid PNG");
+        assert!(zlib_decode(&idat).is_ok() && w >= 120);
+    }
+    // Extremely large or tiny ranges still give finite, labelled ticks.
+    let mut e = Figure::new("extreme");
+    e.series("", &[-f64::MAX, f64::MAX], &[1e-300, 2e-300], Marker::Line);
+    let lay = e.layout();
+    assert!(lay.x.0.is_finite() && lay.x.1.is_finite() && !lay.yticks.is_empty());
+    let _ = e.to_png();
+}
+
+#[test]
+fn ranges_ticks_and_labels() {
+    assert_eq!(axis_range(None, None), (0.0, 1.0));
+    assert_eq!(axis_range(None, Some((2.0, 2.0))), (1.8, 2.2));
+    assert_eq!(axis_range(None, Some((0.0, 0.0))), (-1.0, 1.0));
+    assert_eq!(axis_range(Some((3.0, 1.0)), Some((0.0, 9.0))), (1.0, 3.0));
+    let (lo, hi) = axis_range(None, Some((0.0, 100.0)));
+    assert!((lo + 3.0).abs() < 1e-12 && (hi - 103.0).abs() < 1e-12);
+    assert_eq!(nice_step(1.0, 5), 0.2);
+    assert_eq!(nice_step(70.0, 6), 20.0);
+    let labels: Vec<String> = ticks(-0.03, 1.03, 0.2).into_iter().map(|t| t.1).collect();
+    assert_eq!(labels, ["0", "0.2", "0.4", "0.6", "0.8", "1.0"]);
+    let labels: Vec<String> = ticks(-1.5, 1.5, 0.5).into_iter().map(|t| t.1).collect();
+    assert_eq!(labels, ["-1.5", "-1.0", "-0.5", "0", "0.5", "1.0", "1.5"]);
+    assert_eq!(fmt_tick(2e-5, 1e-5), "2e-5");
+    assert_eq!(fmt_tick(150_000.0, 50_000.0), "1.5e5");
+    assert_eq!(fmt_tick(250.0, 50.0), "250");
+    // Automatic y ticks on a degenerate series are present and distinct.
+    let mut f = Figure::new("flat");
+    f.series("", &[0.0, 1.0, 2.0], &[5.0, 5.0, 5.0], Marker::Line);
+    let lay = f.layout();
+    assert!(lay.y.0 < 5.0 && lay.y.1 > 5.0 && lay.yticks.len() >= 3);
+}
+
+#[test]
+fn histogram_density_integrates_to_one() {
+    let values: Vec<f64> = (0..1000).map(|i| (f64::from(i) * 0.618).fract()).collect();
+    let mut fig = Figure::new("h");
+    fig.histogram("", &values, 20, 0.0, 1.0, true);
+    let Kind::Xy(pts, _) = &fig.series[0].kind else {
+        panic!("histogram is an outline")
+    };
+    assert_eq!(pts.len(), 2 * 20 + 2);
+    let area: f64 = pts[1..pts.len() - 1]
+        .chunks(2)
+        .map(|p| (p[1].0 - p[0].0) * p[0].1)
+        .sum();
+    assert!((area - 1.0).abs() < 1e-12, "area {area}");
+}
+
+#[test]
+fn non_ascii_labels_are_spelled_out_for_png() {
+    assert_eq!(
+        font::to_ascii("λ_1 ⟨η⟩ Θ μαβτ ✓"),
+        "lambda_1 <eta> Theta mualphabetatau ?"
+    );
+    assert_eq!(font::glyph('é'), font::glyph('?'));
+    assert_eq!(font::text_width("ab", 2), 22);
+}
