@@ -27,7 +27,9 @@ enum Command {
     Backward(BackwardArgs),
     /// What a run directory holds, and whether every file is intact.
     Inspect(InspectArgs),
-    /// The main job on an embedded preset (today: the forward pass and its spectrum).
+    /// Every analysis of the paper over a frame stream (a file written by `clv backward`, or -).
+    Analyze(AnalyzeArgs),
+    /// The whole pipeline (forward, backward, all analyses) on an embedded preset.
     Run(RunArgs),
 }
 
@@ -163,13 +165,31 @@ struct InspectArgs {
 }
 
 #[derive(Args)]
+struct AnalyzeArgs {
+    /// Frames: a file written by `clv backward --out FILE`, or - for standard input.
+    source: PathBuf,
+    /// Directory for index.html, figures (PNG, SVG) and tables (CSV, JSON).
+    #[arg(long)]
+    out: PathBuf,
+    /// Vector statistics use every m-th frame (default: scaled so about 400 frames are used).
+    #[arg(long)]
+    every: Option<u64>,
+    /// Lyapunov indices (1-based) for the overlap figures, e.g. 1,200,370 (default: the
+    /// paper's choice scaled to this system's D).
+    #[arg(long, value_delimiter = ',')]
+    j: Option<Vec<usize>>,
+}
+
+#[derive(Args)]
 struct RunArgs {
     /// Embedded configuration: default, paper or henon.
     #[arg(long, default_value = "default")]
     preset: String,
-    /// Print one JSON object to stdout instead of the table.
+    /// Output directory: OUT/run (the run) and OUT/report (index.html, figures, tables).
+    #[arg(long, default_value = "clv-out")]
+    out: PathBuf,
     #[arg(long)]
-    json: bool,
+    quiet: bool,
 }
 
 fn parse_ratio(s: &str) -> std::result::Result<f64, String> {
@@ -347,10 +367,34 @@ fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
 
 fn run(args: &RunArgs) -> Result<()> {
     let config = RunConfig::preset(&args.preset)?;
-    if !args.json {
-        eprintln!("clv run: preset {:?}: {}", args.preset, serde_json::to_string(&config).unwrap_or_default());
+    let quiet = args.quiet;
+    let mut say = |msg: String| {
+        if !quiet {
+            eprintln!("clv run: {msg}");
+        }
+    };
+    say(format!("preset {:?}: {}", args.preset, serde_json::to_string(&config).unwrap_or_default()));
+    let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
+    let started = Instant::now();
+    let result = clv::stage::pipeline::run(&config, &args.out, &mut feedback, &mut say)?;
+    if let Some(bar) = &feedback.bar {
+        bar.finish_and_clear();
     }
-    spectrum(config, args.json, false)
+    let figures: usize = result.produced.iter().map(|p| p.figures.len()).sum();
+    say(format!(
+        "done in {:.0} s: {} frames analysed, {figures} figures; open {}",
+        started.elapsed().as_secs_f64(),
+        result.clv.statistics.frames,
+        result.report_dir.join("index.html").display()
+    ));
+    Ok(())
+}
+
+fn analyze(args: &AnalyzeArgs) -> Result<()> {
+    let (produced, frames) = clv::stage::analyze::analyze_source(&args.source, &args.out, args.every, args.j.clone())?;
+    let figures: usize = produced.iter().map(|p| p.figures.len()).sum();
+    eprintln!("clv analyze: {frames} frames, {} analyses, {figures} figures; open {}", produced.len(), args.out.join("index.html").display());
+    Ok(())
 }
 
 /// The forward pass in memory, nothing written.
@@ -395,7 +439,8 @@ fn backward(args: &BackwardArgs) -> Result<()> {
     opts.with_gs = args.with_gs;
     opts.save_every = if to_stdout { 0 } else { args.save_every };
     opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| args.dir.join("frames.mcap"))) };
-    let mut stdout = if to_stdout { Some(FrameStdout::new(&serde_json::to_string(&meta).unwrap_or_default())?) } else { None };
+    let stream_meta = clv::store::frames::stream_metadata(&serde_json::to_string(&meta).unwrap_or_default(), std::fs::read_to_string(args.dir.join("spectrum.json")).ok().as_deref());
+    let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
     let bar = progress("backward", args.quiet);
     if let Some(bar) = &bar {
         bar.set_length(meta.store.clv_steps + meta.store.transient);
@@ -462,6 +507,7 @@ fn main() {
         Command::Forward(args) => forward(args, matches.subcommand_matches("forward").expect("subcommand parsed")),
         Command::Backward(args) => backward(args),
         Command::Inspect(args) => inspect_cmd(args),
+        Command::Analyze(args) => analyze(args),
         Command::Run(args) => run(args),
     };
     if let Err(e) = result {

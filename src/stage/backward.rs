@@ -303,7 +303,8 @@ pub fn run(
 
     let frames_path = opts.frames_path.clone();
     let saving = opts.save_every > 0 && frames_path.is_some();
-    let run_json = RunDir::meta_json(&meta);
+    let spectrum_json = std::fs::read_to_string(dir.spectrum_path()).ok();
+    let metadata = crate::store::frames::stream_metadata(&RunDir::meta_json(&meta), spectrum_json.as_deref());
     let progress_file = progress_path(&dir);
     let prior: Option<Progress> = if resume {
         let text = std::fs::read_to_string(&progress_file).map_err(|e| {
@@ -337,8 +338,8 @@ pub fn run(
     }
 
     let mut frame_file = match (&frames_path, saving, &prior) {
-        (Some(f), true, Some(p)) => Some(FrameFile::salvage(f, &run_json, p.stats.frames.div_ceil(opts.save_every))?),
-        (Some(f), true, None) => Some(FrameFile::create(f, &run_json)?),
+        (Some(f), true, Some(p)) => Some(FrameFile::salvage(f, &metadata, p.stats.frames.div_ceil(opts.save_every))?),
+        (Some(f), true, None) => Some(FrameFile::create(f, &metadata)?),
         _ => None,
     };
 

@@ -6,3 +6,4 @@ pub mod forward;
 pub mod analyze;
 pub mod forward_run;
 pub mod frame;
+pub mod pipeline;

@@ -40,9 +40,9 @@ struct McapOut<W: Write + Seek> {
 }
 
 impl<W: Write + Seek> McapOut<W> {
-    fn new(w: W, seekable: bool, run_json: &str) -> mcap::McapResult<Self> {
+    fn new(w: W, seekable: bool, metadata: &BTreeMap<String, String>) -> mcap::McapResult<Self> {
         let mut writer = options(seekable).create(w)?;
-        let meta = Metadata { name: RUN_METADATA.into(), metadata: BTreeMap::from([("run.json".to_string(), run_json.to_string())]) };
+        let meta = Metadata { name: RUN_METADATA.into(), metadata: metadata.clone() };
         writer.write_metadata(&meta)?;
         let schema = writer.add_schema(FRAME.name, "jsonschema", FRAME.text.as_bytes())?;
         let channel = writer.add_channel(schema, FRAME.topic, "cbor", &BTreeMap::new())?;
@@ -82,26 +82,26 @@ pub fn tmp_path(path: &Path) -> PathBuf {
 
 impl FrameFile {
     /// Start FILE.tmp (replacing a stale one); refuses if FILE exists.
-    pub fn create(path: &Path, run_json: &str) -> Result<Self> {
+    pub fn create(path: &Path, metadata: &BTreeMap<String, String>) -> Result<Self> {
         if path.exists() {
             return Err(Error::Other(format!("{} already exists; refusing to overwrite it (remove it or choose another --out)", path.display())));
         }
         let tmp = tmp_path(path);
         let file = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
         let sync_handle = file.try_clone().map_err(|e| Error::io(&tmp, e))?;
-        let out = McapOut::new(BufWriter::with_capacity(1 << 20, file), true, run_json).map_err(|e| mcap_err(&tmp, e))?;
+        let out = McapOut::new(BufWriter::with_capacity(1 << 20, file), true, metadata).map_err(|e| mcap_err(&tmp, e))?;
         Ok(FrameFile { path: path.to_path_buf(), tmp, out, sync_handle, frames: 0 })
     }
 
     /// Continue an interrupted file: keep its first `keep` frames (all complete chunks up to
     /// the last progress record), rewrite them into a fresh FILE.tmp and append from there.
-    pub fn salvage(path: &Path, run_json: &str, keep: u64) -> Result<Self> {
+    pub fn salvage(path: &Path, metadata: &BTreeMap<String, String>, keep: u64) -> Result<Self> {
         let tmp = tmp_path(path);
         let old = tmp.with_extension("tmp.old");
         if keep > 0 {
             std::fs::rename(&tmp, &old).map_err(|e| Error::io(&tmp, e))?;
         }
-        let mut file = FrameFile::create(path, run_json)?;
+        let mut file = FrameFile::create(path, metadata)?;
         if keep > 0 {
             read_stream(&old, std::io::BufReader::new(File::open(&old).map_err(|e| Error::io(&old, e))?), true, |m| {
                 if m.topic == FRAME.topic && file.frames < keep {
@@ -152,8 +152,8 @@ fn is_broken_pipe(e: &mcap::McapError) -> bool {
 }
 
 impl FrameStdout {
-    pub fn new(run_json: &str) -> Result<Self> {
-        let out = McapOut::new(NoSeek::new(BufWriter::with_capacity(1 << 20, std::io::stdout())), false, run_json)
+    pub fn new(metadata: &BTreeMap<String, String>) -> Result<Self> {
+        let out = McapOut::new(NoSeek::new(BufWriter::with_capacity(1 << 20, std::io::stdout())), false, metadata)
             .map_err(|e| mcap_err(Path::new("<stdout>"), e))?;
         Ok(FrameStdout { out })
     }
@@ -177,12 +177,36 @@ impl FrameStdout {
     }
 }
 
-/// Read frames from a file, or from standard input when `source` is "-", calling `visit`
-/// for each until it says stop. Returns the run description found in the stream and the
-/// damage (a stream cut short) if any.
-pub fn read_frames(source: &Path, mut visit: impl FnMut(Frame) -> Result<Flow>) -> Result<(Option<String>, Option<String>)> {
+/// The description a frame stream carries: the run (run.json) and its forward spectrum.
+#[derive(Clone, Debug, Default)]
+pub struct StreamInfo {
+    pub run_json: Option<String>,
+    pub spectrum_json: Option<String>,
+}
+
+/// The metadata written at the head of a frame stream.
+pub fn stream_metadata(run_json: &str, spectrum_json: Option<&str>) -> BTreeMap<String, String> {
+    let mut m = BTreeMap::from([("run.json".to_string(), run_json.to_string())]);
+    if let Some(s) = spectrum_json {
+        m.insert("spectrum.json".into(), s.to_string());
+    }
+    m
+}
+
+/// Read frames from a file, or from standard input when `source` is "-". `on_info` is
+/// called with the stream's description before the first frame; `visit` for each frame
+/// until it says stop. Returns the damage (a stream cut short) if any.
+pub fn read_frames_with(
+    source: &Path,
+    mut on_info: impl FnMut(StreamInfo) -> Result<()>,
+    mut visit: impl FnMut(Frame) -> Result<Flow>,
+) -> Result<Option<String>> {
     let mut stop = false;
     let mut on_message = |m: super::segment::Message| -> Result<()> {
+        if m.topic == RUN_METADATA {
+            let map: BTreeMap<String, String> = serde_json::from_slice(m.data).map_err(|e| Error::corrupt(source, e.to_string()))?;
+            return on_info(StreamInfo { run_json: map.get("run.json").cloned(), spectrum_json: map.get("spectrum.json").cloned() });
+        }
         if stop || m.topic != FRAME.topic {
             return Ok(());
         }
@@ -198,5 +222,15 @@ pub fn read_frames(source: &Path, mut visit: impl FnMut(Frame) -> Result<Flow>) 
         let file = File::open(source).map_err(|e| Error::io(source, e))?;
         read_stream(source, std::io::BufReader::with_capacity(1 << 20, file), true, &mut on_message)?
     };
-    Ok((report.run_json, report.damage))
+    Ok(report.damage)
+}
+
+/// [`read_frames_with`] without the stream description.
+pub fn read_frames(source: &Path, visit: impl FnMut(Frame) -> Result<Flow>) -> Result<(Option<String>, Option<String>)> {
+    let mut run_json = None;
+    let damage = read_frames_with(source, |info| {
+        run_json = info.run_json;
+        Ok(())
+    }, visit)?;
+    Ok((run_json, damage))
 }

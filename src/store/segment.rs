@@ -110,7 +110,9 @@ pub fn sync_dir(dir: &Path) -> Result<()> {
     File::open(dir).and_then(|d| d.sync_all()).map_err(|e| Error::io(dir, e))
 }
 
-/// A message read back from a segment.
+/// A message read back from a segment. The run description (the `clv.run` metadata record)
+/// is delivered first as a message of topic [`RUN_METADATA`] whose data is its key-value map
+/// as a JSON object.
 pub struct Message<'a> {
     pub topic: &'a str,
     pub step: u64,
@@ -174,7 +176,11 @@ pub fn read_stream(name: &Path, mut input: impl Read, partial: bool, mut visit: 
             }
         };
         match record {
-            Record::Metadata(m) if m.name == RUN_METADATA => report.run_json = m.metadata.get("run.json").cloned(),
+            Record::Metadata(m) if m.name == RUN_METADATA => {
+                report.run_json = m.metadata.get("run.json").cloned();
+                let map = serde_json::to_vec(&m.metadata).map_err(|e| Error::Other(e.to_string()))?;
+                visit(Message { topic: RUN_METADATA, step: 0, data: &map })?;
+            }
             Record::Channel(c) => {
                 topics.insert(c.id, c.topic.to_string());
             }

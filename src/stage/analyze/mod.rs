@@ -1,2 +1,355 @@
 //! The analyses: independent consumers of the CLV frame stream, each on its own thread.
+//!
+//! Why this shape: the backward stage produces frames one at a time and the paper's
+//! analyses are time averages or histograms over them, so each analysis is a consumer that
+//! folds frames into its own state and writes its numbers and figures at the end. The
+//! [`Analyzer`] feeds every consumer over its own bounded channel (frames are shared through
+//! `Arc`, never copied per consumer; a slow analysis slows the stream instead of growing a
+//! queue). An analysis is one file with a `new` function listed in [`registry`]: adding one
+//! touches no other.
+//!
+//! The pure numerics live in [`kernels`]; the files next to this one turn them into
+//! consumers, tables (CSV, JSON) and figures (PNG, SVG).
+
 pub mod kernels;
+pub mod localization;
+pub mod spectrum;
+
+use super::frame::Frame;
+use crate::error::{Error, Result};
+use crate::report::SpectrumSummary;
+use crate::store::frames::{Flow, StreamInfo};
+use crate::store::run::RunMeta;
+use crossbeam_channel::{bounded, Sender};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+/// Choices common to all analyses; the defaults scale with the system size.
+#[derive(Clone, Debug, Serialize)]
+pub struct Options {
+    /// Analyses of vector statistics use every m-th frame.
+    pub every: u64,
+    /// Selected Lyapunov indices (1-based, as in the paper) for the overlap figures.
+    pub j: Vec<usize>,
+    /// Window lengths Delta (steps) for finite-time exponents.
+    pub deltas: Vec<u64>,
+}
+
+/// What every analysis knows about the run it analyses.
+#[derive(Clone, Debug)]
+pub struct Context {
+    pub run: Option<RunMeta>,
+    /// The forward (Gram-Schmidt) spectrum of the run, if known.
+    pub gs: Option<SpectrumSummary>,
+    /// "disks" or "henon".
+    pub system: String,
+    pub d: usize,
+    pub k: usize,
+    /// Number of disks (0 for maps).
+    pub n: usize,
+    pub lx: f64,
+    pub ly: f64,
+    pub tau: f64,
+    /// Frames carry G_n as well as V_n.
+    pub with_gs: bool,
+    pub options: Options,
+    /// Where the frames came from, for captions.
+    pub source: String,
+}
+
+impl Context {
+    /// The context of a stream, from its description and its first frame.
+    pub fn new(info: &StreamInfo, first: &Frame, source: &str, every: Option<u64>, j: Option<Vec<usize>>) -> Result<Self> {
+        let run: Option<RunMeta> = info.run_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
+        let gs: Option<SpectrumSummary> = info.spectrum_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
+        let (system, n, lx, ly, tau, clv_steps) = match &run {
+            Some(m) => {
+                let (name, n, lx, ly) = match m.config.system {
+                    crate::config::SystemConfig::Henon { .. } => ("henon", 0, 0.0, 0.0),
+                    crate::config::SystemConfig::Disks { n, lx, ly, .. } => ("disks", n, lx, ly),
+                };
+                (name.to_string(), n, lx, ly, m.config.tau, m.store.clv_steps)
+            }
+            None => return Err(Error::Other(format!("{source}: the frame stream carries no run description (clv.run metadata); was it written by clv backward?"))),
+        };
+        let d = first.d;
+        let scale = |j: usize| ((j as f64 * d as f64 / 792.0).round() as usize).clamp(1, d);
+        let j = j.unwrap_or_else(|| {
+            // The paper's selections (Figs. 4, 13, 14) for D = 792, scaled to this D.
+            let mut v: Vec<usize> = [1, 200, 370].iter().map(|&j| scale(j)).collect();
+            v.dedup();
+            v
+        });
+        if let Some(bad) = j.iter().find(|&&j| j == 0 || j > first.k) {
+            return Err(Error::param("j", format!("index {bad} is outside 1..={}", first.k)));
+        }
+        let every = every.unwrap_or((clv_steps / 400).max(1));
+        if every == 0 {
+            return Err(Error::param("every", "must be at least 1"));
+        }
+        let deltas = [1u64, 2, 5, 10, 20, 50, 100, 200, 500].into_iter().filter(|&dl| dl * 4 <= clv_steps.max(4)).collect();
+        Ok(Context {
+            run,
+            gs,
+            system,
+            d,
+            k: first.k,
+            n,
+            lx,
+            ly,
+            tau,
+            with_gs: first.g.is_some(),
+            options: Options { every, j, deltas },
+            source: source.to_string(),
+        })
+    }
+
+    pub fn is_disks(&self) -> bool {
+        self.system == "disks"
+    }
+
+    /// Reduced index i/D of the 0-based index i (the paper's i/4N).
+    pub fn reduced(&self, i: usize) -> f64 {
+        (i + 1) as f64 / self.d as f64
+    }
+}
+
+/// What an analysis wrote: shown as one entry of index.html.
+#[derive(Clone, Debug, Serialize)]
+pub struct Produced {
+    pub title: String,
+    /// What was computed, how, and which figure of the paper it corresponds to.
+    pub caption: String,
+    /// Figure stems (stem.png and stem.svg exist).
+    pub figures: Vec<String>,
+    /// Table files (CSV, JSON).
+    pub tables: Vec<String>,
+}
+
+/// A consumer of frames.
+pub trait Analysis: Send {
+    /// Short name (used for threads and messages).
+    fn name(&self) -> &'static str;
+    /// Whether it wants only every m-th frame (`--every`), or all of them.
+    fn sampled(&self) -> bool {
+        true
+    }
+    fn consume(&mut self, frame: &Frame) -> Result<()>;
+    /// Write tables and figures into `out`; `frames` is how many frames it consumed.
+    fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>>;
+}
+
+type Maker = fn(&Context) -> Option<Box<dyn Analysis>>;
+
+/// Every analysis that applies to this context (each decides for itself).
+pub fn registry(ctx: &Context) -> Vec<Box<dyn Analysis>> {
+    const MAKERS: &[Maker] = &[spectrum::new, localization::new];
+    MAKERS.iter().filter_map(|make| make(ctx)).collect()
+}
+
+struct Worker {
+    name: &'static str,
+    tx: Option<Sender<Arc<Frame>>>,
+    handle: JoinHandle<Result<Vec<Produced>>>,
+}
+
+/// Runs analyses concurrently over a stream of frames.
+pub struct Analyzer {
+    ctx: Context,
+    out: PathBuf,
+    workers: Vec<Worker>,
+    frames: u64,
+    first_step: u64,
+    last_step: u64,
+}
+
+impl Analyzer {
+    pub fn start(ctx: Context, analyses: Vec<Box<dyn Analysis>>, out: &Path) -> Result<Self> {
+        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+        let every = ctx.options.every;
+        let mut workers = Vec::new();
+        for mut analysis in analyses {
+            let (tx, rx) = bounded::<Arc<Frame>>(8);
+            let name = analysis.name();
+            let dir = out.to_path_buf();
+            let sampled = analysis.sampled();
+            let handle = std::thread::Builder::new()
+                .name(format!("clv-{name}"))
+                .spawn(move || -> Result<Vec<Produced>> {
+                    let (mut seen, mut used) = (0u64, 0u64);
+                    for frame in rx {
+                        if !sampled || seen % every == 0 {
+                            analysis.consume(&frame)?;
+                            used += 1;
+                        }
+                        seen += 1;
+                    }
+                    analysis.finish(&dir, used)
+                })
+                .map_err(|e| Error::Other(format!("cannot start analysis {name}: {e}")))?;
+            workers.push(Worker { name, tx: Some(tx), handle });
+        }
+        Ok(Analyzer { ctx, out: out.to_path_buf(), workers, frames: 0, first_step: u64::MAX, last_step: 0 })
+    }
+
+    /// Hand a frame to every analysis. A failed analysis stops the stream with its error.
+    pub fn feed(&mut self, frame: Arc<Frame>) -> Result<Flow> {
+        self.frames += 1;
+        self.first_step = self.first_step.min(frame.step);
+        self.last_step = self.last_step.max(frame.step);
+        for i in 0..self.workers.len() {
+            let sent = self.workers[i].tx.as_ref().is_some_and(|tx| tx.send(frame.clone()).is_ok());
+            if !sent {
+                self.workers[i].tx = None;
+                let w = self.workers.remove(i);
+                let name = w.name;
+                return Err(match w.handle.join() {
+                    Ok(Err(e)) => Error::Other(format!("analysis {name}: {e}")),
+                    _ => Error::Other(format!("analysis {name} stopped")),
+                });
+            }
+        }
+        Ok(Flow::Continue)
+    }
+
+    /// Wait for every analysis, then write index.html and summary.json.
+    pub fn finish(mut self) -> Result<Vec<Produced>> {
+        let mut produced = Vec::new();
+        let mut errors = Vec::new();
+        for w in &mut self.workers {
+            w.tx = None;
+        }
+        for w in self.workers.drain(..) {
+            match w.handle.join() {
+                Ok(Ok(p)) => produced.extend(p),
+                Ok(Err(e)) => errors.push(format!("analysis {}: {e}", w.name)),
+                Err(_) => errors.push(format!("analysis {} panicked", w.name)),
+            }
+        }
+        write_index(&self.ctx, &self.out, &produced, self.frames, self.first_step, self.last_step)?;
+        if !errors.is_empty() {
+            return Err(Error::Other(errors.join("; ")));
+        }
+        Ok(produced)
+    }
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+fn write_index(ctx: &Context, out: &Path, produced: &[Produced], frames: u64, first: u64, last: u64) -> Result<()> {
+    let run = ctx.run.as_ref().map(|m| serde_json::to_string(&m.config).unwrap_or_default()).unwrap_or_default();
+    let mut html = String::from("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>clv analyses</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em} figure{margin:2em 0} img{max-width:100%} code{background:#eee}</style></head><body>\n");
+    html += &format!(
+        "<h1>Covariant Lyapunov vector analyses</h1>\n<p>Source: <code>{}</code>; {} frames (steps {}..{}), D = {}, k = {}{}; vector statistics use every {}-th frame.</p>\n<p>Run: <code>{}</code></p>\n",
+        escape(&ctx.source),
+        frames,
+        if frames > 0 { first } else { 0 },
+        last,
+        ctx.d,
+        ctx.k,
+        if ctx.with_gs { ", with Gram-Schmidt vectors" } else { "" },
+        ctx.options.every,
+        escape(&run)
+    );
+    for p in produced {
+        html += &format!("<section><h2>{}</h2>\n", escape(&p.title));
+        for f in &p.figures {
+            html += &format!("<figure><img src=\"{f}.png\" alt=\"{f}\"><figcaption>{} (<a href=\"{f}.svg\">SVG</a>)</figcaption></figure>\n", escape(&p.caption));
+        }
+        if p.figures.is_empty() {
+            html += &format!("<p>{}</p>\n", escape(&p.caption));
+        }
+        if !p.tables.is_empty() {
+            let links: Vec<String> = p.tables.iter().map(|t| format!("<a href=\"{t}\">{t}</a>")).collect();
+            html += &format!("<p>Numbers: {}</p>\n", links.join(", "));
+        }
+        html += "</section>\n";
+    }
+    html += "</body></html>\n";
+    let path = out.join("index.html");
+    std::fs::write(&path, html).map_err(|e| Error::io(&path, e))?;
+    let summary = serde_json::json!({ "frames": frames, "first_step": first, "last_step": last, "options": ctx.options, "produced": produced });
+    let path = out.join("summary.json");
+    std::fs::write(&path, serde_json::to_vec_pretty(&summary).unwrap_or_default()).map_err(|e| Error::io(&path, e))
+}
+
+/// Write a CSV table: a header line and rows of numbers (full precision).
+pub fn write_csv(path: &Path, header: &[&str], rows: impl IntoIterator<Item = Vec<f64>>) -> Result<()> {
+    use std::fmt::Write as _;
+    let mut s = header.join(",");
+    s.push('\n');
+    for row in rows {
+        let cells: Vec<String> = row.iter().map(|x| format!("{x:e}")).collect();
+        let _ = writeln!(s, "{}", cells.join(","));
+    }
+    std::fs::write(path, s).map_err(|e| Error::io(path, e))
+}
+
+/// Save a figure as PNG and SVG.
+pub fn save_figure(fig: &crate::report::plot::Figure, out: &Path, stem: &str) -> Result<()> {
+    fig.save(out, stem).map_err(|e| Error::io(out.join(stem), e))
+}
+
+/// Running mean and standard error (from the spread over frames) of a set of quantities.
+#[derive(Clone, Debug)]
+pub struct Mean {
+    pub n: u64,
+    sum: Vec<f64>,
+    sum2: Vec<f64>,
+}
+
+impl Mean {
+    pub fn new(len: usize) -> Self {
+        Mean { n: 0, sum: vec![0.0; len], sum2: vec![0.0; len] }
+    }
+    pub fn add(&mut self, x: impl IntoIterator<Item = f64>) {
+        for ((s, s2), x) in self.sum.iter_mut().zip(self.sum2.iter_mut()).zip(x) {
+            *s += x;
+            *s2 += x * x;
+        }
+        self.n += 1;
+    }
+    pub fn mean(&self) -> Vec<f64> {
+        self.sum.iter().map(|s| s / self.n as f64).collect()
+    }
+    /// Standard deviation over frames (frames are correlated: not an error of the mean).
+    pub fn std(&self) -> Vec<f64> {
+        let n = self.n as f64;
+        self.sum.iter().zip(&self.sum2).map(|(s, s2)| ((s2 / n - (s / n).powi(2)).max(0.0)).sqrt()).collect()
+    }
+}
+
+/// Run every applicable analysis over the frames of `source` (a file, or "-" for standard
+/// input) into `out`. Returns what was produced and the number of frames read.
+pub fn analyze_source(source: &Path, out: &Path, every: Option<u64>, j: Option<Vec<usize>>) -> Result<(Vec<Produced>, u64)> {
+    let info = std::cell::RefCell::new(StreamInfo::default());
+    let mut analyzer: Option<Analyzer> = None;
+    let name = source.display().to_string();
+    let damage = crate::store::frames::read_frames_with(
+        source,
+        |i| {
+            *info.borrow_mut() = i;
+            Ok(())
+        },
+        |frame| {
+            if analyzer.is_none() {
+                let ctx = Context::new(&info.borrow(), &frame, &name, every, j.clone())?;
+                let analyses = registry(&ctx);
+                analyzer = Some(Analyzer::start(ctx, analyses, out)?);
+            }
+            analyzer.as_mut().expect("started").feed(Arc::new(frame))
+        },
+    )?;
+    let Some(analyzer) = analyzer else {
+        return Err(Error::Other(format!("{name}: no frames in the stream{}", damage.map(|d| format!(" ({d})")).unwrap_or_default())));
+    };
+    if let Some(d) = damage {
+        eprintln!("clv: warning: {name} ends early ({d}); analysing the {} complete frames", analyzer.frames);
+    }
+    let frames = analyzer.frames;
+    Ok((analyzer.finish()?, frames))
+}

@@ -1,0 +1,63 @@
+//! Localization of the vectors (paper Fig. 5): W = exp(<S>)/N with the Shannon entropy
+//! S = -sum_n mu_n ln mu_n of the per-disk weights mu_n = |dq_n|^2 + |dp_n|^2, for every CLV
+//! and (with GS vectors in the frames) every GS vector. W = 1/N: on one disk; W = 1: spread
+//! evenly over all disks.
+
+use super::kernels::localization::LocalizationAverage;
+use super::{save_figure, write_csv, Analysis, Context, Produced};
+use crate::error::Result;
+use crate::report::plot::{Figure, Marker};
+use crate::stage::frame::Frame;
+use std::path::Path;
+
+pub struct Localization {
+    ctx: Context,
+    clv: LocalizationAverage,
+    gs: Option<LocalizationAverage>,
+}
+
+pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
+    ctx.is_disks().then(|| {
+        Box::new(Localization {
+            ctx: ctx.clone(),
+            clv: LocalizationAverage::new(ctx.n, ctx.k),
+            gs: ctx.with_gs.then(|| LocalizationAverage::new(ctx.n, ctx.k)),
+        }) as Box<dyn Analysis>
+    })
+}
+
+impl Analysis for Localization {
+    fn name(&self) -> &'static str {
+        "localization"
+    }
+    fn consume(&mut self, frame: &Frame) -> Result<()> {
+        self.clv.add_frame(&frame.v);
+        if let (Some(acc), Some(g)) = (self.gs.as_mut(), frame.g.as_ref()) {
+            acc.add_frame(g);
+        }
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
+        let ctx = &self.ctx;
+        let w_clv = self.clv.widths();
+        let w_gs = self.gs.as_ref().map(|g| g.widths()).unwrap_or_else(|| vec![f64::NAN; ctx.k]);
+        let x: Vec<f64> = (0..ctx.k).map(|i| ctx.reduced(i)).collect();
+        write_csv(&out.join("localization.csv"), &["i", "i_over_D", "W_gs", "W_clv"], (0..ctx.k).map(|i| vec![(i + 1) as f64, x[i], w_gs[i], w_clv[i]]))?;
+        let mut fig = Figure::new("Localization W = exp(<S>)/N").x_label("i/4N").y_label("W");
+        if self.gs.is_some() {
+            fig.series("GS vectors", &x, &w_gs, Marker::Line);
+        }
+        fig.series("covariant vectors", &x, &w_clv, Marker::Line);
+        save_figure(&fig, out, "fig5_localization")?;
+        Ok(vec![Produced {
+            title: "Localization (Fig. 5)".into(),
+            caption: format!(
+                "W = exp(<S>)/N, S = -sum_n mu_n ln mu_n, mu_n = |dq_n|^2 + |dp_n|^2, averaged over {frames} frames{}. Small W: the perturbation lives on few disks.",
+                if self.gs.is_some() { " for GS and covariant vectors" } else { " for covariant vectors (run the backward stage with --with-gs for GS vectors)" }
+            ),
+            figures: vec!["fig5_localization".into()],
+            tables: vec!["localization.csv".into()],
+        }])
+    }
+}

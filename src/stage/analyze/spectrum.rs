@@ -1,0 +1,82 @@
+//! The Lyapunov spectrum (paper Figs. 2 and 8): the forward GS spectrum against the backward
+//! CLV spectrum (time average of the local exponents of the frames), against i/4N, and the
+//! mode region with each positive exponent beside its conjugate partner.
+
+use super::{save_figure, write_csv, Analysis, Context, Produced};
+use crate::error::Result;
+use crate::report::plot::{Figure, Marker};
+use crate::stage::forward::Accumulator;
+use crate::stage::frame::Frame;
+use std::path::Path;
+
+pub struct Spectrum {
+    ctx: Context,
+    acc: Accumulator,
+}
+
+pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
+    let expected = ctx.run.as_ref().map_or(1000, |m| m.store.clv_steps);
+    let blocks = ctx.run.as_ref().map_or(20, |m| m.config.blocks as u64);
+    Some(Box::new(Spectrum { ctx: ctx.clone(), acc: Accumulator::new(ctx.k, (expected / blocks).max(1)) }))
+}
+
+impl Analysis for Spectrum {
+    fn name(&self) -> &'static str {
+        "spectrum"
+    }
+    fn sampled(&self) -> bool {
+        false
+    }
+    fn consume(&mut self, frame: &Frame) -> Result<()> {
+        let tau = self.ctx.tau;
+        self.acc.add_logs(frame.local.iter().map(|l| l * tau));
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
+        let ctx = &self.ctx;
+        let (clv, clv_err) = (self.acc.exponents(ctx.tau), self.acc.stderr(ctx.tau));
+        let nan = vec![f64::NAN; ctx.k];
+        let (gs, gs_err) = ctx.gs.as_ref().map_or((nan.clone(), nan), |g| (g.exponents.clone(), g.stderr.clone()));
+        let x: Vec<f64> = (0..ctx.k).map(|i| ctx.reduced(i)).collect();
+        write_csv(
+            &out.join("spectrum.csv"),
+            &["i", "i_over_D", "lambda_gs", "stderr_gs", "lambda_clv", "stderr_clv"],
+            (0..ctx.k).map(|i| vec![(i + 1) as f64, x[i], gs[i], gs_err[i], clv[i], clv_err[i]]),
+        )?;
+        let mut fig = Figure::new("Lyapunov spectrum: GS forward, CLV backward").x_label("i/4N").y_label("λ_i");
+        fig.series("GS (forward)", &x, &gs, Marker::Line);
+        fig.series("CLV (backward)", &x, &clv, Marker::Line);
+        fig.hline(0.0);
+        save_figure(&fig, out, "fig2_spectrum")?;
+        let mut produced = vec![Produced {
+            title: "Lyapunov spectrum (Fig. 2)".into(),
+            caption: format!(
+                "Forward Gram-Schmidt exponents (time average of ln R_ii) and backward covariant exponents (time average of the local CLV exponents over {frames} frames) against the reduced index i/4N."
+            ),
+            figures: vec!["fig2_spectrum".into()],
+            tables: vec!["spectrum.csv".into()],
+        }];
+        if ctx.is_disks() && ctx.k == ctx.d {
+            // The mode region: positive exponents next to the null space, with the negated
+            // conjugate exponents at the same index (conjugate pairing: lambda_i = -lambda_{4N+1-i}).
+            let last = 2 * ctx.n - 4; // 0-based index of lambda_{2N-3}, the smallest positive
+            let first = last.saturating_sub((ctx.d / 6).max(8));
+            let idx: Vec<f64> = (first..=last).map(|i| (i + 1) as f64).collect();
+            let pick = |v: &[f64], conj: bool| -> Vec<f64> { (first..=last).map(|i| if conj { -v[ctx.d - 1 - i] } else { v[i] }).collect() };
+            let mut fig = Figure::new("Mode region: λ_i and -λ_(4N+1-i)").x_label("i").y_label("λ");
+            fig.series("GS λ_i", &idx, &pick(&gs, false), Marker::LinePoints);
+            fig.series("GS -λ_(4N+1-i)", &idx, &pick(&gs, true), Marker::Points);
+            fig.series("CLV λ_i", &idx, &pick(&clv, false), Marker::LinePoints);
+            fig.series("CLV -λ_(4N+1-i)", &idx, &pick(&clv, true), Marker::Points);
+            save_figure(&fig, out, "fig8_mode_region")?;
+            produced.push(Produced {
+                title: "Mode region of the spectrum (Fig. 8)".into(),
+                caption: format!("The positive exponents λ_{}..λ_{} next to the null space, with the negated conjugate exponents at the same index; the steps of the spectrum are the Lyapunov modes.", first + 1, last + 1),
+                figures: vec!["fig8_mode_region".into()],
+                tables: vec![],
+            });
+        }
+        Ok(produced)
+    }
+}

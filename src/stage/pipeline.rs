@@ -1,0 +1,74 @@
+//! `clv run`: forward, backward and every analysis in one process, on an embedded preset.
+//!
+//! The frames go straight from the backward sweep to the analyses over channels (nothing
+//! but the run directory is written in between), so the whole pipeline runs in the memory
+//! of one segment. A killed `clv run` resumes its forward pass when started again.
+
+use super::analyze::{registry, Analyzer, Context, Produced};
+use super::backward::{self, BackwardOptions};
+use super::forward_run::{self, Feedback};
+use crate::config::RunConfig;
+use crate::error::Result;
+use crate::store::frames::{Flow, StreamInfo};
+use crate::store::run::{BuildInfo, RunMeta, StoreConfig, FORMAT};
+use crate::store::RunDir;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+pub struct PipelineResult {
+    pub run_dir: PathBuf,
+    pub report_dir: PathBuf,
+    pub produced: Vec<Produced>,
+    pub clv: backward::BackwardReport,
+}
+
+/// Run the configuration into `out`: `out/run` (the run directory) and `out/report`
+/// (index.html, figures, tables).
+pub fn run(config: &RunConfig, out: &Path, feedback: &mut Feedback, say: &mut dyn FnMut(String)) -> Result<PipelineResult> {
+    let run_dir = out.join("run");
+    let report_dir = out.join("report");
+    if run_dir.join("run.json").exists() {
+        say(format!("continuing the run in {}", run_dir.display()));
+        forward_run::resume(&run_dir, feedback)?;
+    } else {
+        let meta = RunMeta { format: FORMAT.into(), config: config.clone(), store: StoreConfig::for_run(config), build: BuildInfo::current() };
+        say(format!("forward pass into {} ({})", run_dir.display(), meta.store.footprint(config).1));
+        forward_run::create(&run_dir, &meta, feedback)?;
+    }
+    let (dir, meta) = RunDir::open(&run_dir)?;
+    let mut opts = BackwardOptions::for_run(&meta);
+    opts.with_gs = true;
+    opts.save_every = 0;
+    let info = StreamInfo {
+        run_json: Some(RunDir::meta_json(&meta)),
+        spectrum_json: std::fs::read_to_string(dir.spectrum_path()).ok(),
+    };
+    say("backward pass and analyses".into());
+    let mut analyzer: Option<Analyzer> = None;
+    let source = format!("clv run, in-process stream of {}", run_dir.display());
+    let mut consumer = |frame: Arc<super::frame::Frame>| -> Result<Flow> {
+        if analyzer.is_none() {
+            let ctx = Context::new(&info, &frame, &source, None, None)?;
+            let analyses = registry(&ctx);
+            analyzer = Some(Analyzer::start(ctx, analyses, &report_dir)?);
+        }
+        analyzer.as_mut().expect("started").feed(frame)
+    };
+    let bar = feedback.bar.clone();
+    if let Some(bar) = &bar {
+        bar.set_length(meta.store.clv_steps + meta.store.transient);
+        bar.set_position(0);
+        bar.set_message("backward + analyses");
+    }
+    let mut on_progress = |recomputed: u64, _frames: u64| {
+        if let Some(bar) = &bar {
+            bar.set_position(recomputed);
+        }
+    };
+    let clv = backward::run(&run_dir, &opts, false, 4096 << 20, &mut consumer, &mut on_progress)?;
+    let produced = match analyzer {
+        Some(a) => a.finish()?,
+        None => Vec::new(),
+    };
+    Ok(PipelineResult { run_dir, report_dir, produced, clv })
+}
