@@ -178,6 +178,9 @@ struct AnalyzeArgs {
     /// paper's choice scaled to this system's D).
     #[arg(long, value_delimiter = ',')]
     j: Option<Vec<usize>>,
+    /// Run only these analyses (comma-separated names, e.g. spectrum,localization).
+    #[arg(long, value_delimiter = ',')]
+    only: Vec<String>,
 }
 
 #[derive(Args)]
@@ -391,7 +394,7 @@ fn run(args: &RunArgs) -> Result<()> {
 }
 
 fn analyze(args: &AnalyzeArgs) -> Result<()> {
-    let (produced, frames) = clv::stage::analyze::analyze_source(&args.source, &args.out, args.every, args.j.clone())?;
+    let (produced, frames) = clv::stage::analyze::analyze_source(&args.source, &args.out, args.every, args.j.clone(), &args.only)?;
     let figures: usize = produced.iter().map(|p| p.figures.len()).sum();
     eprintln!("clv analyze: {frames} frames, {} analyses, {figures} figures; open {}", produced.len(), args.out.join("index.html").display());
     Ok(())

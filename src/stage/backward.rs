@@ -426,7 +426,10 @@ pub fn run(
                 1.0,
                 par,
             );
-            acc.add_logs(logs.iter().copied());
+            let local: Vec<f64> = logs.iter().map(|l| l / tau).collect();
+            // The CLV spectrum is the mean of the frames' local exponents (accumulated with
+            // tau = 1), exactly as an analysis of the frame stream computes it.
+            acc.add_logs(local.iter().copied());
             let frame = Arc::new(Frame {
                 step: m,
                 time: m as f64 * tau,
@@ -434,7 +437,7 @@ pub fn run(
                 k,
                 phase: seg.phase[(m - seg.s0) as usize * d..(m - seg.s0 + 1) as usize * d].to_vec(),
                 v: v.clone(),
-                local: logs.iter().map(|l| l / tau).collect(),
+                local,
                 g: opts.with_gs.then(|| g.to_vec()),
             });
             if stats.frames == 0 {
@@ -473,8 +476,8 @@ pub fn run(
     stats.stopped_early = stopped;
     stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();
     let report = BackwardReport {
-        exponents: acc.exponents(tau),
-        stderr: acc.stderr(tau),
+        exponents: acc.exponents(1.0),
+        stderr: acc.stderr(1.0),
         gs_exponents: gs.exponents,
         gs_stderr: gs.stderr,
         options: opts.clone(),

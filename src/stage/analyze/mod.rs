@@ -149,6 +149,20 @@ pub fn registry(ctx: &Context) -> Vec<Box<dyn Analysis>> {
     MAKERS.iter().filter_map(|make| make(ctx)).collect()
 }
 
+/// The analyses of the registry whose names are in `only` (all if `only` is empty); an
+/// unknown name is an error listing the known ones.
+pub fn select(ctx: &Context, only: &[String]) -> Result<Vec<Box<dyn Analysis>>> {
+    let all = registry(ctx);
+    if only.is_empty() {
+        return Ok(all);
+    }
+    let known: Vec<&str> = all.iter().map(|a| a.name()).collect();
+    if let Some(bad) = only.iter().find(|o| !known.contains(&o.as_str())) {
+        return Err(Error::param("only", format!("no analysis {bad:?} applies to this stream; available: {}", known.join(", "))));
+    }
+    Ok(all.into_iter().filter(|a| only.iter().any(|o| o == a.name())).collect())
+}
+
 struct Worker {
     name: &'static str,
     tx: Option<Sender<Arc<Frame>>>,
@@ -325,7 +339,7 @@ impl Mean {
 
 /// Run every applicable analysis over the frames of `source` (a file, or "-" for standard
 /// input) into `out`. Returns what was produced and the number of frames read.
-pub fn analyze_source(source: &Path, out: &Path, every: Option<u64>, j: Option<Vec<usize>>) -> Result<(Vec<Produced>, u64)> {
+pub fn analyze_source(source: &Path, out: &Path, every: Option<u64>, j: Option<Vec<usize>>, only: &[String]) -> Result<(Vec<Produced>, u64)> {
     let info = std::cell::RefCell::new(StreamInfo::default());
     let mut analyzer: Option<Analyzer> = None;
     let name = source.display().to_string();
@@ -338,7 +352,7 @@ pub fn analyze_source(source: &Path, out: &Path, every: Option<u64>, j: Option<V
         |frame| {
             if analyzer.is_none() {
                 let ctx = Context::new(&info.borrow(), &frame, &name, every, j.clone())?;
-                let analyses = registry(&ctx);
+                let analyses = select(&ctx, only)?;
                 analyzer = Some(Analyzer::start(ctx, analyses, out)?);
             }
             analyzer.as_mut().expect("started").feed(Arc::new(frame))

@@ -28,14 +28,13 @@ impl Analysis for Spectrum {
         false
     }
     fn consume(&mut self, frame: &Frame) -> Result<()> {
-        let tau = self.ctx.tau;
-        self.acc.add_logs(frame.local.iter().map(|l| l * tau));
+        self.acc.add_logs(frame.local.iter().copied());
         Ok(())
     }
 
     fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
         let ctx = &self.ctx;
-        let (clv, clv_err) = (self.acc.exponents(ctx.tau), self.acc.stderr(ctx.tau));
+        let (clv, clv_err) = (self.acc.exponents(1.0), self.acc.stderr(1.0));
         let nan = vec![f64::NAN; ctx.k];
         let (gs, gs_err) = ctx.gs.as_ref().map_or((nan.clone(), nan), |g| (g.exponents.clone(), g.stderr.clone()));
         let x: Vec<f64> = (0..ctx.k).map(|i| ctx.reduced(i)).collect();

@@ -111,26 +111,37 @@ fn check_box(lx: f64, ly: f64) -> Result<()> {
     Ok(())
 }
 
-/// Sites of the nx x ny lattice with the largest spacing that holds n disks.
+/// Start positions: the nx x ny lattice, square or with every other row shifted by half a
+/// spacing (a triangular-like packing, periodic when ny is even), whose closest pair is
+/// farthest apart among those that hold n disks.
 fn lattice(n: usize, lx: f64, ly: f64, rng: &mut Rng) -> Result<Vec<[f64; 2]>> {
-    let mut best: Option<(f64, usize, usize)> = None;
+    let mut best: Option<(f64, usize, usize, bool)> = None;
     for ny in 1..=n {
         let nx = n.div_ceil(ny);
-        let spacing = (lx / nx as f64).min(ly / ny as f64);
-        if best.is_none_or(|(s, _, _)| spacing > s) {
-            best = Some((spacing, nx, ny));
+        let (ax, ay) = (lx / nx as f64, ly / ny as f64);
+        let mut options = vec![(ax.min(ay), false)];
+        if ny % 2 == 0 {
+            options.push((ax.min((0.25 * ax * ax + ay * ay).sqrt()).min(2.0 * ay), true));
+        }
+        for (spacing, staggered) in options {
+            if best.is_none_or(|(s, ..)| spacing > s) {
+                best = Some((spacing, nx, ny, staggered));
+            }
         }
     }
-    let (spacing, nx, ny) = best.expect("n >= 1");
+    let (spacing, nx, ny, staggered) = best.expect("n >= 1");
     if spacing < 1.0 + 1e-9 {
         return Err(Error::param("density", format!(
-            "cannot place {n} disks without overlap in a {lx:.4} x {ly:.4} box (best lattice {nx} x {ny} has spacing {spacing:.4} < 1); \
+            "cannot place {n} disks without overlap in a {lx:.4} x {ly:.4} box (the best start lattice, {nx} x {ny}, has a closest pair at {spacing:.4} < 1); \
              lower --density or change --aspect"
         )));
     }
     let (ax, ay) = (lx / nx as f64, ly / ny as f64);
     let mut sites: Vec<[f64; 2]> = (0..ny)
-        .flat_map(|iy| (0..nx).map(move |ix| [(ix as f64 + 0.5) * ax, (iy as f64 + 0.5) * ay]))
+        .flat_map(|iy| {
+            let shift = if staggered && iy % 2 == 1 { 0.5 } else { 0.0 };
+            (0..nx).map(move |ix| [(ix as f64 + 0.25 + shift) * ax, (iy as f64 + 0.5) * ay])
+        })
         .collect();
     if sites.len() > n {
         rng.shuffle(&mut sites);

@@ -1,0 +1,115 @@
+//! The whole pipeline: forward | backward | analyze through real pipes against the
+//! in-process path, concurrent analyses against each analysis alone, and `clv run`.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+fn clv(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_clv")).args(args).output().unwrap()
+}
+
+fn ok(out: Output) -> Output {
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    out
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("pipeline").join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn read(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+const RUN: [&str; 14] = ["forward", "--quiet", "--n", "10", "--aspect", "1", "--steps", "2000", "--clv-steps", "400", "--transient", "300", "--relax-steps", "200"];
+
+/// Tables every analysis writes whatever the system (compared byte for byte).
+const TABLES: [&str; 2] = ["spectrum.csv", "localization.csv"];
+
+#[test]
+fn shell_pipes_give_the_same_numbers_as_files_and_concurrency_changes_nothing() {
+    let base = scratch("pipes");
+    let run = base.join("run");
+    let r = run.to_str().unwrap();
+    ok(clv(&[&RUN[..], &["--out", r]].concat()));
+    // Through real pipes: clv backward RUN --out - | clv analyze - --out DIR
+    let piped = base.join("piped");
+    let mut backward = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", r, "--out", "-", "--with-gs", "--quiet"]).stdout(Stdio::piped()).spawn().unwrap();
+    let analyze = Command::new(env!("CARGO_BIN_EXE_clv"))
+        .args(["analyze", "-", "--out", piped.to_str().unwrap()])
+        .stdin(backward.stdout.take().unwrap())
+        .output()
+        .unwrap();
+    assert!(backward.wait().unwrap().success());
+    assert!(analyze.status.success(), "{}", String::from_utf8_lossy(&analyze.stderr));
+    // From a file written by the backward stage.
+    let frames = base.join("frames.mcap");
+    ok(clv(&["backward", r, "--out", frames.to_str().unwrap(), "--with-gs", "--quiet"]));
+    let filed = base.join("filed");
+    ok(clv(&["analyze", frames.to_str().unwrap(), "--out", filed.to_str().unwrap()]));
+    for t in TABLES {
+        assert_eq!(read(&piped.join(t)), read(&filed.join(t)), "{t}: pipe and file differ");
+    }
+    // Each analysis alone gives the same numbers as all of them concurrently.
+    for (name, table) in [("spectrum", "spectrum.csv"), ("localization", "localization.csv")] {
+        let alone = base.join(format!("alone-{name}"));
+        ok(clv(&["analyze", frames.to_str().unwrap(), "--out", alone.to_str().unwrap(), "--only", name]));
+        assert_eq!(read(&alone.join(table)), read(&filed.join(table)), "{name}: alone and concurrent differ");
+    }
+    let out = clv(&["analyze", frames.to_str().unwrap(), "--out", base.join("x").to_str().unwrap(), "--only", "nonsense"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--only") && err.contains("spectrum"), "{err}");
+    // The CLV spectrum in the analysis equals the backward stage's own.
+    let report: serde_json::Value = serde_json::from_str(&read(&run.join("clv_spectrum.json"))).unwrap();
+    let first_row: Vec<f64> = read(&filed.join("spectrum.csv")).lines().nth(1).unwrap().split(',').map(|x| x.parse().unwrap()).collect();
+    assert_eq!(first_row[4], report["exponents"][0].as_f64().unwrap());
+    let html = read(&filed.join("index.html"));
+    assert!(html.contains("fig2_spectrum.png") && html.contains("frames"));
+    for png in ["fig2_spectrum.png", "fig5_localization.png", "fig8_mode_region.png"] {
+        let bytes = std::fs::read(filed.join(png)).unwrap();
+        assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n") && bytes.len() > 5000, "{png}");
+    }
+}
+
+#[test]
+fn analyze_refuses_bad_sources_clearly() {
+    let base = scratch("bad");
+    let missing = base.join("missing.mcap");
+    let out = clv(&["analyze", missing.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("missing.mcap"), "{err}");
+    let junk = base.join("junk.mcap");
+    std::fs::write(&junk, b"not an mcap file at all").unwrap();
+    let out = clv(&["analyze", junk.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("junk.mcap") && !err.contains("panicked"), "{err}");
+}
+
+/// The README's main command on the embedded default: every stage, every figure, and a
+/// second start reuses the finished run instead of redoing it.
+#[test]
+fn clv_run_on_the_default_preset_writes_the_report() {
+    let out = scratch("run");
+    let o = out.to_str().unwrap();
+    let first = ok(clv(&["run", "--out", o, "--quiet"]));
+    let html = read(&out.join("report/index.html"));
+    let summary: serde_json::Value = serde_json::from_str(&read(&out.join("report/summary.json"))).unwrap();
+    let produced = summary["produced"].as_array().unwrap();
+    assert!(produced.len() >= 3, "{summary}");
+    for p in produced {
+        for f in p["figures"].as_array().unwrap() {
+            let f = f.as_str().unwrap();
+            assert!(html.contains(&format!("{f}.png")), "index.html lacks {f}");
+            let png = std::fs::read(out.join(format!("report/{f}.png"))).unwrap();
+            assert!(png.starts_with(b"\x89PNG\r\n\x1a\n") && png.len() > 5000, "{f}.png");
+        }
+    }
+    assert!(summary["frames"].as_u64().unwrap() >= 1000);
+    let again = ok(clv(&["run", "--out", o]));
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(err.contains("continuing the run"), "{err}");
+    drop(first);
+}
