@@ -6,6 +6,7 @@
 //! pass, and later the backward Ginelli pass and the analyses), [`linalg`] (the QR step),
 //! [`report`] (what a person sees).
 
+pub mod bench;
 pub mod config;
 pub mod error;
 pub mod linalg;

@@ -31,6 +31,34 @@ enum Command {
     Analyze(AnalyzeArgs),
     /// The whole pipeline (forward, backward, all analyses) on an embedded preset.
     Run(RunArgs),
+    /// Measure kernels and stages side by side on this machine (medians, ratios, memory).
+    Bench(BenchArgs),
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    /// Disks N of the benchmark system (D = 4N).
+    #[arg(long, default_value_t = 198)]
+    n: usize,
+    /// Tangent vectors (default D).
+    #[arg(long)]
+    vectors: Option<usize>,
+    #[arg(long, default_value_t = 1)]
+    threads: usize,
+    /// Repetitions of each measurement.
+    #[arg(long, default_value_t = 5)]
+    reps: usize,
+    /// Forward steps per stage measurement.
+    #[arg(long, default_value_t = 40)]
+    steps: u64,
+    /// System sizes N for the collision-rate measurement (k = 0).
+    #[arg(long, value_delimiter = ',', default_value = "198,1980,19800")]
+    collision_sizes: Vec<usize>,
+    /// Skip the peak-memory measurement (child processes).
+    #[arg(long)]
+    no_rss: bool,
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -393,6 +421,25 @@ fn run(args: &RunArgs) -> Result<()> {
     Ok(())
 }
 
+fn bench(args: &BenchArgs) -> Result<()> {
+    let opts = clv::bench::BenchOptions {
+        n: args.n,
+        k: args.vectors,
+        threads: args.threads,
+        reps: args.reps,
+        steps: args.steps,
+        collision_sizes: args.collision_sizes.clone(),
+        exe: if args.no_rss { None } else { std::env::current_exe().ok() },
+    };
+    let report = clv::bench::run(&opts, &mut |what| eprintln!("clv bench: {what}"))?;
+    if args.json {
+        println!("{}", serde_json::to_string(&report).map_err(|e| Error::Other(e.to_string()))?);
+    } else {
+        print!("{}", report.table());
+    }
+    Ok(())
+}
+
 fn analyze(args: &AnalyzeArgs) -> Result<()> {
     let (produced, frames) = clv::stage::analyze::analyze_source(&args.source, &args.out, args.every, args.j.clone(), &args.only)?;
     let figures: usize = produced.iter().map(|p| p.figures.len()).sum();
@@ -512,7 +559,13 @@ fn main() {
         Command::Inspect(args) => inspect_cmd(args),
         Command::Analyze(args) => analyze(args),
         Command::Run(args) => run(args),
+        Command::Bench(args) => bench(args),
     };
+    if std::env::var_os("CLV_REPORT_PEAK_RSS").is_some() {
+        if let Some(kb) = clv::bench::peak_rss_kb() {
+            eprintln!("clv-peak-rss-kb: {kb}");
+        }
+    }
     if let Err(e) = result {
         eprintln!("clv: error: {e}");
         std::process::exit(1);

@@ -117,13 +117,22 @@ impl Forward {
 
     /// One step: propagate over tau, re-orthonormalise, accumulate ln R_ii once relaxed.
     pub fn step(&mut self) -> Result<()> {
+        self.step_timed().map(|_| ())
+    }
+
+    /// [`Forward::step`], returning the time spent in the dynamics (MD and tangent updates)
+    /// and in the QR step (for `clv bench`).
+    pub fn step_timed(&mut self) -> Result<(std::time::Duration, std::time::Duration)> {
+        let t0 = std::time::Instant::now();
         self.system.advance(&mut self.g)?;
+        let t1 = std::time::Instant::now();
         self.qr.factor(&mut self.g, &mut self.r);
+        let t2 = std::time::Instant::now();
         if self.step >= self.relax_steps {
             self.acc.add(&self.r);
         }
         self.step += 1;
-        Ok(())
+        Ok((t1 - t0, t2 - t1))
     }
 
     /// Everything needed to continue this pass bit for bit.

@@ -1,0 +1,354 @@
+//! `clv bench`: the speed and memory of the kernels and stages, measured side by side in one
+//! run on this machine.
+//!
+//! Machines are noisy (the same kernel runs 2-6x slower under load), so everything is
+//! reported as medians with their spread, and the targets are ratios of quantities measured
+//! in the same run, never absolute times.
+
+use crate::config::{RunConfig, SystemConfig};
+use crate::error::{Error, Result};
+use crate::linalg::{par, Qr};
+use crate::rng::Rng;
+use crate::stage::backward::{self, BackwardOptions};
+use crate::stage::forward::Forward;
+use crate::stage::forward_run::{self, Feedback};
+use crate::store::frames::Flow;
+use crate::store::records::{encode_r, Checkpoint, Stats};
+use crate::store::run::{BuildInfo, RunMeta, StoreConfig, FORMAT};
+use crate::system::disks::{box_sides, HardDisks};
+use crate::system::{DynamicalSystem, Tangent};
+use faer::{Mat, MatRef};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    /// Disks N of the benchmark system (D = 4N); the paper's 198 by default.
+    pub n: usize,
+    /// Tangent vectors (default D).
+    pub k: Option<usize>,
+    pub threads: usize,
+    /// Repetitions of each kernel measurement.
+    pub reps: usize,
+    /// Forward steps per stage measurement.
+    pub steps: u64,
+    /// System sizes for the collision-rate measurement.
+    pub collision_sizes: Vec<usize>,
+    /// Measure peak RSS by running `exe` as child processes (None: skip).
+    pub exe: Option<PathBuf>,
+}
+
+/// Median and spread of repeated measurements (milliseconds unless stated).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Stat {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+impl Stat {
+    pub fn of(mut xs: Vec<f64>) -> Stat {
+        xs.retain(|x| x.is_finite());
+        if xs.is_empty() {
+            return Stat { median: f64::NAN, min: f64::NAN, max: f64::NAN };
+        }
+        xs.sort_by(f64::total_cmp);
+        let m = xs.len();
+        let median = if m % 2 == 1 { xs[m / 2] } else { 0.5 * (xs[m / 2 - 1] + xs[m / 2]) };
+        Stat { median, min: xs[0], max: xs[m - 1] }
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Rss {
+    pub steps: u64,
+    pub peak_mb: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchReport {
+    pub n: usize,
+    pub d: usize,
+    pub k: usize,
+    pub threads: usize,
+    pub cores: usize,
+    pub reps: usize,
+    pub gemm_gflops: Stat,
+    /// 8/3 D k^2 flops (D = k: 8/3 D^3) at the measured gemm rate.
+    pub floor_ms: f64,
+    pub qr_ms: Stat,
+    /// Wall time per step of a stored forward run (everything, on all threads).
+    pub forward_step_ms: Stat,
+    pub md_tangent_ms: Stat,
+    /// Encoding checkpoint, R and statistics, amortised per step (on the simulation thread).
+    pub store_ms: Stat,
+    /// Wall time per step of the backward stage (recomputation overlapped with the sweep).
+    pub backward_step_ms: Stat,
+    pub backward_solve_ms: Stat,
+    pub backward_vgc_ms: Stat,
+    pub forward_step_over_qr: f64,
+    pub qr_over_floor: f64,
+    pub backward_over_forward: f64,
+    /// The same forward step with k = 16 vectors (leading-k runs).
+    pub leading_k16_step_ms: Stat,
+    pub leading_k16_md_tangent_ms: Stat,
+    pub leading_k16_qr_ms: Stat,
+    /// (N, collisions per second) with k = 0.
+    pub collisions_per_second: Vec<(usize, f64)>,
+    pub forward_peak_rss: Vec<Rss>,
+    pub backward_peak_rss: Vec<Rss>,
+    /// Projected hours for the paper's run (2.5e5 forward steps, 2.5e4 + 1.25e4 backward).
+    pub paper_forward_hours: f64,
+    pub paper_backward_hours: f64,
+}
+
+fn ms(t: std::time::Duration) -> f64 {
+    t.as_secs_f64() * 1e3
+}
+
+fn random_mat(d: usize, k: usize, rng: &mut Rng) -> Mat<f64> {
+    Mat::from_fn(d, k, |_, _| rng.normal())
+}
+
+fn disk_config(n: usize, k: usize, threads: usize, relax: u64, steps: u64) -> Result<RunConfig> {
+    Ok(RunConfig { system: SystemConfig::disks(n, 0.7, 2.0 / 11.0)?, tau: 0.6, relax_steps: relax, steps, vectors: k, seed: 1, threads, blocks: 4 })
+}
+
+/// Peak resident set size of this process (Linux; None elsewhere).
+pub fn peak_rss_kb() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+fn child_peak_rss_mb(exe: &Path, args: &[String]) -> Result<f64> {
+    let out = std::process::Command::new(exe)
+        .args(args)
+        .env("CLV_REPORT_PEAK_RSS", "1")
+        .output()
+        .map_err(|e| Error::io(exe, e))?;
+    let err = String::from_utf8_lossy(&out.stderr);
+    if !out.status.success() {
+        return Err(Error::Other(format!("benchmark child {args:?} failed: {err}")));
+    }
+    let kb: f64 = err.lines().find_map(|l| l.strip_prefix("clv-peak-rss-kb: ")).and_then(|v| v.trim().parse().ok()).unwrap_or(f64::NAN);
+    Ok(kb / 1024.0)
+}
+
+/// A relaxed forward pass of the benchmark system (its tangent block is realistic).
+fn relaxed_forward(config: &RunConfig) -> Result<Forward> {
+    let mut f = Forward::new(config)?;
+    for _ in 0..config.relax_steps {
+        f.step()?;
+    }
+    Ok(f)
+}
+
+pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
+    let (n, threads, reps) = (o.n, o.threads.max(1), o.reps.max(1));
+    let d = 4 * n;
+    let k = o.k.unwrap_or(d).min(d);
+    let p = par(threads);
+    let mut rng = Rng::new(7);
+
+    say("gemm");
+    let (a, b) = (random_mat(d, d, &mut rng), random_mat(d, d, &mut rng));
+    let mut c = Mat::<f64>::zeros(d, d);
+    let gemm = Stat::of((0..reps + 1).map(|_| {
+        let t = Instant::now();
+        faer::linalg::matmul::matmul(c.as_mut(), faer::Accum::Replace, a.as_ref(), b.as_ref(), 1.0, p);
+        2.0 * (d as f64).powi(3) / t.elapsed().as_secs_f64() / 1e9
+    }).skip(1).collect());
+    let floor_ms = 8.0 / 3.0 * d as f64 * (k as f64).powi(2) / (gemm.median * 1e9) * 1e3;
+
+    say("forward steps (MD, tangent, QR)");
+    let config = disk_config(n, k, threads, 3, o.steps)?;
+    let mut fwd = relaxed_forward(&config)?;
+    let (mut md, mut qr) = (Vec::new(), Vec::new());
+    for _ in 0..reps.max(5) {
+        let (a, q) = fwd.step_timed()?;
+        md.push(ms(a));
+        qr.push(ms(q));
+    }
+    let qr_ms = Stat::of(qr);
+    let md_tangent_ms = Stat::of(md);
+
+    say("store encoding");
+    let store = StoreConfig::for_run(&config);
+    let ck = Checkpoint { state: fwd.state(), time: fwd.time(), system: "disks".into(), d, k };
+    let stats = Stats { step: 0, time: 0.0, exponents: vec![0.0; k], stderr: vec![0.0; k], energy: 0.0, energy_initial: 0.0, momentum: [0.0; 2], collisions: 0, wall_seconds: 0.0 };
+    let store_ms = Stat::of((0..reps).map(|_| {
+        let t = Instant::now();
+        let bytes = ck.encode().len() + encode_r(1, &fwd.r).len() + stats.encode().len();
+        std::hint::black_box(bytes);
+        ms(t.elapsed()) / store.checkpoint_every as f64
+    }).collect());
+
+    say("backward kernels (R^-1 C, V = G C)");
+    let mut cm = Mat::<f64>::identity(k, k);
+    let r = fwd.r.clone();
+    let backward_solve_ms = Stat::of((0..reps).map(|_| {
+        let t = Instant::now();
+        faer::linalg::triangular_solve::solve_upper_triangular_in_place(r.as_ref(), cm.as_mut(), p);
+        for j in 0..k {
+            let norm = cm.col(j).norm_l2();
+            cm.col_mut(j).iter_mut().for_each(|x| *x /= norm);
+        }
+        ms(t.elapsed())
+    }).collect());
+    let g = fwd.g.to_paper_columns(fwd.system.as_ref());
+    let mut v = vec![0.0; d * k];
+    let backward_vgc_ms = Stat::of((0..reps).map(|_| {
+        let t = Instant::now();
+        faer::linalg::matmul::matmul(faer::MatMut::from_column_major_slice_mut(&mut v, d, k), faer::Accum::Replace, MatRef::from_column_major_slice(&g, d, k), cm.as_ref(), 1.0, p);
+        ms(t.elapsed())
+    }).collect());
+
+    say("stored forward run and backward stage");
+    let tmp = std::env::temp_dir().join(format!("clv-bench-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let (mut fsteps, mut bsteps) = (Vec::new(), Vec::new());
+    for rep in 0..reps.min(3) {
+        let dir = tmp.join(format!("run{rep}"));
+        let steps = o.steps.max(20);
+        let cfg = disk_config(n, k, threads, 2, steps)?;
+        let mut st = StoreConfig::for_run(&cfg);
+        st.checkpoint_every = (steps / 4).max(1);
+        st.clv_steps = steps / 2;
+        st.transient = steps / 4;
+        let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: st.clone(), build: BuildInfo::current() };
+        let t = Instant::now();
+        forward_run::create(&dir, &meta, &mut Feedback::default())?;
+        fsteps.push(ms(t.elapsed()) / (steps + 2) as f64);
+        let mut opts = BackwardOptions::for_run(&meta);
+        opts.save_every = 0;
+        let t = Instant::now();
+        backward::run(&dir, &opts, false, u64::MAX, &mut |_| Ok(Flow::Continue), &mut |_, _| {})?;
+        bsteps.push(ms(t.elapsed()) / (st.clv_steps + st.transient) as f64);
+    }
+    let forward_step_ms = Stat::of(fsteps);
+    let backward_step_ms = Stat::of(bsteps);
+
+    say("leading k = 16");
+    let lk = 16.min(d);
+    let mut f16 = relaxed_forward(&disk_config(n, lk, threads, 3, 10)?)?;
+    let (mut a16, mut q16, mut s16) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..reps.max(5) {
+        let (a, q) = f16.step_timed()?;
+        a16.push(ms(a));
+        q16.push(ms(q));
+        s16.push(ms(a + q));
+    }
+
+    say("collision rates (k = 0)");
+    let mut collisions_per_second = Vec::new();
+    for &size in &o.collision_sizes {
+        let (lx, ly) = box_sides(size, 0.7, 2.0 / 11.0);
+        let mut s = HardDisks::new(size, lx, ly, 0.6, 3)?;
+        let mut none = Tangent::zeros(4 * size, 0);
+        s.advance(&mut none)?; // melt the lattice
+        let c0 = s.invariants().events;
+        let t = Instant::now();
+        while s.invariants().events - c0 < 300_000 {
+            s.advance(&mut none)?;
+        }
+        collisions_per_second.push((size, (s.invariants().events - c0) as f64 / t.elapsed().as_secs_f64()));
+    }
+
+    let (mut forward_peak_rss, mut backward_peak_rss) = (Vec::new(), Vec::new());
+    if let Some(exe) = &o.exe {
+        say("peak memory (child processes, 10x longer runs)");
+        let base = 20u64;
+        for scale in [1, 10] {
+            let dir = tmp.join(format!("rss-f{scale}"));
+            let steps = base * scale;
+            let args: Vec<String> = ["forward", "--quiet", "--n", &n.to_string(), "--vectors", &k.to_string(), "--threads", &threads.to_string(), "--relax-steps", "0", "--steps", &steps.to_string(), "--checkpoint-every", "10", "--clv-steps", "10", "--transient", "5", "--out", dir.to_str().unwrap_or_default()]
+                .iter().map(|s| s.to_string()).collect();
+            forward_peak_rss.push(Rss { steps, peak_mb: child_peak_rss_mb(exe, &args)? });
+        }
+        for scale in [1, 10] {
+            let dir = tmp.join(format!("rss-b{scale}"));
+            let window = base * scale;
+            let args: Vec<String> = ["forward", "--quiet", "--n", &n.to_string(), "--vectors", &k.to_string(), "--threads", &threads.to_string(), "--relax-steps", "0", "--steps", &(window + 10).to_string(), "--checkpoint-every", "10", "--clv-steps", &window.to_string(), "--transient", "10", "--out", dir.to_str().unwrap_or_default()]
+                .iter().map(|s| s.to_string()).collect();
+            child_peak_rss_mb(exe, &args)?;
+            let args: Vec<String> = ["backward", dir.to_str().unwrap_or_default(), "--quiet", "--save-every", "0"].iter().map(|s| s.to_string()).collect();
+            backward_peak_rss.push(Rss { steps: window, peak_mb: child_peak_rss_mb(exe, &args)? });
+        }
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+
+    Ok(BenchReport {
+        n,
+        d,
+        k,
+        threads,
+        cores: std::thread::available_parallelism().map_or(1, |c| c.get()),
+        reps,
+        gemm_gflops: gemm,
+        floor_ms,
+        qr_ms,
+        forward_step_ms,
+        md_tangent_ms,
+        store_ms,
+        backward_step_ms,
+        backward_solve_ms,
+        backward_vgc_ms,
+        forward_step_over_qr: forward_step_ms.median / qr_ms.median,
+        qr_over_floor: qr_ms.median / floor_ms,
+        backward_over_forward: backward_step_ms.median / forward_step_ms.median,
+        leading_k16_step_ms: Stat::of(s16),
+        leading_k16_md_tangent_ms: Stat::of(a16),
+        leading_k16_qr_ms: Stat::of(q16),
+        collisions_per_second,
+        forward_peak_rss,
+        backward_peak_rss,
+        paper_forward_hours: 260_000.0 * forward_step_ms.median / 3.6e6,
+        paper_backward_hours: 37_500.0 * backward_step_ms.median / 3.6e6,
+    })
+}
+
+impl BenchReport {
+    pub fn table(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        let st = |x: &Stat| format!("{:>9.3}  ({:.3} .. {:.3})", x.median, x.min, x.max);
+        let _ = writeln!(s, "clv bench: N = {}, D = {}, k = {}, {} thread(s) on {} cores, {} repetitions (median (min .. max))", self.n, self.d, self.k, self.threads, self.cores, self.reps);
+        let _ = writeln!(s, "  gemm_gflops            {}", st(&self.gemm_gflops));
+        let _ = writeln!(s, "  floor_ms               {:>9.3}", self.floor_ms);
+        let _ = writeln!(s, "  qr_ms                  {}", st(&self.qr_ms));
+        let _ = writeln!(s, "  forward_step_ms        {}", st(&self.forward_step_ms));
+        let _ = writeln!(s, "    md_tangent_ms        {}", st(&self.md_tangent_ms));
+        let _ = writeln!(s, "    store_ms             {}", st(&self.store_ms));
+        let _ = writeln!(s, "  backward_step_ms       {}", st(&self.backward_step_ms));
+        let _ = writeln!(s, "    solve_ms (R^-1 C)    {}", st(&self.backward_solve_ms));
+        let _ = writeln!(s, "    vgc_ms (V = G C)     {}", st(&self.backward_vgc_ms));
+        let _ = writeln!(s, "  forward_step_over_qr   {:>9.3}   (target <= 1.15)", self.forward_step_over_qr);
+        let _ = writeln!(s, "  qr_over_floor          {:>9.3}   (target <= 1.4 on 2 threads)", self.qr_over_floor);
+        let _ = writeln!(s, "  backward_over_forward  {:>9.3}   (target <= 1.3)", self.backward_over_forward);
+        let _ = writeln!(s, "  k = 16: step {}  md+tangent {}  qr {}", st(&self.leading_k16_step_ms), st(&self.leading_k16_md_tangent_ms), st(&self.leading_k16_qr_ms));
+        for (n, r) in &self.collisions_per_second {
+            let _ = writeln!(s, "  collisions/s, k = 0, N = {n:>6}: {r:.3e}");
+        }
+        for r in &self.forward_peak_rss {
+            let _ = writeln!(s, "  forward peak RSS, {:>5} steps: {:.1} MB", r.steps, r.peak_mb);
+        }
+        for r in &self.backward_peak_rss {
+            let _ = writeln!(s, "  backward peak RSS, window {:>5}: {:.1} MB", r.steps, r.peak_mb);
+        }
+        let _ = writeln!(
+            s,
+            "  paper run projection: forward {:.2} h + backward {:.2} h = {:.2} h",
+            self.paper_forward_hours,
+            self.paper_backward_hours,
+            self.paper_forward_hours + self.paper_backward_hours
+        );
+        s
+    }
+}
+
+/// Keep the QR workspace type reachable for callers benchmarking it directly.
+pub fn qr_workspace(d: usize, k: usize, threads: usize) -> Qr {
+    Qr::new(d, k, par(threads))
+}

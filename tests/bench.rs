@@ -1,0 +1,24 @@
+//! `clv bench` runs and reports every quantity the performance targets are stated in.
+//! (No timing is asserted: machines are noisy; the numbers go to the README and notes.)
+
+#[test]
+fn bench_reports_every_quantity_as_json() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_clv"))
+        .args(["bench", "--n", "6", "--reps", "2", "--steps", "12", "--collision-sizes", "8,80", "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in ["gemm_gflops", "qr_ms", "forward_step_ms", "md_tangent_ms", "store_ms", "backward_step_ms", "backward_solve_ms", "backward_vgc_ms", "leading_k16_step_ms"] {
+        let m = v[key]["median"].as_f64().unwrap_or(f64::NAN);
+        assert!(m.is_finite() && m > 0.0, "{key}: {}", v[key]);
+    }
+    for key in ["floor_ms", "forward_step_over_qr", "qr_over_floor", "backward_over_forward", "paper_forward_hours"] {
+        assert!(v[key].as_f64().is_some_and(|x| x.is_finite() && x > 0.0), "{key}: {}", v[key]);
+    }
+    assert_eq!(v["collisions_per_second"].as_array().unwrap().len(), 2);
+    let rss = v["forward_peak_rss"].as_array().unwrap();
+    assert_eq!(rss.len(), 2);
+    assert!(rss.iter().all(|r| r["peak_mb"].as_f64().unwrap() > 1.0));
+    assert_eq!(v["backward_peak_rss"].as_array().unwrap().len(), 2);
+}
