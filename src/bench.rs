@@ -190,7 +190,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     let r = fwd.r.clone();
     let backward_solve_ms = Stat::of((0..reps).map(|_| {
         let t = Instant::now();
-        faer::linalg::triangular_solve::solve_upper_triangular_in_place(r.as_ref(), cm.as_mut(), p);
+        crate::linalg::solve_upper_tri_tri(r.as_ref(), cm.as_mut(), p);
         for j in 0..k {
             let norm = cm.col(j).norm_l2();
             cm.col_mut(j).iter_mut().for_each(|x| *x /= norm);
@@ -201,7 +201,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     let mut v = vec![0.0; d * k];
     let backward_vgc_ms = Stat::of((0..reps).map(|_| {
         let t = Instant::now();
-        faer::linalg::matmul::matmul(faer::MatMut::from_column_major_slice_mut(&mut v, d, k), faer::Accum::Replace, MatRef::from_column_major_slice(&g, d, k), cm.as_ref(), 1.0, p);
+        crate::linalg::mul_upper(faer::MatMut::from_column_major_slice_mut(&mut v, d, k), MatRef::from_column_major_slice(&g, d, k), cm.as_ref(), p);
         ms(t.elapsed())
     }).collect());
 

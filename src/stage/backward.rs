@@ -404,7 +404,7 @@ pub fn run(
             let kk = k * (k + 1) / 2;
             let i = (n - seg.s0) as usize;
             unpack_upper_into(&seg.r[(i - 1) * kk..i * kk], &mut r);
-            faer::linalg::triangular_solve::solve_upper_triangular_in_place(r.as_ref(), c.as_mut(), par);
+            crate::linalg::solve_upper_tri_tri(r.as_ref(), c.as_mut(), par);
             let mut logs = vec![0.0; k];
             for (j, log) in logs.iter_mut().enumerate() {
                 let col = c.col_mut(j);
@@ -418,14 +418,7 @@ pub fn run(
             }
             let at = ((m - seg.s0) as usize) * d * k;
             let g = &seg.g.slice()[at..at + d * k];
-            faer::linalg::matmul::matmul(
-                MatMut::from_column_major_slice_mut(&mut v, d, k),
-                faer::Accum::Replace,
-                MatRef::from_column_major_slice(g, d, k),
-                c.as_ref(),
-                1.0,
-                par,
-            );
+            crate::linalg::mul_upper(MatMut::from_column_major_slice_mut(&mut v, d, k), MatRef::from_column_major_slice(g, d, k), c.as_ref(), par);
             let local: Vec<f64> = logs.iter().map(|l| l / tau).collect();
             // The CLV spectrum is the mean of the frames' local exponents (accumulated with
             // tau = 1), exactly as an analysis of the frame stream computes it.
