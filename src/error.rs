@@ -38,6 +38,11 @@ impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Error::Param { name, msg } => write!(f, "invalid --{name}: {msg}"),
+            Error::Io { path, source } if source.raw_os_error() == Some(28) => write!(
+                f,
+                "{}: disk full ({source}); every finished file is intact: free space, then continue with `clv forward --resume RUN_DIR` (or `clv backward RUN_DIR --resume`)",
+                path.display()
+            ),
             Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
             Error::Dynamics(msg) => write!(f, "dynamics: {msg}"),
             Error::Corrupt { path, msg } => write!(f, "{}: corrupt or unreadable: {msg}", path.display()),

@@ -514,6 +514,9 @@ fn backward(args: &BackwardArgs) -> Result<()> {
     if let Some(out) = stdout {
         out.finish()?;
     }
+    for note in report.notes.iter().filter(|_| !args.quiet) {
+        eprintln!("clv: {note}");
+    }
     if report.statistics.stopped_early && !args.quiet {
         eprintln!("clv: the reader closed the stream after {} frames; stopped (continue later with --resume)", report.statistics.frames);
     }

@@ -197,7 +197,7 @@ fn altered_checkpoint_stops_the_backward_stage_naming_the_step() {
     let seg = run.segments().unwrap().pop().unwrap();
     // Rewrite the newest segment with one bit of one checkpoint's phase point changed.
     let mut messages = Vec::new();
-    let report = read_segment(&seg.path, false, |m| {
+    let report = read_segment(&seg.path, clv::store::segment::ReadMode::Strict, |m| {
         if m.topic != clv::store::segment::RUN_METADATA {
             messages.push((m.topic.to_string(), m.step, m.data.to_vec()));
         }
@@ -302,7 +302,7 @@ fn frames_flow_through_real_pipes_and_a_closed_pipe_ends_cleanly() {
 }
 
 fn read_frames_from(input: impl std::io::Read, into: &mut Vec<Frame>) {
-    clv::store::segment::read_stream(Path::new("<pipe>"), input, false, |m| {
+    clv::store::segment::read_stream(Path::new("<pipe>"), input, clv::store::segment::ReadMode::Strict, |m| {
         if m.topic == clv::store::schema::FRAME.topic {
             into.push(Frame::decode(m.data).unwrap());
         }

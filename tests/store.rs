@@ -41,7 +41,7 @@ fn contents(dir: &Path) -> Contents {
     let mut c = Contents { files: vec![], checkpoints: BTreeMap::new(), rs: BTreeMap::new(), stats: BTreeMap::new(), exponents: vec![] };
     for seg in run.segments().unwrap() {
         c.files.push(seg.path.file_name().unwrap().to_string_lossy().into());
-        read_segment(&seg.path, false, |m| {
+        read_segment(&seg.path, clv::store::segment::ReadMode::Strict, |m| {
             if m.topic == CHECKPOINT.topic {
                 c.checkpoints.insert(m.step, Checkpoint::decode(m.data).unwrap().state);
             } else if m.topic == R.topic {

@@ -45,7 +45,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     for seg in dir.segments()? {
         let (mut checkpoints, mut rs) = (0, 0);
         let mut last_stats = None;
-        let result = read_segment(&seg.path, false, |m| {
+        let result = read_segment(&seg.path, crate::store::segment::ReadMode::Strict, |m| {
             let check = |r: std::result::Result<(), String>| r.map_err(|e| crate::Error::corrupt(&seg.path, format!("step {}: {e}", m.step)));
             if m.topic == CHECKPOINT.topic {
                 check(Checkpoint::decode(m.data).map(|_| ()))?;

@@ -87,6 +87,9 @@ pub struct BackwardReport {
     pub gs_stderr: Vec<f64>,
     pub options: BackwardOptions,
     pub statistics: BackwardStats,
+    /// What the stage did that a person should know (not stored).
+    #[serde(skip)]
+    pub notes: Vec<String>,
 }
 
 /// Saved after every finished segment (RUN_DIR/backward.json).
@@ -133,7 +136,7 @@ impl Checkpoints {
         let seg = self.segment_of(step)?.path.clone();
         if self.cached.as_ref().is_none_or(|(p, _)| *p != seg) {
             let mut map = BTreeMap::new();
-            read_segment(&seg, false, |m| {
+            read_segment(&seg, crate::store::segment::ReadMode::Strict, |m| {
                 if m.topic == CHECKPOINT.topic {
                     let cp = Checkpoint::decode(m.data).map_err(|e| Error::corrupt(&seg, format!("step {}: {e}", m.step)))?;
                     map.insert(m.step, cp.state);
@@ -150,7 +153,7 @@ impl Checkpoints {
     fn stored_r(&self, from: u64, to: u64) -> Result<BTreeMap<u64, Vec<f64>>> {
         let mut out = BTreeMap::new();
         for seg in self.segments.iter().filter(|s| s.last > from && s.first <= to) {
-            read_segment(&seg.path, false, |m| {
+            read_segment(&seg.path, crate::store::segment::ReadMode::Strict, |m| {
                 if m.topic == R.topic && m.step > from && m.step <= to {
                     let (_, r) = decode_r(m.data).map_err(|e| Error::corrupt(&seg.path, e))?;
                     out.insert(m.step, pack_upper(r.as_ref()));
@@ -284,6 +287,7 @@ pub fn run(
 ) -> Result<BackwardReport> {
     let started = Instant::now();
     let (dir, meta) = RunDir::open(path)?;
+    let _lock = dir.lock("backward pass")?;
     let (config, store) = (&meta.config, &meta.store);
     let total = config.relax_steps + config.steps;
     let gs: crate::report::SpectrumSummary = crate::report::SpectrumSummary::read(&dir.spectrum_path()).map_err(|_| {
@@ -306,29 +310,42 @@ pub fn run(
     let spectrum_json = std::fs::read_to_string(dir.spectrum_path()).ok();
     let metadata = crate::store::frames::stream_metadata(&RunDir::meta_json(&meta), spectrum_json.as_deref());
     let progress_file = progress_path(&dir);
-    let prior: Option<Progress> = if resume {
-        let text = std::fs::read_to_string(&progress_file).map_err(|e| {
-            Error::Other(format!("{}: {e}; there is no interrupted backward sweep to resume (run without --resume)", progress_file.display()))
-        })?;
-        let p: Progress = serde_json::from_str(&text).map_err(|e| Error::corrupt(&progress_file, e.to_string()))?;
-        if p.options != *opts {
-            return Err(Error::param("resume", format!(
-                "the interrupted sweep in {} was started with other options ({:?}); run without --resume to start over",
-                progress_file.display(),
-                p.options
-            )));
+    let mut notes = Vec::new();
+    let record = match std::fs::read_to_string(&progress_file) {
+        Ok(text) if resume => Some(text),
+        Err(e) if resume && e.kind() == std::io::ErrorKind::NotFound => {
+            notes.push(format!("no progress record in {}: the sweep had not finished a segment, so it starts from the beginning", progress_file.display()));
+            if let Some(stale) = frames_path.as_ref().map(|f| tmp_path(f)).filter(|t| t.exists()) {
+                std::fs::remove_file(&stale).map_err(|e| Error::io(&stale, e))?;
+            }
+            None
         }
-        Some(p)
-    } else {
-        if let Some(f) = frames_path.as_ref().filter(|_| saving) {
-            if tmp_path(f).exists() {
-                return Err(Error::Other(format!(
-                    "{} holds the frames of an interrupted backward sweep; continue it with --resume, or delete it to start over",
-                    tmp_path(f).display()
+        Err(e) if resume => return Err(Error::io(&progress_file, e)),
+        _ => None,
+    };
+    let prior: Option<Progress> = match record {
+        Some(text) => {
+            let p: Progress = serde_json::from_str(&text).map_err(|e| Error::corrupt(&progress_file, e.to_string()))?;
+            if p.options != *opts {
+                return Err(Error::param("resume", format!(
+                    "the interrupted sweep in {} was started with other options ({:?}); run without --resume to start over",
+                    progress_file.display(),
+                    p.options
                 )));
             }
+            Some(p)
         }
-        None
+        None => {
+            if let Some(f) = frames_path.as_ref().filter(|_| saving) {
+                if tmp_path(f).exists() {
+                    return Err(Error::Other(format!(
+                        "{} holds the frames of an interrupted backward sweep; continue it with --resume, or delete it to start over",
+                        tmp_path(f).display()
+                    )));
+                }
+            }
+            None
+        }
     };
     if let Some(p) = prior.as_ref().filter(|p| p.done) {
         let report: BackwardReport = serde_json::from_str(&std::fs::read_to_string(report_path(&dir)).map_err(|e| Error::io(report_path(&dir), e))?)
@@ -475,6 +492,7 @@ pub fn run(
         gs_stderr: gs.stderr,
         options: opts.clone(),
         statistics: stats.clone(),
+        notes,
     };
     if stopped {
         return Ok(report);

@@ -128,6 +128,16 @@ impl Forward {
         let t1 = std::time::Instant::now();
         self.qr.factor(&mut self.g, &mut self.r);
         let t2 = std::time::Instant::now();
+        if let Some(i) = (0..self.r.ncols()).find(|&i| !(self.r[(i, i)].is_finite() && self.r[(i, i)] > 0.0)) {
+            return Err(Error::Dynamics(format!(
+                "step {}: R_{}{} = {} after the QR step: the tangent vectors are not finite or linearly dependent \
+                 (k larger than the rank, or a numerical blow-up); no exponent is accumulated from it",
+                self.step + 1,
+                i + 1,
+                i + 1,
+                self.r[(i, i)]
+            )));
+        }
         if self.step >= self.relax_steps {
             self.acc.add(&self.r);
         }

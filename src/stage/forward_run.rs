@@ -19,6 +19,10 @@ use indicatif::ProgressBar;
 use std::path::Path;
 use std::time::Instant;
 
+/// Largest relative energy drift a run may accumulate (round-off over 1e8 collisions is far
+/// below it; anything larger means the dynamics went wrong).
+pub const ENERGY_TOLERANCE: f64 = 1e-8;
+
 /// How a forward job ended.
 pub struct Outcome {
     pub report: SpectrumReport,
@@ -49,7 +53,9 @@ impl Feedback {
 pub fn create(path: &Path, meta: &RunMeta, feedback: &mut Feedback) -> Result<Outcome> {
     meta.config.validate()?;
     meta.store.validate(&meta.config)?;
+    meta.config.build_system()?; // refuse impossible systems before anything is written
     let dir = RunDir::create(path, meta)?;
+    let _lock = dir.lock("forward pass")?;
     let fwd = Forward::new(&meta.config)?;
     let energy0 = fwd.system.invariants().energy;
     drive(&dir, meta, fwd, energy0, 0.0, true, feedback).map(|report| Outcome { report, resumed_from: None, already_finished: false })
@@ -64,10 +70,11 @@ struct LastCheckpoint {
 /// Continue an interrupted run in `path` (or report a finished one).
 pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
     let (dir, meta) = RunDir::open(path)?;
+    let _lock = dir.lock("forward pass")?;
     for partial in dir.partial_segments()? {
         let mut checkpoints = 0u64;
         let mut last = None;
-        let report = read_segment(&partial, true, |m| {
+        let report = read_segment(&partial, crate::store::segment::ReadMode::Salvage, |m| {
             if m.topic == CHECKPOINT.topic {
                 checkpoints += 1;
                 last = Some(m.step);
@@ -116,7 +123,7 @@ pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
 /// The last checkpoint and stats of a finished segment, reading it whole (CRCs checked).
 fn read_last(path: &Path) -> Result<LastCheckpoint> {
     let (mut cp, mut stats) = (None, None);
-    read_segment(path, false, |m| {
+    read_segment(path, crate::store::segment::ReadMode::Strict, |m| {
         let bad = |e: String| Error::corrupt(path, format!("step {}: {e}", m.step));
         if m.topic == CHECKPOINT.topic {
             cp = Some(Checkpoint::decode(m.data).map_err(bad)?);
@@ -159,6 +166,13 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
     let checkpoint = |fwd: &Forward, sink: &mut Sink| -> Result<()> {
         let n = fwd.step;
         let inv = fwd.system.invariants();
+        let drift = ((inv.energy - energy0) / energy0).abs();
+        if drift > ENERGY_TOLERANCE {
+            return Err(Error::Dynamics(format!(
+                "step {n}: the energy drifted by {drift:.2e} (relative) from its start value {energy0}; \
+                 the dynamics has lost its accuracy, so the run stops here rather than store wrong numbers"
+            )));
+        }
         let stats = Stats {
             step: n,
             time: fwd.time(),

@@ -6,7 +6,7 @@
 //! Standard output carries the same MCAP stream without seeking, for shell pipes.
 
 use super::schema::FRAME;
-use super::segment::{read_stream, RUN_METADATA};
+use super::segment::{read_stream, ReadMode, RUN_METADATA};
 use crate::error::{Error, Result};
 use crate::stage::frame::Frame;
 use mcap::records::{MessageHeader, Metadata};
@@ -67,7 +67,7 @@ fn mcap_err(path: &Path, e: mcap::McapError) -> Error {
 pub struct FrameFile {
     path: PathBuf,
     tmp: PathBuf,
-    out: McapOut<BufWriter<File>>,
+    out: McapOut<BufWriter<super::fault::Output>>,
     /// A second handle on the same file, for fsync while the writer owns the first.
     sync_handle: File,
     /// Frames written so far.
@@ -89,7 +89,7 @@ impl FrameFile {
         let tmp = tmp_path(path);
         let file = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
         let sync_handle = file.try_clone().map_err(|e| Error::io(&tmp, e))?;
-        let out = McapOut::new(BufWriter::with_capacity(1 << 20, file), true, metadata).map_err(|e| mcap_err(&tmp, e))?;
+        let out = McapOut::new(BufWriter::with_capacity(1 << 20, super::fault::Output(file)), true, metadata).map_err(|e| mcap_err(&tmp, e))?;
         Ok(FrameFile { path: path.to_path_buf(), tmp, out, sync_handle, frames: 0 })
     }
 
@@ -103,7 +103,7 @@ impl FrameFile {
         }
         let mut file = FrameFile::create(path, metadata)?;
         if keep > 0 {
-            read_stream(&old, std::io::BufReader::new(File::open(&old).map_err(|e| Error::io(&old, e))?), true, |m| {
+            read_stream(&old, std::io::BufReader::new(File::open(&old).map_err(|e| Error::io(&old, e))?), ReadMode::Salvage, |m| {
                 if m.topic == FRAME.topic && file.frames < keep {
                     file.write_raw(m.step, m.data)?;
                 }
@@ -135,7 +135,7 @@ impl FrameFile {
 
     pub fn finish(mut self) -> Result<PathBuf> {
         self.out.writer.finish().map_err(|e| mcap_err(&self.tmp, e))?;
-        let file = self.out.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?;
+        let file = self.out.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?.into_inner();
         file.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
         std::fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;
         Ok(self.path)
@@ -217,10 +217,9 @@ pub fn read_frames_with(
         Ok(())
     };
     let report = if source == Path::new("-") {
-        read_stream(Path::new("<stdin>"), std::io::stdin().lock(), true, &mut on_message)?
+        read_stream(Path::new("<stdin>"), std::io::stdin().lock(), ReadMode::Checked, &mut on_message)?
     } else {
-        let file = File::open(source).map_err(|e| Error::io(source, e))?;
-        read_stream(source, std::io::BufReader::with_capacity(1 << 20, file), true, &mut on_message)?
+        super::segment::read_segment(source, ReadMode::Checked, &mut on_message)?
     };
     Ok(report.damage)
 }

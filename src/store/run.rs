@@ -56,6 +56,13 @@ impl StoreConfig {
         if self.checkpoint_every == 0 {
             return Err(Error::param("checkpoint-every", "must be at least 1"));
         }
+        let total = config.relax_steps + config.steps;
+        if self.checkpoint_every > total {
+            return Err(Error::param("checkpoint-every", format!(
+                "{} is longer than the whole run ({total} steps, relaxation included); choose at most {total}",
+                self.checkpoint_every
+            )));
+        }
         if self.segment_checkpoints == 0 {
             return Err(Error::param("segment-checkpoints", "must be at least 1"));
         }
@@ -166,6 +173,13 @@ pub struct RunDir {
     pub path: PathBuf,
 }
 
+/// Exclusive right to write a run directory, held while a stage writes it. An OS file lock
+/// (flock) on RUN_DIR/.lock: the kernel releases it when the process ends, however it ends,
+/// so a crashed run never leaves a stale lock behind.
+pub struct RunLock {
+    _file: fs::File,
+}
+
 impl RunDir {
     pub fn meta_path(&self) -> PathBuf {
         self.path.join("run.json")
@@ -193,7 +207,28 @@ impl RunDir {
         Ok(dir)
     }
 
+    /// Take the run's write lock, or explain who holds it.
+    pub fn lock(&self, what: &str) -> Result<RunLock> {
+        let path = self.path.join(".lock");
+        let file = fs::OpenOptions::new().create(true).truncate(false).write(true).open(&path).map_err(|e| Error::io(&path, e))?;
+        match file.try_lock() {
+            Ok(()) => Ok(RunLock { _file: file }),
+            Err(fs::TryLockError::WouldBlock) => Err(Error::Other(format!(
+                "another clv process is writing {} (it holds {}); wait for it to finish or stop it before the {what}",
+                self.path.display(),
+                path.display()
+            ))),
+            Err(fs::TryLockError::Error(e)) => Err(Error::io(&path, e)),
+        }
+    }
+
     pub fn open(path: &Path) -> Result<(Self, RunMeta)> {
+        if path.is_file() {
+            return Err(Error::Other(format!(
+                "{} is a file, but a run directory (written by `clv forward --out DIR`) is expected here",
+                path.display()
+            )));
+        }
         let dir = RunDir { path: path.to_path_buf() };
         let meta_path = dir.meta_path();
         let text = fs::read_to_string(&meta_path).map_err(|e| {
@@ -245,7 +280,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
     let tmp = path.with_extension("tmp");
     let mut f = fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    f.write_all(bytes).and_then(|_| f.sync_all()).map_err(|e| Error::io(&tmp, e))?;
+    super::fault::charge(bytes.len()).and_then(|_| f.write_all(bytes)).and_then(|_| f.sync_all()).map_err(|e| Error::io(&tmp, e))?;
     fs::rename(&tmp, path).map_err(|e| Error::io(path, e))?;
     if let Some(dir) = path.parent() {
         segment::sync_dir(if dir.as_os_str().is_empty() { Path::new(".") } else { dir })?;

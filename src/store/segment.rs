@@ -39,7 +39,7 @@ pub struct SegmentWriter {
     tmp: PathBuf,
     first_step: u64,
     last_checkpoint: Option<u64>,
-    writer: Writer<BufWriter<File>>,
+    writer: Writer<BufWriter<super::fault::Output>>,
     channels: BTreeMap<&'static str, u16>,
     sequence: u32,
     /// Bytes of message data written (before compression).
@@ -64,7 +64,7 @@ impl SegmentWriter {
             .compression_level(1)
             .chunk_size(Some(4 << 20))
             .profile("clv");
-        let mut writer = options.create(BufWriter::with_capacity(1 << 20, file)).map_err(|e| mcap_err(&tmp, e))?;
+        let mut writer = options.create(BufWriter::with_capacity(1 << 20, super::fault::Output(file))).map_err(|e| mcap_err(&tmp, e))?;
         let meta = Metadata { name: RUN_METADATA.into(), metadata: BTreeMap::from([("run.json".to_string(), run_json.to_string())]) };
         writer.write_metadata(&meta).map_err(|e| mcap_err(&tmp, e))?;
         let mut channels = BTreeMap::new();
@@ -92,7 +92,7 @@ impl SegmentWriter {
     /// Finish, fsync and rename to the final name; returns the final path.
     pub fn finish(mut self) -> Result<PathBuf> {
         self.writer.finish().map_err(|e| mcap_err(&self.tmp, e))?;
-        let file = self.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?;
+        let file = self.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?.into_inner();
         file.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
         drop(file);
         let last = self.last_checkpoint.unwrap_or(self.first_step);
@@ -130,23 +130,45 @@ pub struct ReadReport {
     pub damage: Option<String>,
 }
 
-/// Read every message of a segment in file order, checking the chunk, data-section and
-/// summary CRCs. With `partial`, a file cut short (no end magic) is read up to its last
-/// complete chunk and the cut is reported in `damage`; otherwise any damage is an error
-/// naming the file. Errors from `visit` stop the read and are returned as they are.
-pub fn read_segment(path: &Path, partial: bool, visit: impl FnMut(Message) -> Result<()>) -> Result<ReadReport> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
-    read_stream(path, std::io::BufReader::with_capacity(1 << 20, file), partial, visit)
+/// How strictly a file or stream is read.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReadMode {
+    /// Everything checked (end magic, chunk, data-section and summary CRCs); any damage is
+    /// an error naming the file.
+    Strict,
+    /// Everything checked, but damage ends the read and is returned in the report, after
+    /// the messages before it were delivered (for analysing what a damaged stream holds).
+    Checked,
+    /// A file cut short by a crash: read up to its last complete chunk, no end required.
+    Salvage,
 }
 
+/// Read every message of a segment in file order, checked according to `mode`. Errors
+/// from `visit` stop the read and are returned as they are.
+pub fn read_segment(path: &Path, mode: ReadMode, visit: impl FnMut(Message) -> Result<()>) -> Result<ReadReport> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let len = file.metadata().map(|m| m.len()).unwrap_or(u64::MAX);
+    read_stream_limited(path, std::io::BufReader::with_capacity(1 << 20, file), mode, len, visit)
+}
+
+/// Largest record accepted from a stream of unknown length (a record length field beyond
+/// it is damage, not a reason to allocate).
+const STREAM_RECORD_LIMIT: u64 = 1 << 32;
+
 /// [`read_segment`] over any byte stream (a file, or standard input); `name` is used in errors.
-pub fn read_stream(name: &Path, mut input: impl Read, partial: bool, mut visit: impl FnMut(Message) -> Result<()>) -> Result<ReadReport> {
+pub fn read_stream(name: &Path, input: impl Read, mode: ReadMode, visit: impl FnMut(Message) -> Result<()>) -> Result<ReadReport> {
+    read_stream_limited(name, input, mode, STREAM_RECORD_LIMIT, visit)
+}
+
+/// [`read_stream`] refusing records longer than `max_record` bytes (for a file: its size).
+fn read_stream_limited(name: &Path, mut input: impl Read, mode: ReadMode, max_record: u64, mut visit: impl FnMut(Message) -> Result<()>) -> Result<ReadReport> {
+    let partial = mode == ReadMode::Salvage;
     let options = LinearReaderOptions::default()
         .with_skip_end_magic(partial)
         .with_validate_chunk_crcs(true)
         .with_validate_data_section_crc(!partial)
         .with_validate_summary_section_crc(!partial)
-        .with_record_length_limit(1 << 34);
+        .with_record_length_limit(max_record.min(STREAM_RECORD_LIMIT) as usize);
     let mut reader = LinearReader::new_with_options(options);
     let mut report = ReadReport::default();
     let mut topics: BTreeMap<u16, String> = BTreeMap::new();
@@ -194,10 +216,10 @@ pub fn read_stream(name: &Path, mut input: impl Read, partial: bool, mut visit: 
             _ => {}
         }
     }
-    if let (Some(d), false) = (&report.damage, partial) {
+    if let (Some(d), ReadMode::Strict) = (&report.damage, mode) {
         return Err(Error::corrupt(name, d.clone()));
     }
-    if !partial && report.run_json.is_none() {
+    if mode == ReadMode::Strict && report.run_json.is_none() {
         return Err(Error::corrupt(name, "no clv.run metadata record: not a clv segment"));
     }
     Ok(report)

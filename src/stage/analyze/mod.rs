@@ -342,7 +342,7 @@ impl Mean {
 pub fn analyze_source(source: &Path, out: &Path, every: Option<u64>, j: Option<Vec<usize>>, only: &[String]) -> Result<(Vec<Produced>, u64)> {
     let info = std::cell::RefCell::new(StreamInfo::default());
     let mut analyzer: Option<Analyzer> = None;
-    let name = source.display().to_string();
+    let name = if source == Path::new("-") { "<stdin>".to_string() } else { source.display().to_string() };
     let damage = crate::store::frames::read_frames_with(
         source,
         |i| {
@@ -361,9 +361,13 @@ pub fn analyze_source(source: &Path, out: &Path, every: Option<u64>, j: Option<V
     let Some(analyzer) = analyzer else {
         return Err(Error::Other(format!("{name}: no frames in the stream{}", damage.map(|d| format!(" ({d})")).unwrap_or_default())));
     };
-    if let Some(d) = damage {
-        eprintln!("clv: warning: {name} ends early ({d}); analysing the {} complete frames", analyzer.frames);
-    }
     let frames = analyzer.frames;
-    Ok((analyzer.finish()?, frames))
+    let produced = analyzer.finish()?;
+    if let Some(d) = damage {
+        return Err(Error::corrupt(
+            &name,
+            format!("the stream ends early or is damaged ({d}); the {frames} complete frames before it were analysed into {}, but the results are incomplete", out.display()),
+        ));
+    }
+    Ok((produced, frames))
 }

@@ -21,8 +21,9 @@ fn norm(v: &[f64]) -> f64 {
 }
 
 /// Relative error of the tangent propagation of u against (Gamma(x + eps u) - Gamma(x))/eps
-/// over `steps` intervals, and the number of collisions in that span.
-fn fd_error(base: &HardDisks, u: &[f64], eps: f64, steps: usize) -> (f64, u64) {
+/// over `steps` intervals and the number of collisions in that span; None if the perturbed
+/// run met another number of collisions (finite differences are then meaningless).
+fn fd_error(base: &HardDisks, u: &[f64], eps: f64, steps: usize) -> Option<(f64, u64)> {
     let n = base.n();
     let mut s = base.clone();
     let mut t = Tangent::zeros(4 * n, 1);
@@ -37,7 +38,9 @@ fn fd_error(base: &HardDisks, u: &[f64], eps: f64, steps: usize) -> (f64, u64) {
         s.advance(&mut t).unwrap();
         p.advance(&mut none).unwrap();
     }
-    assert_eq!(s.collisions - c0, p.collisions, "perturbed run had another number of collisions");
+    if s.collisions - c0 != p.collisions {
+        return None;
+    }
     let mut diff = vec![0.0; 4 * n];
     for i in 0..n {
         let dq = s.separation(p.pos[i], s.pos[i]);
@@ -48,37 +51,56 @@ fn fd_error(base: &HardDisks, u: &[f64], eps: f64, steps: usize) -> (f64, u64) {
     }
     let tv = t.vector(&s, 0);
     let err: Vec<f64> = diff.iter().zip(&tv).map(|(d, x)| d / eps - x).collect();
-    (norm(&err) / norm(&tv), s.collisions - c0)
+    Some((norm(&err) / norm(&tv), s.collisions - c0))
 }
 
-/// N = 4 is so unstable per collision that a 50-collision span needs eps <= 1e-9 for the
-/// perturbed run to keep the collision sequence; N = 16 allows larger eps. The expected
-/// tenfold fall was measured for these seeds with eps from 1e-5 down to 1e-12.
-fn check_finite_differences(n: usize, seed: u64, steps: usize, eps: [f64; 3]) {
+/// Finite differences over the shortest span of whole intervals with at least 50 collisions,
+/// for eps = 1e-4 .. 1e-13. Returns (whether three consecutive decades show a tenfold fall
+/// with an error below 0.1, the smallest error reached, the errors).
+fn finite_differences(n: usize, seed: u64) -> (bool, f64, Vec<Option<f64>>) {
     let base = relaxed(n, seed, 0.6);
     let mut rng = Rng::new(5);
     let u: Vec<f64> = (0..4 * n).map(|_| rng.normal()).collect();
-    let mut errs = Vec::new();
-    for eps in eps {
-        let (e, collisions) = fd_error(&base, &u, eps, steps);
-        assert!(collisions >= 50, "span too short: {collisions} collisions");
-        errs.push(e);
+    let steps = {
+        let (mut probe, mut none, mut steps) = (base.clone(), Tangent::zeros(4 * n, 0), 0);
+        while probe.collisions - base.collisions < 50 {
+            probe.advance(&mut none).unwrap();
+            steps += 1;
+        }
+        steps
+    };
+    let errs: Vec<Option<f64>> = (4..=13).map(|e| fd_error(&base, &u, 10f64.powi(-e), steps).map(|(err, _)| err)).collect();
+    let clean = errs.windows(3).any(|w| match (w[0], w[1], w[2]) {
+        (Some(a), Some(b), Some(c)) => a < 0.1 && (7.0..14.0).contains(&(a / b)) && (7.0..14.0).contains(&(b / c)),
+        _ => false,
+    });
+    let best = errs.iter().flatten().copied().fold(f64::INFINITY, f64::min);
+    (clean, best, errs)
+}
+
+/// The error must fall tenfold per decade of eps (three consecutive decades) for several
+/// starts, and get small for every start. Where it does not fall cleanly, the perturbed run
+/// changed its collision sequence (large eps) or round-off took over (small eps): N = 4 is so
+/// unstable per collision that the clean window is only two or three decades wide. A wrong
+/// tangent map (a dropped or sign-flipped term) leaves an O(1) error at every eps.
+fn check_finite_differences(n: usize, seeds: std::ops::RangeInclusive<u64>, need_clean: usize) {
+    let mut clean = 0;
+    for seed in seeds {
+        let (ok, best, errs) = finite_differences(n, seed);
+        assert!(best < 1e-2, "N = {n}, seed {seed}: the tangent map never matches finite differences: {errs:?}");
+        clean += ok as usize;
     }
-    assert!(errs[0] < 0.1, "N = {n}: finite-difference error too large: {errs:?}");
-    for w in errs.windows(2) {
-        let ratio = w[0] / w[1];
-        assert!((7.0..14.0).contains(&ratio), "N = {n}: error should fall tenfold with eps: {errs:?}");
-    }
+    assert!(clean >= need_clean, "N = {n}: only {clean} starts show a clean tenfold fall of the error");
 }
 
 #[test]
 fn tangent_matches_finite_differences_n4() {
-    check_finite_differences(4, 8, 6, [1e-9, 1e-10, 1e-11]);
+    check_finite_differences(4, 1..=10, 3);
 }
 
 #[test]
 fn tangent_matches_finite_differences_n16() {
-    check_finite_differences(16, 11, 2, [1e-6, 1e-7, 1e-8]);
+    check_finite_differences(16, 1..=5, 3);
 }
 
 /// The fixture of `shared/fixtures`: two disks, one collision, the exact Jacobian over

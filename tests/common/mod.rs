@@ -1,0 +1,127 @@
+//! Helpers shared by the integration tests: run the real binary, scratch directories, and
+//! read back everything a run directory or frame file holds as decoded numbers.
+#![allow(dead_code)]
+
+use clv::stage::forward::ForwardState;
+use clv::stage::frame::Frame;
+use clv::store::frames::{read_frames, Flow};
+use clv::store::records::{decode_r, Checkpoint, Stats};
+use clv::store::schema::{CHECKPOINT, R, STATS};
+use clv::store::segment::read_segment;
+use clv::store::RunDir;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+pub fn clv(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_clv")).args(args).output().unwrap()
+}
+
+pub fn clv_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_clv")).args(args).envs(env.iter().copied()).output().unwrap()
+}
+
+pub fn ok(out: Output) -> Output {
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    out
+}
+
+pub fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+pub fn scratch(group: &str, name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(group).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+pub fn copy_dir(from: &Path, to: &Path) {
+    let _ = std::fs::remove_dir_all(to);
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        if e.path().is_file() {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+/// Everything a finished run directory holds that must be bit-identical between runs
+/// (decoded numbers: zstd bytes may differ; wall-clock time excluded).
+#[derive(Debug, PartialEq)]
+pub struct Contents {
+    pub files: Vec<String>,
+    pub checkpoints: BTreeMap<u64, ForwardState>,
+    pub rs: BTreeMap<u64, Vec<f64>>,
+    pub stats: BTreeMap<u64, (Vec<f64>, u64, u64)>,
+    pub exponents: Vec<f64>,
+}
+
+pub fn contents(dir: &Path) -> Contents {
+    let run = RunDir { path: dir.to_path_buf() };
+    let mut c = Contents { files: vec![], checkpoints: BTreeMap::new(), rs: BTreeMap::new(), stats: BTreeMap::new(), exponents: vec![] };
+    for seg in run.segments().unwrap() {
+        c.files.push(seg.path.file_name().unwrap().to_string_lossy().into());
+        read_segment(&seg.path, clv::store::segment::ReadMode::Strict, |m| {
+            if m.topic == CHECKPOINT.topic {
+                c.checkpoints.insert(m.step, Checkpoint::decode(m.data).unwrap().state);
+            } else if m.topic == R.topic {
+                c.rs.insert(m.step, clv::linalg::pack_upper(decode_r(m.data).unwrap().1.as_ref()));
+            } else if m.topic == STATS.topic {
+                let s = Stats::decode(m.data).unwrap();
+                c.stats.insert(m.step, (s.exponents, s.energy.to_bits(), s.collisions));
+            }
+            Ok(())
+        })
+        .unwrap();
+    }
+    let spectrum: serde_json::Value = serde_json::from_slice(&std::fs::read(run.spectrum_path()).unwrap()).unwrap();
+    c.exponents = serde_json::from_value(spectrum["exponents"].clone()).unwrap();
+    c
+}
+
+/// Frames of a file, in time order.
+pub fn frames(path: &Path) -> Vec<Frame> {
+    let mut all = Vec::new();
+    let (_, damage) = read_frames(path, |f| {
+        all.push(f);
+        Ok(Flow::Continue)
+    })
+    .unwrap();
+    assert!(damage.is_none(), "{damage:?}");
+    all.sort_by_key(|f| f.step);
+    all
+}
+
+/// Rewrite the checkpoint at `step` of a run with `change` applied (through the real codec).
+pub fn alter_checkpoint(dir: &Path, step: u64, change: impl Fn(&mut Checkpoint)) {
+    use clv::store::schema::RUN_SCHEMAS;
+    use clv::store::segment::{SegmentWriter, RUN_METADATA};
+    let run = RunDir { path: dir.to_path_buf() };
+    let seg = run.segments().unwrap().into_iter().find(|s| s.first <= step && step <= s.last).unwrap();
+    let mut messages = Vec::new();
+    let report = read_segment(&seg.path, clv::store::segment::ReadMode::Strict, |m| {
+        if m.topic != RUN_METADATA {
+            messages.push((m.topic.to_string(), m.step, m.data.to_vec()));
+        }
+        Ok(())
+    })
+    .unwrap();
+    let tmpdir = dir.join("rewrite");
+    std::fs::create_dir_all(&tmpdir).unwrap();
+    let mut w = SegmentWriter::create(&tmpdir, seg.first, report.run_json.as_deref().unwrap(), &RUN_SCHEMAS).unwrap();
+    for (topic, s, data) in &messages {
+        let data = if topic == CHECKPOINT.topic && *s == step {
+            let mut cp = Checkpoint::decode(data).unwrap();
+            change(&mut cp);
+            cp.encode()
+        } else {
+            data.clone()
+        };
+        w.write(topic, *s, &data).unwrap();
+    }
+    let written = w.finish().unwrap();
+    std::fs::rename(written, &seg.path).unwrap();
+    std::fs::remove_dir_all(&tmpdir).unwrap();
+}
