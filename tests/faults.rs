@@ -63,7 +63,11 @@ fn sigkill_at_many_points_then_resume_is_bit_identical() {
         kill_after(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o], 20 + rng.below(500) as u64);
         if !out.exists() {
             kills += 1;
-            ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"]));
+            // Kill the resuming process too, early (while it salvages the frames) or later.
+            kill_after(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"], 5 + rng.below(250) as u64);
+            if !out.exists() {
+                ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"]));
+            }
         }
         assert!(frames(&out) == want_frames, "backward trial {trial}: frames differ after resume");
         let _ = std::fs::remove_file(dir.join("backward.json"));

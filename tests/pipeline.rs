@@ -113,3 +113,31 @@ fn clv_run_on_the_default_preset_writes_the_report() {
     assert!(err.contains("continuing the run"), "{err}");
     drop(first);
 }
+
+/// A Python user reads the frames with the mcap package, cbor2 and numpy and gets the same
+/// CLV spectrum as the backward stage.
+#[test]
+fn python_reads_frame_files() {
+    let has = Command::new("python3").args(["-c", "import mcap, cbor2, numpy"]).output().map(|o| o.status.success()).unwrap_or(false);
+    if !has {
+        eprintln!("SKIPPED: python3 with mcap, cbor2 and numpy is not available (.ci/run installs them)");
+        return;
+    }
+    let base = scratch("python");
+    let run = base.join("run");
+    ok(clv(&[&RUN[..], &["--out", run.to_str().unwrap()]].concat()));
+    let frames = base.join("f.mcap");
+    let report: serde_json::Value = serde_json::from_slice(&ok(clv(&["backward", run.to_str().unwrap(), "--out", frames.to_str().unwrap(), "--with-gs", "--quiet", "--json"])).stdout).unwrap();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/read_frames.py");
+    let out = ok(Command::new("python3").arg(script).arg(&frames).arg("--json").output().unwrap());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["frames"], report["statistics"]["frames"]);
+    assert_eq!(v["with_gs"], true);
+    assert_eq!(v["run_seed"], 1);
+    assert!(v["max_unit_norm_error"].as_f64().unwrap() < 1e-12);
+    let py: Vec<f64> = serde_json::from_value(v["clv_exponents"].clone()).unwrap();
+    let rs: Vec<f64> = serde_json::from_value(report["exponents"].clone()).unwrap();
+    for (a, b) in py.iter().zip(&rs) {
+        assert!((a - b).abs() <= 1e-12 * b.abs().max(1.0), "Python {a} vs clv {b}");
+    }
+}

@@ -95,14 +95,22 @@ impl FrameFile {
 
     /// Continue an interrupted file: keep its first `keep` frames (all complete chunks up to
     /// the last progress record), rewrite them into a fresh FILE.tmp and append from there.
+    /// The interrupted file is kept as FILE.tmp.old until the copy is synced, and a salvage
+    /// that was itself interrupted starts again from that copy.
     pub fn salvage(path: &Path, metadata: &BTreeMap<String, String>, keep: u64) -> Result<Self> {
         let tmp = tmp_path(path);
         let old = tmp.with_extension("tmp.old");
-        if keep > 0 {
+        if old.exists() {
+            if tmp.exists() {
+                std::fs::remove_file(&tmp).map_err(|e| Error::io(&tmp, e))?;
+            }
+        } else if keep > 0 {
             std::fs::rename(&tmp, &old).map_err(|e| Error::io(&tmp, e))?;
+        } else if tmp.exists() {
+            std::fs::remove_file(&tmp).map_err(|e| Error::io(&tmp, e))?;
         }
         let mut file = FrameFile::create(path, metadata)?;
-        if keep > 0 {
+        if old.exists() {
             read_stream(&old, std::io::BufReader::new(File::open(&old).map_err(|e| Error::io(&old, e))?), ReadMode::Salvage, |m| {
                 if m.topic == FRAME.topic && file.frames < keep {
                     file.write_raw(m.step, m.data)?;
@@ -112,7 +120,9 @@ impl FrameFile {
             if file.frames < keep {
                 return Err(Error::corrupt(&old, format!("holds {} complete frames, the progress record says {keep}", file.frames)));
             }
+            file.sync()?;
             std::fs::remove_file(&old).map_err(|e| Error::io(&old, e))?;
+            super::segment::sync_dir(path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")))?;
         }
         Ok(file)
     }

@@ -1,0 +1,76 @@
+#!/usr/bin/env python3
+"""Read a clv frame file (covariant Lyapunov vectors) into numpy with `mcap` and `cbor2`.
+
+    python3 scripts/read_frames.py FRAMES.mcap            # a summary
+    python3 scripts/read_frames.py FRAMES.mcap --json     # the same as one JSON object
+
+As a library:
+
+    from read_frames import read_frames
+    for f in read_frames("run/frames.mcap"):
+        f["step"], f["time"]
+        f["v"]        # (D, k) array: column j is the covariant vector v^(j+1), unit norm
+        f["g"]        # (D, k) Gram-Schmidt vectors, or None without --with-gs
+        f["local"]    # (k,) local exponents over [t_n, t_n+1]
+        f["phase"]    # (D,) phase point (q_x1, q_y1, ..., p_yN)
+
+Frames are stored newest first (the backward pass runs backward in time). The file's
+metadata holds the run's configuration (run.json) and its forward spectrum (spectrum.json).
+"""
+import json
+import sys
+
+import cbor2
+import numpy as np
+from mcap.reader import make_reader
+
+
+def read_frames(path):
+    with open(path, "rb") as f:
+        for _schema, channel, message in make_reader(f).iter_messages(topics=["frame"]):
+            m = cbor2.loads(message.data)
+            d, k = m["d"], m["k"]
+            g = np.frombuffer(m["g"], "<f8")
+            yield {
+                "step": m["step"],
+                "time": m["time"],
+                "phase": np.frombuffer(m["phase"], "<f8"),
+                "v": np.frombuffer(m["v"], "<f8").reshape(k, d).T,
+                "local": np.frombuffer(m["local"], "<f8"),
+                "g": g.reshape(k, d).T if g.size else None,
+            }
+
+
+def metadata(path):
+    with open(path, "rb") as f:
+        for record in make_reader(f).iter_metadata():
+            if record.name == "clv.run":
+                return {k: json.loads(v) for k, v in record.metadata.items()}
+    return {}
+
+
+def main():
+    if len(sys.argv) < 2:
+        sys.exit(__doc__)
+    frames = list(read_frames(sys.argv[1]))
+    local = np.array([f["local"] for f in frames])
+    worst_norm = max(float(np.abs(np.linalg.norm(f["v"], axis=0) - 1).max()) for f in frames)
+    meta = metadata(sys.argv[1])
+    summary = {
+        "frames": len(frames),
+        "first_step": min(f["step"] for f in frames),
+        "last_step": max(f["step"] for f in frames),
+        "clv_exponents": local.mean(axis=0).tolist(),
+        "max_unit_norm_error": worst_norm,
+        "with_gs": frames[0]["g"] is not None,
+        "run_seed": meta.get("run.json", {}).get("config", {}).get("seed"),
+    }
+    if "--json" in sys.argv:
+        print(json.dumps(summary))
+    else:
+        for key, value in summary.items():
+            print(f"{key}: {value if key != 'clv_exponents' else value[:4]}")
+
+
+if __name__ == "__main__":
+    main()
