@@ -12,7 +12,11 @@
 //! consumers, tables (CSV, JSON) and figures (PNG, SVG).
 
 pub mod kernels;
+pub mod local_exponents;
 pub mod localization;
+pub mod nullspace;
+pub mod overlaps;
+pub mod projections;
 pub mod spectrum;
 
 use super::frame::Frame;
@@ -145,7 +149,7 @@ type Maker = fn(&Context) -> Option<Box<dyn Analysis>>;
 
 /// Every analysis that applies to this context (each decides for itself).
 pub fn registry(ctx: &Context) -> Vec<Box<dyn Analysis>> {
-    const MAKERS: &[Maker] = &[spectrum::new, localization::new];
+    const MAKERS: &[Maker] = &[spectrum::new, localization::new, overlaps::new, projections::new, nullspace::new, local_exponents::new];
     MAKERS.iter().filter_map(|make| make(ctx)).collect()
 }
 

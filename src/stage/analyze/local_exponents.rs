@@ -1,0 +1,405 @@
+//! Local exponents and the domination test (paper Sec. 6, the conclusion).
+//!
+//! The local CLV exponent Lambda_l(t_n) = ln |D phi^tau v^l(t_n)| / tau (every frame carries
+//! them) fluctuates strongly; averaged over Delta steps it gives a finite-time exponent. The
+//! Oseledec splitting is dominated if the finite-time exponents do not change their order for
+//! any Delta beyond some finite Delta_0, so the fraction of windows in which an index i+1
+//! overtakes index i must vanish as Delta grows.
+//!
+//! Written here: the time series of Lambda_l for a few indices (1, the selected j, the
+//! smallest positive 2N-3), the statistics of their finite-time exponents per Delta, and the
+//! swap fraction against Delta, over all adjacent pairs, over the pairs outside the null space
+//! (whose six exponents are equal, so its pairs swap about half of the time for every Delta),
+//! and for the pairs (j, j+1) of the selected indices.
+//!
+//! Needs every frame. Frames arrive newest first (the backward pass); windows are consecutive
+//! blocks of Delta frames counted from the newest frame (window sums do not depend on the
+//! order), and the time series are sorted by step before they are written. Memory: the few
+//! plotted series plus the streaming [`DominationTest`].
+
+use super::kernels::local::{finite_time_exponents, DominationTest};
+use super::{save_figure, write_csv, Analysis, Context, Produced};
+use crate::error::Result;
+use crate::report::plot::{Figure, Marker};
+use crate::stage::frame::Frame;
+use std::path::Path;
+
+pub struct LocalExponents {
+    ctx: Context,
+    /// 0-based indices whose series are kept, ascending.
+    idx: Vec<usize>,
+    /// 0-based selected indices j (pairs (j, j+1) of the domination figure).
+    js: Vec<usize>,
+    deltas: Vec<usize>,
+    test: DominationTest,
+    /// In arrival order (newest first).
+    steps: Vec<u64>,
+    times: Vec<f64>,
+    series: Vec<Vec<f64>>,
+    /// Frames whose step does not continue the sequence (step +- 1 in the stream's direction).
+    breaks: u64,
+    /// +1 or -1 once two frames have been seen (-1 for the backward stream).
+    direction: Option<i128>,
+}
+
+/// 0-based index of the smallest positive exponent: 2N-3 for disks, else the last positive
+/// exponent of the forward spectrum if known.
+fn smallest_positive(ctx: &Context) -> Option<usize> {
+    if ctx.is_disks() {
+        return (ctx.n >= 2 && 2 * ctx.n - 4 < ctx.k).then(|| 2 * ctx.n - 4);
+    }
+    ctx.gs.as_ref().and_then(|g| g.exponents.iter().rposition(|&l| l > 0.0)).filter(|&i| i < ctx.k)
+}
+
+pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
+    if ctx.k == 0 {
+        return None;
+    }
+    let js: Vec<usize> = ctx.options.j.iter().map(|j| j - 1).filter(|&j| j < ctx.k).collect();
+    let mut idx: Vec<usize> = std::iter::once(0).chain(js.iter().copied()).chain(smallest_positive(ctx)).collect();
+    idx.sort_unstable();
+    idx.dedup();
+    let deltas: Vec<usize> = ctx.options.deltas.iter().map(|&d| d as usize).filter(|&d| d > 0).collect();
+    Some(Box::new(LocalExponents {
+        ctx: ctx.clone(),
+        series: vec![Vec::new(); idx.len()],
+        idx,
+        js,
+        test: DominationTest::new(ctx.k, &deltas),
+        deltas,
+        steps: Vec::new(),
+        times: Vec::new(),
+        breaks: 0,
+        direction: None,
+    }))
+}
+
+/// Mean, standard deviation, minimum and maximum of the finite values.
+fn stats(x: &[f64]) -> [f64; 4] {
+    let f: Vec<f64> = x.iter().copied().filter(|v| v.is_finite()).collect();
+    if f.is_empty() {
+        return [f64::NAN; 4];
+    }
+    let n = f.len() as f64;
+    let mean = f.iter().sum::<f64>() / n;
+    let var = f.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    [mean, var.sqrt(), f.iter().copied().fold(f64::INFINITY, f64::min), f.iter().copied().fold(f64::NEG_INFINITY, f64::max)]
+}
+
+/// Mean of the finite entries (NaN if none).
+fn finite_mean(x: impl IntoIterator<Item = f64>) -> f64 {
+    let (s, n) = x.into_iter().filter(|v| v.is_finite()).fold((0.0, 0u64), |(s, n), v| (s + v, n + 1));
+    if n == 0 { f64::NAN } else { s / n as f64 }
+}
+
+impl LocalExponents {
+    /// The 0-based pairs (i, i+1) with both indices in the null space (disks only).
+    fn in_null(&self, i: usize) -> bool {
+        if !self.ctx.is_disks() || self.ctx.n < 2 {
+            return false;
+        }
+        let first = 2 * self.ctx.n - 3;
+        i >= first && i + 1 < first + 6
+    }
+}
+
+impl Analysis for LocalExponents {
+    fn name(&self) -> &'static str {
+        "local_exponents"
+    }
+
+    fn sampled(&self) -> bool {
+        false
+    }
+
+    fn consume(&mut self, frame: &Frame) -> Result<()> {
+        if let Some(&last) = self.steps.last() {
+            let diff = frame.step as i128 - last as i128;
+            let dir = *self.direction.get_or_insert(diff.signum());
+            if diff != dir || dir == 0 {
+                self.breaks += 1;
+            }
+        }
+        self.test.push(&frame.local);
+        self.steps.push(frame.step);
+        self.times.push(frame.time);
+        for (s, &i) in self.series.iter_mut().zip(&self.idx) {
+            s.push(frame.local[i]);
+        }
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
+        let ctx = &self.ctx;
+        if self.steps.is_empty() {
+            return Ok(Vec::new());
+        }
+        let names: Vec<String> = self.idx.iter().map(|i| format!("{}", i + 1)).collect();
+        let mut produced = Vec::new();
+        let caveat = if self.breaks > 0 {
+            format!(" Warning: the steps of {} frames do not continue the sequence of their predecessor (frames missing or out of order); windows straddle those gaps.", self.breaks)
+        } else {
+            String::new()
+        };
+
+        // Time series, in time order.
+        let mut order: Vec<usize> = (0..self.steps.len()).collect();
+        order.sort_by_key(|&p| self.steps[p]);
+        let mut header = vec!["step".to_string(), "time".to_string()];
+        header.extend(names.iter().map(|i| format!("lambda_{i}")));
+        let h: Vec<&str> = header.iter().map(String::as_str).collect();
+        write_csv(
+            &out.join("local_exponents.csv"),
+            &h,
+            order.iter().map(|&p| {
+                let mut row = vec![self.steps[p] as f64, self.times[p]];
+                row.extend(self.series.iter().map(|s| s[p]));
+                row
+            }),
+        )?;
+        let t: Vec<f64> = order.iter().map(|&p| self.times[p]).collect();
+        let mut fig = Figure::new("Local covariant exponents Λ_i(t)").x_label("t").y_label("Λ_i");
+        for (s, name) in self.series.iter().zip(&names) {
+            let y: Vec<f64> = order.iter().map(|&p| s[p]).collect();
+            fig.series(&format!("i = {name}"), &t, &y, Marker::Line);
+        }
+        fig.hline(0.0);
+        save_figure(&fig, out, "local_exponents")?;
+        produced.push(Produced {
+            title: "Local exponents (Sec. 6)".into(),
+            caption: format!(
+                "Local covariant exponents Λ_i(t_n) = ln |Dφ^τ v^i(t_n)| / τ for i = {} (1, the selected indices{}) over all {frames} frames.{caveat}",
+                names.join(", "),
+                if smallest_positive(ctx).is_some() { " and the smallest positive exponent" } else { "" }
+            ),
+            figures: vec!["local_exponents".into()],
+            tables: vec!["local_exponents.csv".into()],
+        });
+        if self.deltas.is_empty() {
+            return Ok(produced);
+        }
+
+        // Finite-time exponents: windows of Delta frames from the newest frame on, as in the
+        // domination test.
+        let mut rows = Vec::new();
+        for (s, &i) in self.series.iter().zip(&self.idx) {
+            for &delta in &self.deltas {
+                let w = finite_time_exponents(s, delta);
+                let [mean, std, min, max] = stats(&w);
+                rows.push(vec![(i + 1) as f64, delta as f64, w.len() as f64, mean, std, min, max]);
+            }
+        }
+        write_csv(&out.join("finite_time_exponents.csv"), &["i", "delta", "windows", "mean", "std", "min", "max"], rows)?;
+        // The finite-time exponents of the largest Delta with at least 10 windows.
+        let frames_n = self.steps.len();
+        let show = self.deltas.iter().copied().filter(|&dl| frames_n / dl >= 10).max().unwrap_or(self.deltas[0]);
+        let mut fig = Figure::new(&format!("Finite-time exponents, Δ = {show} steps")).x_label("t (window start)").y_label("Λ_i averaged over Δ");
+        let windows = frames_n / show;
+        // Window w covers arrival positions w*Delta..(w+1)*Delta; its earliest time is the last.
+        let starts: Vec<f64> = (0..windows).rev().map(|w| self.times[(w + 1) * show - 1]).collect();
+        for (s, name) in self.series.iter().zip(&names) {
+            let mut y = finite_time_exponents(s, show);
+            y.reverse();
+            fig.series(&format!("i = {name}"), &starts, &y, Marker::Steps);
+        }
+        fig.hline(0.0);
+        save_figure(&fig, out, "finite_time_exponents")?;
+        produced.push(Produced {
+            title: "Finite-time exponents (Sec. 6)".into(),
+            caption: format!(
+                "Local exponents averaged over consecutive windows of Δ = {show} steps (counted from the newest frame) for i = {}; the table gives mean, standard deviation, minimum and maximum over the windows for every Δ = {:?}.{caveat}",
+                names.join(", "),
+                self.deltas
+            ),
+            figures: vec!["finite_time_exponents".into()],
+            tables: vec!["finite_time_exponents.csv".into()],
+        });
+
+        // Domination test.
+        let overall = self.test.overall();
+        let pairs: Vec<Vec<f64>> = (0..self.deltas.len()).map(|w| self.test.pair_fractions(w)).collect();
+        let outside: Vec<f64> = pairs.iter().map(|p| finite_mean(p.iter().enumerate().filter(|(i, _)| !self.in_null(*i)).map(|(_, &x)| x))).collect();
+        let sel: Vec<usize> = self.js.iter().copied().filter(|&j| j + 1 < ctx.k).collect();
+        let mut header = vec!["delta".to_string(), "overall".to_string(), "outside_null".to_string()];
+        header.extend(sel.iter().map(|j| format!("pair_{}_{}", j + 1, j + 2)));
+        let h: Vec<&str> = header.iter().map(String::as_str).collect();
+        write_csv(
+            &out.join("domination.csv"),
+            &h,
+            self.deltas.iter().enumerate().map(|(w, &dl)| {
+                let mut row = vec![dl as f64, overall[w], outside[w]];
+                row.extend(sel.iter().map(|&j| pairs[w][j]));
+                row
+            }),
+        )?;
+        let mut header = vec!["i".to_string()];
+        header.extend(self.deltas.iter().map(|dl| format!("delta_{dl}")));
+        let h: Vec<&str> = header.iter().map(String::as_str).collect();
+        write_csv(
+            &out.join("domination_pairs.csv"),
+            &h,
+            (0..ctx.k.saturating_sub(1)).map(|i| std::iter::once((i + 1) as f64).chain(pairs.iter().map(|p| p[i])).collect()),
+        )?;
+        let x: Vec<f64> = self.deltas.iter().map(|&dl| (dl as f64).log10()).collect();
+        let mut fig = Figure::new("Domination test: fraction of windows with λ_(i+1) > λ_i").x_label("log10 Δ (steps)").y_label("swap fraction");
+        fig.series("all adjacent pairs", &x, &overall, Marker::LinePoints);
+        if ctx.is_disks() {
+            fig.series("pairs outside the null space", &x, &outside, Marker::LinePoints);
+        }
+        for &j in &sel {
+            let y: Vec<f64> = pairs.iter().map(|p| p[j]).collect();
+            fig.series(&format!("pair ({}, {})", j + 1, j + 2), &x, &y, Marker::LinePoints);
+        }
+        fig.hline(0.0);
+        save_figure(&fig, out, "domination")?;
+        produced.push(Produced {
+            title: "Domination of the Oseledec splitting (Sec. 6)".into(),
+            caption: format!(
+                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over all {} adjacent pairs{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0 (degenerate exponents, as in the null space and the modes, swap for every Δ). Overall fraction at Δ = {}: {:.3e}; at Δ = {}: {:.3e}.{caveat}",
+                ctx.k.saturating_sub(1),
+                if ctx.is_disks() { ", averaged over the pairs outside the null space" } else { "" },
+                self.deltas[0],
+                overall[0],
+                self.deltas[self.deltas.len() - 1],
+                overall[overall.len() - 1],
+            ),
+            figures: vec!["domination".into()],
+            tables: vec!["domination.csv".into(), "domination_pairs.csv".into()],
+        });
+        Ok(produced)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::Options;
+    use super::*;
+
+    fn context(n: usize, j: Vec<usize>, deltas: Vec<u64>) -> Context {
+        Context {
+            run: None,
+            gs: None,
+            system: "disks".into(),
+            d: 4 * n,
+            k: 4 * n,
+            n,
+            lx: 5.0,
+            ly: 5.0,
+            tau: 0.6,
+            with_gs: false,
+            options: Options { every: 7, j, deltas },
+            source: "synthetic".into(),
+        }
+    }
+
+    fn scratch(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("clv-local-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+        let text = std::fs::read_to_string(path).unwrap();
+        let mut lines = text.lines();
+        let header = lines.next().unwrap().split(',').map(String::from).collect();
+        let rows = lines.map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+        (header, rows)
+    }
+
+    fn column(table: &(Vec<String>, Vec<Vec<f64>>), name: &str) -> Vec<f64> {
+        let c = table.0.iter().position(|h| h == name).unwrap_or_else(|| panic!("no {name} in {:?}", table.0));
+        table.1.iter().map(|r| r[c]).collect()
+    }
+
+    /// Deterministic noise in [-0.5, 0.5).
+    fn noise(s: u64, i: usize) -> f64 {
+        let mut z = s.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (i as u64).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 31)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        (z >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    }
+
+    fn frame(step: u64, local: Vec<f64>) -> Frame {
+        let k = local.len();
+        Frame { step, time: 0.6 * step as f64, d: k, k, phase: vec![0.0; k], v: vec![0.0; k * k], local, g: None }
+    }
+
+    #[test]
+    fn strictly_ordered_exponents_never_swap_and_null_pairs_do() {
+        // N = 3, D = 12. Outside the null space (0-based 3..8) Lambda_i = (12 - i) + noise with
+        // |noise| < 0.5: always ordered. Inside, equal means: they swap.
+        let n = 3;
+        let d = 12;
+        let ctx = context(n, vec![1, 3], vec![1, 5, 25]);
+        let mut a = new(&ctx).unwrap();
+        assert!(!a.sampled());
+        let len = 500u64;
+        for step in (0..len).rev() {
+            let local: Vec<f64> = (0..d)
+                .map(|i| {
+                    let base = if (3..9).contains(&i) { 0.0 } else { (d - i) as f64 - if i > 8 { 12.0 } else { 0.0 } };
+                    base + 0.99 * noise(step, i)
+                })
+                .collect();
+            a.consume(&frame(step, local)).unwrap();
+        }
+        let out = scratch("ordered");
+        let produced = a.finish(&out, len).unwrap();
+        let stems: Vec<&String> = produced.iter().flat_map(|p| &p.figures).collect();
+        assert_eq!(stems, ["local_exponents", "finite_time_exponents", "domination"]);
+        assert!(!produced.iter().any(|p| p.caption.contains("Warning")));
+        let dom = read_csv(&out.join("domination.csv"));
+        assert_eq!(column(&dom, "delta"), [1.0, 5.0, 25.0]);
+        assert!(column(&dom, "outside_null").iter().all(|&x| x == 0.0), "{:?}", dom.1);
+        assert!(column(&dom, "pair_1_2").iter().all(|&x| x == 0.0));
+        // pair (3, 4): lambda_3 = 10 +- 0.5 against the null space: never swaps
+        assert!(column(&dom, "pair_3_4").iter().all(|&x| x == 0.0));
+        // five null pairs of 11 swap about half the time at Delta = 1
+        let overall = column(&dom, "overall");
+        assert!((overall[0] - 0.5 * 5.0 / 11.0).abs() < 0.05, "{overall:?}");
+        let pairs = read_csv(&out.join("domination_pairs.csv"));
+        let d1 = column(&pairs, "delta_1");
+        for (i, &x) in d1.iter().enumerate() {
+            if (3..8).contains(&i) {
+                assert!(x > 0.3 && x < 0.7, "null pair {} swaps {x}", i + 1);
+            } else {
+                assert_eq!(x, 0.0, "pair {}", i + 1);
+            }
+        }
+        // time series sorted by step; indices 1, 3 and 2N-3 = 3 (deduplicated)
+        let ts = read_csv(&out.join("local_exponents.csv"));
+        assert_eq!(ts.0, ["step", "time", "lambda_1", "lambda_3"]);
+        let steps = column(&ts, "step");
+        assert!(steps.windows(2).all(|w| w[1] == w[0] + 1.0) && steps[0] == 0.0);
+        let l1 = column(&ts, "lambda_1");
+        assert!((l1[7] - (12.0 + 0.99 * noise(7, 0))).abs() < 1e-15);
+        // finite-time exponents: 500 / 25 = 20 windows, mean over all of lambda_1
+        let ft = read_csv(&out.join("finite_time_exponents.csv"));
+        let row = ft.1.iter().find(|r| r[0] == 1.0 && r[1] == 25.0).unwrap();
+        assert_eq!(row[2], 20.0);
+        let mean1 = l1.iter().sum::<f64>() / len as f64;
+        assert!((row[3] - mean1).abs() < 1e-12);
+        assert!(row[5] > 11.5 && row[6] < 12.5);
+        let _ = std::fs::remove_dir_all(&out);
+    }
+
+    #[test]
+    fn a_swapping_pair_is_counted_and_gaps_are_reported() {
+        // Two exponents alternating in order every step: at Delta = 1 they swap in half the
+        // windows, at Delta = 2 the sums tie and never swap.
+        let ctx = Context { system: "henon".into(), n: 0, ..context(1, vec![1], vec![1, 2]) };
+        let ctx = Context { d: 2, k: 2, ..ctx };
+        let mut a = new(&ctx).unwrap();
+        for step in [9u64, 8, 7, 6, 4, 3, 2, 1] {
+            let x = if step % 2 == 0 { 1.0 } else { -1.0 };
+            a.consume(&frame(step, vec![x, -x])).unwrap();
+        }
+        let out = scratch("swap");
+        let produced = a.finish(&out, 8).unwrap();
+        assert!(produced.iter().all(|p| p.caption.contains("Warning: the steps of 1 frames")), "a gap between 6 and 4");
+        let dom = read_csv(&out.join("domination.csv"));
+        assert_eq!(column(&dom, "overall"), [0.5, 0.0]);
+        assert_eq!(column(&dom, "pair_1_2"), [0.5, 0.0]);
+        let _ = std::fs::remove_dir_all(&out);
+    }
+}

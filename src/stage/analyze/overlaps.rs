@@ -1,0 +1,366 @@
+//! Orientation of the covariant vectors (paper Figs. 3, 4, 13 and 14): time averages of
+//! absolute scalar products.
+//!
+//! * Fig. 3: <|g^i . v^i|> against i, GS and covariant vector of the same exponent (needs GS
+//!   vectors in the frames); 1 for i = 1 and for i = 2N-2, where v^i = g^i.
+//! * Fig. 4: <|v^j . g^i|> against i for the selected j (needs GS vectors). V_n = G_n C_n with
+//!   upper-triangular C_n puts v^j into span{g^1..g^j}: the curve vanishes for i > j.
+//! * Fig. 13: <|v^j . v^i|> against i (i != j) for the selected j (CLVs only).
+//! * Fig. 14: the same for j in the mode region (here j = 2N-3 and 2N-5, the two positive
+//!   indices next to the null space), restricted to the central part of the spectrum.
+//!
+//! The absolute value is taken because only the direction of a tangent vector matters (the
+//! paper, Sec. 5.1). Averages run over the consumed frames (every m-th frame, `--every`).
+
+use super::kernels::angles::{abs_dots_pairwise, abs_dots_with};
+use super::{save_figure, write_csv, Analysis, Context, Mean, Produced};
+use crate::error::Result;
+use crate::report::plot::{Figure, Marker};
+use crate::stage::frame::Frame;
+use std::path::Path;
+
+pub struct Overlaps {
+    ctx: Context,
+    /// <|g^i . v^i|> (Fig. 3), with GS vectors.
+    gv: Option<Mean>,
+    /// Selected indices j (0-based) of Figs. 4 and 13.
+    js: Vec<usize>,
+    /// Mode indices j (0-based) of Fig. 14.
+    mode_js: Vec<usize>,
+    /// <|v^j . g^i|> per selected j (Fig. 4), with GS vectors.
+    vg: Option<Vec<Mean>>,
+    /// Indices j with a CLV-CLV average: the union of `js` and `mode_js`.
+    vv_js: Vec<usize>,
+    /// <|v^j . v^i|> per j of `vv_js` (Figs. 13, 14).
+    vv: Vec<Mean>,
+}
+
+/// 0-based range (inclusive) of the central, mode-carrying part of a disk spectrum: the same
+/// stretch of positive indices below the null space that the Fig. 8 plot shows, to its
+/// conjugate. None for maps or partial spectra.
+fn central_range(ctx: &Context) -> Option<(usize, usize)> {
+    if !ctx.is_disks() || ctx.k != ctx.d || ctx.n < 2 {
+        return None;
+    }
+    let last = 2 * ctx.n - 4;
+    let first = last.saturating_sub((ctx.d / 6).max(8));
+    Some((first, ctx.d - 1 - first))
+}
+
+pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
+    if ctx.k == 0 {
+        return None;
+    }
+    let js: Vec<usize> = ctx.options.j.iter().map(|j| j - 1).filter(|&j| j < ctx.k).collect();
+    // Fig. 14: the two positive indices nearest the null space, which carry the slowest
+    // modes (T(1,0) and LP(1,0) in the paper's box).
+    let mode_js: Vec<usize> = match central_range(ctx) {
+        Some(_) if ctx.n >= 3 => vec![2 * ctx.n - 6, 2 * ctx.n - 4],
+        _ => Vec::new(),
+    };
+    let mut vv_js: Vec<usize> = js.iter().chain(&mode_js).copied().collect();
+    vv_js.sort_unstable();
+    vv_js.dedup();
+    Some(Box::new(Overlaps {
+        ctx: ctx.clone(),
+        gv: ctx.with_gs.then(|| Mean::new(ctx.k)),
+        vg: ctx.with_gs.then(|| js.iter().map(|_| Mean::new(ctx.k)).collect()),
+        vv: vv_js.iter().map(|_| Mean::new(ctx.k)).collect(),
+        js,
+        mode_js,
+        vv_js,
+    }))
+}
+
+/// Header names and rows of a table with one (mean, std) column pair per j.
+fn per_j_table(ctx: &Context, js: &[usize], means: &[&Mean], what: &str) -> (Vec<String>, Vec<Vec<f64>>) {
+    let mut header = vec!["i".to_string(), "i_over_D".to_string()];
+    for j in js {
+        header.push(format!("{what}{}_mean", j + 1));
+        header.push(format!("{what}{}_std", j + 1));
+    }
+    let cols: Vec<(Vec<f64>, Vec<f64>)> = means.iter().map(|m| (m.mean(), m.std())).collect();
+    let rows = (0..ctx.k)
+        .map(|i| {
+            let mut row = vec![(i + 1) as f64, ctx.reduced(i)];
+            for (mean, std) in &cols {
+                row.push(mean[i]);
+                row.push(std[i]);
+            }
+            row
+        })
+        .collect();
+    (header, rows)
+}
+
+fn csv(out: &Path, name: &str, header: &[String], rows: Vec<Vec<f64>>) -> Result<()> {
+    let h: Vec<&str> = header.iter().map(String::as_str).collect();
+    write_csv(&out.join(name), &h, rows)
+}
+
+/// The average with the entry i = j (trivially 1) blanked out, as in the paper's plots.
+fn without_self(mean: &[f64], j: usize) -> Vec<f64> {
+    mean.iter().enumerate().map(|(i, &x)| if i == j { f64::NAN } else { x }).collect()
+}
+
+impl Analysis for Overlaps {
+    fn name(&self) -> &'static str {
+        "overlaps"
+    }
+
+    fn consume(&mut self, frame: &Frame) -> Result<()> {
+        let d = frame.d;
+        if let (Some(gv), Some(g)) = (self.gv.as_mut(), frame.g.as_ref()) {
+            gv.add(abs_dots_pairwise(g, &frame.v, d));
+        }
+        if let (Some(vg), Some(g)) = (self.vg.as_mut(), frame.g.as_ref()) {
+            for (acc, &j) in vg.iter_mut().zip(&self.js) {
+                acc.add(abs_dots_with(frame.v(j), g));
+            }
+        }
+        for (acc, &j) in self.vv.iter_mut().zip(&self.vv_js) {
+            acc.add(abs_dots_with(frame.v(j), &frame.v));
+        }
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
+        let ctx = &self.ctx;
+        let idx: Vec<f64> = (1..=ctx.k).map(|i| i as f64).collect();
+        let every = ctx.options.every;
+        let avg = if every == 1 { format!("averaged over {frames} frames (every frame of the stream)") } else { format!("averaged over {frames} frames (every {every}-th frame of the stream)") };
+        let central = central_range(ctx);
+        let mut produced = Vec::new();
+
+        if let Some(gv) = &self.gv {
+            let (mean, std) = (gv.mean(), gv.std());
+            write_csv(
+                &out.join("overlap_gs_clv.csv"),
+                &["i", "i_over_D", "abs_g_dot_v_mean", "abs_g_dot_v_std"],
+                (0..ctx.k).map(|i| vec![(i + 1) as f64, ctx.reduced(i), mean[i], std[i]]),
+            )?;
+            let mut fig = Figure::new("GS and covariant vectors of the same exponent: <|g^i · v^i|>").x_label("i").y_label("<|g^i · v^i|>");
+            fig.series("<|g^i · v^i|>", &idx, &mean, Marker::Line);
+            save_figure(&fig, out, "fig3_gs_clv_overlap")?;
+            let mut figures = vec!["fig3_gs_clv_overlap".to_string()];
+            if let Some((a, b)) = central {
+                let mut fig = Figure::new("<|g^i · v^i|>: central part of the spectrum").x_label("i").y_label("<|g^i · v^i|>");
+                fig.series("<|g^i · v^i|>", &idx[a..=b], &mean[a..=b], Marker::LinePoints);
+                save_figure(&fig, out, "fig3_gs_clv_overlap_center")?;
+                figures.push("fig3_gs_clv_overlap_center".into());
+            }
+            produced.push(Produced {
+                title: "Gram-Schmidt versus covariant vectors (Fig. 3)".into(),
+                caption: format!(
+                    "Time average of |g^i · v^i| for the GS and covariant vectors of the same exponent λ_i against i, {avg}; the second plot enlarges the central (mode and null-space) part{}.",
+                    central.map(|(a, b)| format!(", i = {}..{}", a + 1, b + 1)).unwrap_or_default()
+                ),
+                figures,
+                tables: vec!["overlap_gs_clv.csv".into()],
+            });
+        }
+
+        if let (Some(vg), false) = (&self.vg, self.js.is_empty()) {
+            let means: Vec<&Mean> = vg.iter().collect();
+            let (header, rows) = per_j_table(ctx, &self.js, &means, "abs_v");
+            csv(out, "overlap_clv_gs.csv", &header, rows)?;
+            let mut fig = Figure::new("Covariant vector v^j against all GS vectors: <|v^j · g^i|>").x_label("i").y_label("<|v^j · g^i|>");
+            for (m, j) in vg.iter().zip(&self.js) {
+                fig.series(&format!("j = {}", j + 1), &idx, &m.mean(), Marker::Line);
+            }
+            save_figure(&fig, out, "fig4_clv_gs_overlap")?;
+            produced.push(Produced {
+                title: "Covariant vectors in the GS basis (Fig. 4)".into(),
+                caption: format!(
+                    "Time average of |v^j · g^i| against i for the selected covariant vectors j = {}, {avg}. Since V = G C with upper-triangular C, v^j lies in span{{g^1..g^j}}: the curves vanish for i > j.",
+                    list(&self.js)
+                ),
+                figures: vec!["fig4_clv_gs_overlap".into()],
+                tables: vec!["overlap_clv_gs.csv".into()],
+            });
+        }
+
+        if !self.vv_js.is_empty() {
+            let means: Vec<&Mean> = self.vv.iter().collect();
+            let (header, rows) = per_j_table(ctx, &self.vv_js, &means, "abs_v");
+            csv(out, "overlap_clv_clv.csv", &header, rows)?;
+            let pick = |j: usize| self.vv_js.iter().position(|&x| x == j).map(|p| self.vv[p].mean());
+            if !self.js.is_empty() {
+                let mut fig = Figure::new("Covariant vectors: <|v^j · v^i|>, i != j").x_label("i").y_label("<|v^j · v^i|>");
+                for &j in &self.js {
+                    if let Some(m) = pick(j) {
+                        fig.series(&format!("j = {}", j + 1), &idx, &without_self(&m, j), Marker::Line);
+                    }
+                }
+                save_figure(&fig, out, "fig13_clv_overlap")?;
+                produced.push(Produced {
+                    title: "Scalar products between covariant vectors (Fig. 13)".into(),
+                    caption: format!(
+                        "Time average of |v^j · v^i| against i (i != j) for the selected covariant vectors j = {}, {avg}. The null space 2N-2..2N+3 is orthogonal to all other covariant vectors; vectors of the same (stable or unstable) subspace are not orthogonal.",
+                        list(&self.js)
+                    ),
+                    figures: vec!["fig13_clv_overlap".into()],
+                    tables: vec!["overlap_clv_clv.csv".into()],
+                });
+            }
+            if let (Some((a, b)), false) = (central, self.mode_js.is_empty()) {
+                let mut fig = Figure::new("Mode vectors: <|v^j · v^i|> in the central part, i != j").x_label("i").y_label("<|v^j · v^i|>");
+                for &j in &self.mode_js {
+                    if let Some(m) = pick(j) {
+                        let y = without_self(&m, j);
+                        fig.series(&format!("j = {}", j + 1), &idx[a..=b], &y[a..=b], Marker::LinePoints);
+                    }
+                }
+                save_figure(&fig, out, "fig14_mode_overlap")?;
+                produced.push(Produced {
+                    title: "Scalar products of mode vectors (Fig. 14)".into(),
+                    caption: format!(
+                        "Time average of |v^j · v^i| for j = {} (2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit) against i = {}..{} (i != j), {avg}. Mode vectors overlap with the vectors of the same degenerate exponent and, less, with the conjugate ones.",
+                        list(&self.mode_js),
+                        a + 1,
+                        b + 1
+                    ),
+                    figures: vec!["fig14_mode_overlap".into()],
+                    tables: vec!["overlap_clv_clv.csv".into()],
+                });
+            }
+        }
+        Ok(produced)
+    }
+}
+
+/// "1, 8, 15": 1-based indices for captions.
+fn list(js: &[usize]) -> String {
+    js.iter().map(|j| (j + 1).to_string()).collect::<Vec<_>>().join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::Options;
+    use super::*;
+
+    fn context(system: &str, n: usize, d: usize, with_gs: bool, j: Vec<usize>) -> Context {
+        Context {
+            run: None,
+            gs: None,
+            system: system.into(),
+            d,
+            k: d,
+            n,
+            lx: 5.0,
+            ly: 5.0,
+            tau: 0.6,
+            with_gs,
+            options: Options { every: 1, j, deltas: vec![1, 2] },
+            source: "synthetic".into(),
+        }
+    }
+
+    fn frame(step: u64, d: usize, v: Vec<f64>, g: Option<Vec<f64>>) -> Frame {
+        let k = v.len() / d;
+        Frame { step, time: step as f64, d, k, phase: vec![1.0; d], v, local: vec![0.0; k], g }
+    }
+
+    fn identity(d: usize) -> Vec<f64> {
+        (0..d * d).map(|x| if x % (d + 1) == 0 { 1.0 } else { 0.0 }).collect()
+    }
+
+    fn scratch(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("clv-overlaps-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+        let text = std::fs::read_to_string(path).unwrap();
+        let mut lines = text.lines();
+        let header = lines.next().unwrap().split(',').map(String::from).collect();
+        let rows = lines.map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+        (header, rows)
+    }
+
+    fn column(table: &(Vec<String>, Vec<Vec<f64>>), name: &str) -> Vec<f64> {
+        let c = table.0.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name} in {:?}", table.0));
+        table.1.iter().map(|r| r[c]).collect()
+    }
+
+    #[test]
+    fn equal_sets_overlap_one_and_gs_basis_is_triangular() {
+        // d = 16 (N = 4 disks), G = identity, V = G with alternating signs: |g^i . v^i| = 1,
+        // |v^j . g^i| = delta_ij, |v^j . v^i| = delta_ij.
+        let d = 16;
+        let ctx = context("disks", 4, d, true, vec![1, 5]);
+        let mut a = new(&ctx).unwrap();
+        let g = identity(d);
+        let v: Vec<f64> = g.iter().enumerate().map(|(x, &y)| if (x / d) % 2 == 1 { -y } else { y }).collect();
+        for step in (0..5).rev() {
+            a.consume(&frame(step, d, v.clone(), Some(g.clone()))).unwrap();
+        }
+        let out = scratch("equal");
+        let produced = a.finish(&out, 5).unwrap();
+        let stems: Vec<&String> = produced.iter().flat_map(|p| &p.figures).collect();
+        for stem in ["fig3_gs_clv_overlap", "fig3_gs_clv_overlap_center", "fig4_clv_gs_overlap", "fig13_clv_overlap", "fig14_mode_overlap"] {
+            assert!(stems.iter().any(|s| *s == stem), "{stem} missing from {stems:?}");
+            assert!(out.join(format!("{stem}.png")).exists());
+        }
+        let t3 = read_csv(&out.join("overlap_gs_clv.csv"));
+        assert!(column(&t3, "abs_g_dot_v_mean").iter().all(|&x| x == 1.0));
+        assert!(column(&t3, "abs_g_dot_v_std").iter().all(|&x| x == 0.0));
+        let t4 = read_csv(&out.join("overlap_clv_gs.csv"));
+        for j in [1usize, 5] {
+            let c = column(&t4, &format!("abs_v{j}_mean"));
+            for (i, &x) in c.iter().enumerate() {
+                assert_eq!(x, if i + 1 == j { 1.0 } else { 0.0 }, "j = {j}, i = {}", i + 1);
+            }
+        }
+        // CLV-CLV: the selected j and the mode indices 2N-5 = 3, 2N-3 = 5
+        let t13 = read_csv(&out.join("overlap_clv_clv.csv"));
+        for j in [1usize, 3, 5] {
+            let c = column(&t13, &format!("abs_v{j}_mean"));
+            assert_eq!(c.iter().sum::<f64>(), 1.0);
+            assert_eq!(c[j - 1], 1.0);
+        }
+        let _ = std::fs::remove_dir_all(&out);
+    }
+
+    #[test]
+    fn known_angles_are_averaged_over_frames() {
+        // Henon-like 2-d example: v^1 = (1, 0), v^2 = (cos a, sin a) with a different angle in
+        // each frame; G = identity. <|v^1 . v^2|> is the mean of |cos a|; <|g^2 . v^2|> the
+        // mean of |sin a|.
+        let d = 2;
+        let ctx = context("henon", 0, d, true, vec![1]);
+        let mut a = new(&ctx).unwrap();
+        let angles = [0.3f64, 2.0, -1.1];
+        for (s, x) in angles.iter().enumerate() {
+            a.consume(&frame(s as u64, d, vec![1.0, 0.0, x.cos(), x.sin()], Some(identity(2)))).unwrap();
+        }
+        let out = scratch("angles");
+        let produced = a.finish(&out, 3).unwrap();
+        // no central part or mode figure for a map
+        assert!(produced.iter().all(|p| !p.figures.iter().any(|f| f.contains("center") || f.contains("fig14"))));
+        let mean = |f: fn(f64) -> f64| angles.iter().map(|&x| f(x).abs()).sum::<f64>() / 3.0;
+        let t13 = read_csv(&out.join("overlap_clv_clv.csv"));
+        assert!((column(&t13, "abs_v1_mean")[1] - mean(f64::cos)).abs() < 1e-15);
+        let t3 = read_csv(&out.join("overlap_gs_clv.csv"));
+        let g = column(&t3, "abs_g_dot_v_mean");
+        assert_eq!(g[0], 1.0);
+        assert!((g[1] - mean(f64::sin)).abs() < 1e-15);
+        let _ = std::fs::remove_dir_all(&out);
+    }
+
+    #[test]
+    fn without_gs_only_clv_overlaps() {
+        let d = 16;
+        let ctx = context("disks", 4, d, false, vec![2]);
+        let mut a = new(&ctx).unwrap();
+        a.consume(&frame(0, d, identity(d), None)).unwrap();
+        let out = scratch("nogs");
+        let produced = a.finish(&out, 1).unwrap();
+        let stems: Vec<&String> = produced.iter().flat_map(|p| &p.figures).collect();
+        assert_eq!(stems, ["fig13_clv_overlap", "fig14_mode_overlap"]);
+        assert!(!out.join("overlap_gs_clv.csv").exists());
+        let _ = std::fs::remove_dir_all(&out);
+    }
+}

@@ -1,0 +1,332 @@
+//! Position and momentum content of the vectors (paper Figs. 6, 7 and 9).
+//!
+//! * Figs. 6, 7: eta_q(i) = <sum_n |dq_n|^2> and eta_p(i) = <sum_n |dp_n|^2>, the mean squared
+//!   projections onto the configuration and momentum subspaces, for the GS vectors (Fig. 6)
+//!   and the covariant vectors (Fig. 7). Symplectic symmetry: for GS vectors eta_q and eta_p
+//!   are interchanged between conjugate indices i and 4N+1-i, for CLVs they agree.
+//! * Fig. 9: <cos Theta>(i), the time average of the signed cosine of the angle between the
+//!   2N-vectors dq and dp (see [`cos_theta`] for why signed): for GS vectors close to +1 for the
+//!   smallest positive and -1 for the smallest negative exponents, for CLVs not.
+//!
+//! Each figure comes with an enlargement of the central (mode) part, as the paper's right
+//! panels and insets. Averages run over the consumed frames (every m-th frame, `--every`).
+
+use super::kernels::projections::{cos_theta, eta_q_p};
+use super::{save_figure, write_csv, Analysis, Context, Mean, Produced};
+use crate::error::Result;
+use crate::report::plot::{Figure, Marker};
+use crate::stage::frame::Frame;
+use std::path::Path;
+
+/// eta_q or eta_p below this (|dq| or |dp| below 1e-12, the round-off of a unit vector):
+/// cos Theta is undefined and the frame is left out of its average. Example: the GS null
+/// vectors of a run started from G = identity are exactly position-only or momentum-only.
+const ROUND_OFF_SQ: f64 = 1e-24;
+
+/// Running averages of eta_q, eta_p and cos Theta for every vector of a set.
+struct Acc {
+    eta_q: Mean,
+    eta_p: Mean,
+    /// cos Theta is undefined when dq or dp vanishes (to round-off); such frames are left out
+    /// of its average.
+    cos_sum: Vec<f64>,
+    cos_n: Vec<u64>,
+}
+
+impl Acc {
+    fn new(k: usize) -> Self {
+        Acc { eta_q: Mean::new(k), eta_p: Mean::new(k), cos_sum: vec![0.0; k], cos_n: vec![0; k] }
+    }
+
+    fn add(&mut self, vectors: &[f64], d: usize) {
+        let (mut q, mut p) = (Vec::with_capacity(self.cos_n.len()), Vec::with_capacity(self.cos_n.len()));
+        for (j, (s, n)) in self.cos_sum.iter_mut().zip(self.cos_n.iter_mut()).enumerate() {
+            let x = &vectors[j * d..(j + 1) * d];
+            let (eq, ep) = eta_q_p(x);
+            q.push(eq);
+            p.push(ep);
+            // Below round-off of a unit vector (|dq| or |dp| < 1e-12) the angle is noise.
+            let c = if eq.min(ep) < ROUND_OFF_SQ { f64::NAN } else { cos_theta(x) };
+            if c.is_finite() {
+                *s += c;
+                *n += 1;
+            }
+        }
+        self.eta_q.add(q);
+        self.eta_p.add(p);
+    }
+
+    fn cos(&self) -> Vec<f64> {
+        self.cos_sum.iter().zip(&self.cos_n).map(|(s, &n)| if n == 0 { f64::NAN } else { s / n as f64 }).collect()
+    }
+}
+
+pub struct Projections {
+    ctx: Context,
+    clv: Acc,
+    gs: Option<Acc>,
+}
+
+pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
+    (ctx.is_disks() && ctx.d.is_multiple_of(4) && ctx.k > 0).then(|| {
+        Box::new(Projections { ctx: ctx.clone(), clv: Acc::new(ctx.k), gs: ctx.with_gs.then(|| Acc::new(ctx.k)) }) as Box<dyn Analysis>
+    })
+}
+
+/// 0-based inclusive range of the central (mode-carrying) part, as in the Fig. 8 plot.
+fn central_range(ctx: &Context) -> Option<(usize, usize)> {
+    if ctx.k != ctx.d || ctx.n < 2 {
+        return None;
+    }
+    let last = 2 * ctx.n - 4;
+    let first = last.saturating_sub((ctx.d / 6).max(8));
+    Some((first, ctx.d - 1 - first))
+}
+
+/// Largest |a_i - b_(4N+1-i)| over i: the conjugate symmetry of a pair of spectra.
+fn conjugate_asymmetry(a: &[f64], b: &[f64]) -> f64 {
+    let d = a.len();
+    (0..d).map(|i| (a[i] - b[d - 1 - i]).abs()).fold(0.0, f64::max)
+}
+
+impl Analysis for Projections {
+    fn name(&self) -> &'static str {
+        "projections"
+    }
+
+    fn consume(&mut self, frame: &Frame) -> Result<()> {
+        self.clv.add(&frame.v, frame.d);
+        if let (Some(acc), Some(g)) = (self.gs.as_mut(), frame.g.as_ref()) {
+            acc.add(g, frame.d);
+        }
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
+        let ctx = &self.ctx;
+        let k = ctx.k;
+        let nan = vec![f64::NAN; k];
+        let stats = |a: Option<&Acc>| match a {
+            Some(a) => (a.eta_q.mean(), a.eta_p.mean(), a.eta_q.std(), a.cos()),
+            None => (nan.clone(), nan.clone(), nan.clone(), nan.clone()),
+        };
+        let (q_gs, p_gs, qs_gs, c_gs) = stats(self.gs.as_ref());
+        let (q_cv, p_cv, qs_cv, c_cv) = stats(Some(&self.clv));
+        write_csv(
+            &out.join("projections.csv"),
+            &["i", "i_over_D", "eta_q_gs", "eta_p_gs", "eta_q_gs_std", "cos_theta_gs", "eta_q_clv", "eta_p_clv", "eta_q_clv_std", "cos_theta_clv"],
+            (0..k).map(|i| vec![(i + 1) as f64, ctx.reduced(i), q_gs[i], p_gs[i], qs_gs[i], c_gs[i], q_cv[i], p_cv[i], qs_cv[i], c_cv[i]]),
+        )?;
+        let idx: Vec<f64> = (1..=k).map(|i| i as f64).collect();
+        let central = central_range(ctx);
+        let full = k == ctx.d;
+        let every = ctx.options.every;
+        let avg = if every == 1 { format!("averaged over {frames} frames (every frame of the stream)") } else { format!("averaged over {frames} frames (every {every}-th frame of the stream)") };
+        let tables = vec!["projections.csv".to_string()];
+
+        // One figure and its central enlargement.
+        let plot = |stem: &str, title: &str, ylabel: &str, curves: &[(&str, &[f64])], zero: bool| -> Result<Vec<String>> {
+            let mut stems = Vec::new();
+            let mut parts = vec![(stem.to_string(), title.to_string(), 0, k - 1, Marker::Line)];
+            if let Some((a, b)) = central {
+                parts.push((format!("{stem}_center"), format!("{title}: central part"), a, b, Marker::LinePoints));
+            }
+            for (s, t, a, b, marker) in parts {
+                let mut fig = Figure::new(&t).x_label("i").y_label(ylabel);
+                for (label, y) in curves {
+                    fig.series(label, &idx[a..=b], &y[a..=b], marker);
+                }
+                if zero {
+                    fig.hline(0.0);
+                }
+                save_figure(&fig, out, &s)?;
+                stems.push(s);
+            }
+            Ok(stems)
+        };
+
+        let mut produced = Vec::new();
+        if self.gs.is_some() {
+            let figures = plot("fig6_eta_gs", "Gram-Schmidt vectors: η_q and η_p", "η", &[("η_q (GS)", &q_gs), ("η_p (GS)", &p_gs)], false)?;
+            let sym = if full { format!(" Conjugate symmetry: max_i |η_q(i) - η_p(4N+1-i)| = {:.3e}.", conjugate_asymmetry(&q_gs, &p_gs)) } else { String::new() };
+            produced.push(Produced {
+                title: "Position and momentum content of the GS vectors (Fig. 6)".into(),
+                caption: format!(
+                    "η_q = <Σ_n |δq_n|^2> and η_p = <Σ_n |δp_n|^2> for the Gram-Schmidt vectors g^i against i, {avg}; the second plot enlarges the central part. For GS vectors η_q and η_p are interchanged between i and 4N+1-i.{sym}"
+                ),
+                figures,
+                tables: tables.clone(),
+            });
+        }
+        let figures = plot("fig7_eta_clv", "Covariant vectors: η_q and η_p", "η", &[("η_q (CLV)", &q_cv), ("η_p (CLV)", &p_cv)], false)?;
+        let sym = if full { format!(" Conjugate symmetry: max_i |η_q(i) - η_q(4N+1-i)| = {:.3e}.", conjugate_asymmetry(&q_cv, &q_cv)) } else { String::new() };
+        produced.push(Produced {
+            title: "Position and momentum content of the covariant vectors (Fig. 7)".into(),
+            caption: format!(
+                "η_q = <Σ_n |δq_n|^2> and η_p = <Σ_n |δp_n|^2> for the covariant vectors v^i against i, {avg}; the second plot enlarges the central part. For covariant vectors η_q(i) = η_q(4N+1-i).{sym}"
+            ),
+            figures,
+            tables: tables.clone(),
+        });
+        let mut curves: Vec<(&str, &[f64])> = Vec::new();
+        if self.gs.is_some() {
+            curves.push(("GS vectors", &c_gs));
+        }
+        curves.push(("covariant vectors", &c_cv));
+        let figures = plot("fig9_cos_theta", "<cos Θ> between δq and δp", "<cos Θ>", &curves, true)?;
+        produced.push(Produced {
+            title: "Angle between position and momentum perturbations (Fig. 9)".into(),
+            caption: format!(
+                "Time average of the signed cos Θ = δq · δp / (|δq| |δp|) of each vector against i{}, {avg}; the second plot enlarges the central part. For GS vectors it approaches +1 (-1) for the smallest positive (negative) exponents; for covariant vectors it does not.",
+                if self.gs.is_some() { ", GS and covariant vectors" } else { ", covariant vectors" }
+            ),
+            figures,
+            tables,
+        });
+        Ok(produced)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::Options;
+    use super::*;
+
+    fn context(n: usize, with_gs: bool) -> Context {
+        Context {
+            run: None,
+            gs: None,
+            system: "disks".into(),
+            d: 4 * n,
+            k: 4 * n,
+            n,
+            lx: 5.0,
+            ly: 5.0,
+            tau: 0.6,
+            with_gs,
+            options: Options { every: 1, j: vec![1], deltas: vec![1] },
+            source: "synthetic".into(),
+        }
+    }
+
+    fn scratch(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("clv-projections-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
+        let text = std::fs::read_to_string(path).unwrap();
+        let mut lines = text.lines();
+        let header = lines.next().unwrap().split(',').map(String::from).collect();
+        let rows = lines.map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+        (header, rows)
+    }
+
+    fn column(table: &(Vec<String>, Vec<Vec<f64>>), name: &str) -> Vec<f64> {
+        let c = table.0.iter().position(|h| h == name).unwrap();
+        table.1.iter().map(|r| r[c]).collect()
+    }
+
+    /// A unit vector of dimension d = 4N with dq = a u and dp = b w (u, w unit 2N-vectors).
+    fn vector(d: usize, a: f64, u: &[f64], b: f64, w: &[f64]) -> Vec<f64> {
+        let norm = (a * a + b * b).sqrt();
+        u.iter().map(|x| a * x / norm).chain(w.iter().map(|x| b * x / norm)).take(d).collect()
+    }
+
+    #[test]
+    fn constructed_vectors_give_known_eta_and_cos() {
+        let n = 3;
+        let d = 4 * n;
+        let h = 2 * n;
+        let u: Vec<f64> = (0..h).map(|i| if i == 0 { 1.0 } else { 0.0 }).collect();
+        let w: Vec<f64> = (0..h).map(|i| if i == 1 { 1.0 } else { 0.0 }).collect();
+        let minus_u: Vec<f64> = u.iter().map(|x| -x).collect();
+        let theta: f64 = 0.7; // dp at angle theta to dq
+        let tilted: Vec<f64> = (0..h).map(|i| theta.cos() * u[i] + theta.sin() * w[i]).collect();
+        // Column j of every frame (the rest are copies of column 0):
+        //  0: pure dq                  eta_q = 1, cos NaN (left out)
+        //  1: dq = dp                  eta_q = 1/2, cos = 1
+        //  2: dp = -dq / 2 in frame 1, dp = +dq / 2 in frame 2: eta_q = 0.8, <cos> = 0
+        //  3: |dq| = 2 |dp| at angle theta: eta_q = 0.8, cos = cos theta
+        //  4: pure dq in frame 1, dq = dp in frame 2: eta_q = 3/4, <cos> = 1 (NaN left out)
+        //  5: dp of round-off size 1e-14 |dq|: cos undefined (NaN), eta_q = 1
+        let make = |second: bool| -> Vec<f64> {
+            let mut cols = vec![
+                vector(d, 1.0, &u, 0.0, &w),
+                vector(d, 1.0, &u, 1.0, &u),
+                vector(d, 2.0, &u, 1.0, if second { &u } else { &minus_u }),
+                vector(d, 2.0, &u, 1.0, &tilted),
+                if second { vector(d, 1.0, &u, 1.0, &u) } else { vector(d, 1.0, &u, 0.0, &w) },
+                vector(d, 1.0, &u, 1e-14, &u),
+            ];
+            while cols.len() < d {
+                cols.push(cols[0].clone());
+            }
+            cols.concat()
+        };
+        let ctx = context(n, true);
+        let mut a = new(&ctx).unwrap();
+        for (s, second) in [(2u64, false), (1, true)] {
+            let v = make(second);
+            // GS vectors: CLVs with dq and dp swapped, so eta_q^GS = eta_p^CLV
+            let g: Vec<f64> = v.chunks(d).flat_map(|c| c[h..].iter().chain(&c[..h]).copied().collect::<Vec<_>>()).collect();
+            a.consume(&Frame { step: s, time: s as f64, d, k: d, phase: vec![0.0; d], v, local: vec![0.0; d], g: Some(g) }).unwrap();
+        }
+        let out = scratch("known");
+        let produced = a.finish(&out, 2).unwrap();
+        let stems: Vec<&String> = produced.iter().flat_map(|p| &p.figures).collect();
+        assert_eq!(stems.len(), 6, "{stems:?}");
+        let t = read_csv(&out.join("projections.csv"));
+        let (q, p, c) = (column(&t, "eta_q_clv"), column(&t, "eta_p_clv"), column(&t, "cos_theta_clv"));
+        let want_q = [1.0, 0.5, 0.8, 0.8, 0.75, 1.0];
+        let want_c = [f64::NAN, 1.0, 0.0, theta.cos(), 1.0, f64::NAN];
+        for j in 0..6 {
+            assert!((q[j] - want_q[j]).abs() < 1e-15, "eta_q[{j}] = {}", q[j]);
+            assert!((q[j] + p[j] - 1.0).abs() < 1e-15);
+            if want_c[j].is_nan() {
+                assert!(c[j].is_nan(), "cos[{j}] = {}", c[j]);
+            } else {
+                assert!((c[j] - want_c[j]).abs() < 1e-15, "cos[{j}] = {} want {}", c[j], want_c[j]);
+            }
+        }
+        // eta_q std over the two frames: 0 for column 0, 1/4 for column 4
+        let s = column(&t, "eta_q_clv_std");
+        assert!(s[0].abs() < 1e-15 && (s[4] - 0.25).abs() < 1e-15);
+        let (qg, pg) = (column(&t, "eta_q_gs"), column(&t, "eta_p_gs"));
+        for j in 0..5 {
+            assert!((qg[j] - p[j]).abs() < 1e-15 && (pg[j] - q[j]).abs() < 1e-15);
+        }
+        // swapping dq and dp keeps the signed cosine
+        assert!((column(&t, "cos_theta_gs")[3] - theta.cos()).abs() < 1e-15);
+        let _ = std::fs::remove_dir_all(&out);
+    }
+
+    #[test]
+    fn only_for_disks_and_clv_only_without_gs() {
+        let mut ctx = context(2, false);
+        ctx.system = "henon".into();
+        assert!(new(&ctx).is_none());
+        let ctx = context(2, false);
+        let mut a = new(&ctx).unwrap();
+        let d = 8;
+        let v: Vec<f64> = (0..d * d).map(|x| if x % (d + 1) == 0 { 1.0 } else { 0.0 }).collect();
+        a.consume(&Frame { step: 0, time: 0.0, d, k: d, phase: vec![0.0; d], v, local: vec![0.0; d], g: None }).unwrap();
+        let out = scratch("nogs");
+        let produced = a.finish(&out, 1).unwrap();
+        assert_eq!(produced.len(), 2, "Figs. 7 and 9 only");
+        let t = read_csv(&out.join("projections.csv"));
+        assert!(column(&t, "eta_q_gs").iter().all(|x| x.is_nan()));
+        // unit vectors: the first 2N are pure dq
+        let q = column(&t, "eta_q_clv");
+        assert!(q[..4].iter().all(|&x| x == 1.0) && q[4..].iter().all(|&x| x == 0.0));
+        let _ = std::fs::remove_dir_all(&out);
+    }
+
+    #[test]
+    fn asymmetry_measure() {
+        assert_eq!(conjugate_asymmetry(&[0.1, 0.5, 0.9], &[0.9, 0.5, 0.1]), 0.0);
+        assert!((conjugate_asymmetry(&[0.1, 0.5, 0.9], &[0.9, 0.4, 0.1]) - 0.1).abs() < 1e-15);
+    }
+}
