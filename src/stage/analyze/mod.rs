@@ -79,9 +79,12 @@ impl Context {
             None => return Err(Error::Other(format!("{source}: the frame stream carries no run description (clv.run metadata); was it written by clv backward?"))),
         };
         let d = first.d;
-        let scale = |j: usize| ((j as f64 * d as f64 / 792.0).round() as usize).clamp(1, d);
+        // The paper's selections (Figs. 4, 13, 14) for N = 198 are j = 1, 200, 370 among the
+        // 2N - 3 = 393 positive exponents: scale them to this system's positive part, so that
+        // e.g. 370 stays an unstable vector just above the mode region.
+        let positive = if n > 1 { 2 * n - 3 } else { d };
+        let scale = |j: usize| ((j as f64 * positive as f64 / 393.0).round() as usize).clamp(1, first.k);
         let j = j.unwrap_or_else(|| {
-            // The paper's selections (Figs. 4, 13, 14) for D = 792, scaled to this D.
             let mut v: Vec<usize> = [1, 200, 370].iter().map(|&j| scale(j)).collect();
             v.dedup();
             v
