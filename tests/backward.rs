@@ -1,29 +1,19 @@
 //! The backward (Ginelli) stage: covariance, the Henon manifolds, GS = CLV spectra, the
 //! bitwise recomputation check, out-of-core segments, resume after SIGKILL, and pipes.
 
+mod common;
+use common::{clv, frames, ok};
+
+fn scratch(name: &str) -> PathBuf {
+    common::scratch("backward", name)
+}
+
 use clv::stage::frame::Frame;
-use clv::store::frames::{read_frames, Flow};
 use clv::system::henon::Henon;
 use clv::system::disks::HardDisks;
 use clv::system::{DynamicalSystem, Snapshot, Tangent};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-
-fn clv(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_clv")).args(args).output().unwrap()
-}
-
-fn ok(out: Output) -> Output {
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    out
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("backward").join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use std::process::{Command, Stdio};
 
 /// A finished forward run with the given flags.
 fn forward(name: &str, flags: &[&str]) -> PathBuf {
@@ -35,19 +25,6 @@ fn forward(name: &str, flags: &[&str]) -> PathBuf {
 fn backward_json(dir: &Path, flags: &[&str]) -> serde_json::Value {
     let out = ok(clv(&[&["backward", dir.to_str().unwrap(), "--quiet", "--json"], flags].concat()));
     serde_json::from_slice(&out.stdout).unwrap()
-}
-
-/// Frames of a file, in time order.
-fn frames(path: &Path) -> Vec<Frame> {
-    let mut all = Vec::new();
-    let (_, damage) = read_frames(path, |f| {
-        all.push(f);
-        Ok(Flow::Continue)
-    })
-    .unwrap();
-    assert!(damage.is_none(), "{damage:?}");
-    all.sort_by_key(|f| f.step);
-    all
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {

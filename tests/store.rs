@@ -1,63 +1,20 @@
 //! The run store under normal use and under faults: round trips, SIGKILL at random points
 //! followed by --resume, truncated and corrupted segments, and MCAP validity.
 
+mod common;
 use clv::config::{RunConfig, SystemConfig};
 use clv::rng::Rng;
-use clv::stage::forward::{Forward, ForwardState};
-use clv::store::records::{decode_r, Checkpoint, Stats};
-use clv::store::schema::{CHECKPOINT, R, STATS};
-use clv::store::segment::read_segment;
+use clv::stage::forward::Forward;
+use clv::store::records::Checkpoint;
 use clv::store::RunDir;
+use common::{clv, contents, copy_dir, Contents};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::Duration;
 
-fn clv(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_clv")).args(args).output().unwrap()
-}
-
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-/// Everything a run directory holds that must be bit-identical between runs (decoded
-/// numbers, not file bytes: zstd output may differ), keyed by segment file and step.
-#[derive(Debug, PartialEq)]
-struct Contents {
-    files: Vec<String>,
-    checkpoints: BTreeMap<u64, ForwardState>,
-    rs: BTreeMap<u64, Vec<f64>>,
-    /// Stats without the wall-clock time (energy as bits: NaN for maps).
-    stats: BTreeMap<u64, (Vec<f64>, u64, u64)>,
-    exponents: Vec<f64>,
-}
-
-fn contents(dir: &Path) -> Contents {
-    let run = RunDir { path: dir.to_path_buf() };
-    let mut c = Contents { files: vec![], checkpoints: BTreeMap::new(), rs: BTreeMap::new(), stats: BTreeMap::new(), exponents: vec![] };
-    for seg in run.segments().unwrap() {
-        c.files.push(seg.path.file_name().unwrap().to_string_lossy().into());
-        read_segment(&seg.path, clv::store::segment::ReadMode::Strict, |m| {
-            if m.topic == CHECKPOINT.topic {
-                c.checkpoints.insert(m.step, Checkpoint::decode(m.data).unwrap().state);
-            } else if m.topic == R.topic {
-                let (_, r) = decode_r(m.data).unwrap();
-                c.rs.insert(m.step, clv::linalg::pack_upper(r.as_ref()));
-            } else if m.topic == STATS.topic {
-                let s = Stats::decode(m.data).unwrap();
-                c.stats.insert(m.step, (s.exponents, s.energy.to_bits(), s.collisions));
-            }
-            Ok(())
-        })
-        .unwrap();
-    }
-    let spectrum: serde_json::Value = serde_json::from_slice(&std::fs::read(run.spectrum_path()).unwrap()).unwrap();
-    c.exponents = serde_json::from_value(spectrum["exponents"].clone()).unwrap();
-    c
+    common::scratch("store", name)
 }
 
 const RUN: [&str; 16] = [
@@ -182,14 +139,6 @@ fn damage(path: &Path, rng: &mut Rng, truncate: bool) -> String {
     }
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    let _ = std::fs::remove_dir_all(to);
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap().flatten() {
-        std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
-    }
-}
-
 #[test]
 fn damaged_segments_are_named_and_resume_falls_back() {
     let (dir, want) = reference();
@@ -225,7 +174,7 @@ fn damaged_segments_are_named_and_resume_falls_back() {
 
 #[test]
 fn files_are_valid_mcap_for_the_crate_reader_with_embedded_schemas() {
-    let (dir, want) = reference();
+    let (dir, _) = reference();
     let run = RunDir { path: dir.clone() };
     let seg = &run.segments().unwrap()[0];
     let bytes = std::fs::read(&seg.path).unwrap();
