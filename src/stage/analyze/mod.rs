@@ -11,13 +11,16 @@
 //! The pure numerics live in [`kernels`]; the files next to this one turn them into
 //! consumers, tables (CSV, JSON) and figures (PNG, SVG).
 
+pub mod henon;
 pub mod kernels;
 pub mod local_exponents;
 pub mod localization;
+pub mod modes;
 pub mod nullspace;
 pub mod overlaps;
 pub mod projections;
 pub mod spectrum;
+pub mod transversality;
 
 use super::frame::Frame;
 use crate::error::{Error, Result};
@@ -152,7 +155,17 @@ type Maker = fn(&Context) -> Option<Box<dyn Analysis>>;
 
 /// Every analysis that applies to this context (each decides for itself).
 pub fn registry(ctx: &Context) -> Vec<Box<dyn Analysis>> {
-    const MAKERS: &[Maker] = &[spectrum::new, localization::new, overlaps::new, projections::new, nullspace::new, local_exponents::new];
+    const MAKERS: &[Maker] = &[
+        spectrum::new,
+        localization::new,
+        overlaps::new,
+        projections::new,
+        nullspace::new,
+        local_exponents::new,
+        modes::new,
+        transversality::new,
+        henon::new,
+    ];
     MAKERS.iter().filter_map(|make| make(ctx)).collect()
 }
 

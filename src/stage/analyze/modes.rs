@@ -1,0 +1,917 @@
+//! Lyapunov modes (paper Sec. 5.5: Table IV and Figs. 10, 11, 12; hard disks only).
+//!
+//! 1. The degenerate steps of the forward Gram-Schmidt spectrum next to the null space are
+//!    found from the GS exponents and their standard errors carried by the frame stream
+//!    (neighbours equal within [`STEP_TOL`] combined standard errors; two-fold steps are
+//!    T candidates, four-fold steps LP candidates; paper Fig. 8). The four exponents of an LP
+//!    mode of a finite system are not exactly equal, so with small standard errors the test
+//!    may split an LP quadruplet into a pair and singletons: a two-fold step whose vectors
+//!    classify as L, P or LP at the first frame is widened to the four-fold block around it
+//!    that the LP(n_x, 0) basis explains best ([`resolve_steps`]; marked in the table).
+//! 2. Every step is classified in every (sampled) frame by projecting the position part of
+//!    its GS vectors (the paper classifies with GS vectors; CLVs when the frames carry no GS
+//!    vectors) onto the orthonormalised Table IV bases T, L, P, LP (n_x, 0),
+//!    k = 2 pi n_x / L_x, n_x = 1..=[`MAX_N`]. The table reports the majority class, its mean
+//!    fraction for GS and CLV groups, and the share of frames that agree.
+//! 3. T modes (Fig. 10): dq_y and dp_y of one vector of the pair against q_x at one frame,
+//!    GS and CLV, with the least-squares fit A cos(k x + phi); amplitudes and rms residuals
+//!    of the fits of both vectors, averaged over frames, are tabulated.
+//! 4. LP modes (Figs. 11, 12): the pure L and P vectors are reconstructed inside the
+//!    four-dimensional GS and CLV groups at one frame from the position (Fig. 11, sine
+//!    patterns) and the momentum perturbations (Fig. 12, cosine patterns); for P the disk
+//!    momenta are divided out.
+//!
+//! Small systems may have few or no modes: the table is then empty and says so.
+
+use super::kernels::modes::{self as km, ModeKind, ModeMatch, Part, SineFit, Step};
+use super::kernels::vecset;
+use super::{save_figure, write_csv, Analysis, Context, Mean, Produced};
+use crate::error::{Error, Result};
+use crate::report::plot::{Figure, Marker};
+use crate::stage::frame::Frame;
+use serde::Serialize;
+use std::path::Path;
+
+/// Largest number of periods n_x tried by the classification.
+pub const MAX_N: usize = 4;
+/// Neighbouring exponents within this many combined standard errors form a step.
+pub const STEP_TOL: f64 = 3.0;
+/// Candidate kinds in the order of [`km::mode_fractions`].
+const KINDS: [ModeKind; 4] = [ModeKind::T, ModeKind::L, ModeKind::P, ModeKind::LP];
+/// Fit values per (source, vector, n_x): amplitude, residual, residual/amplitude for dq_y
+/// and for dp_y.
+const FIT_VALUES: usize = 6;
+
+/// How many indices on either side of the null space are searched for mode steps: the
+/// paper's N = 198 system has 18 mode indices per side (T and LP for n_x = 1, 2, 3).
+pub fn step_window(d: usize) -> usize {
+    (d / 16).max(8)
+}
+
+/// The 2- and 4-fold steps of the forward GS spectrum next to the null space (both sides),
+/// or why there are none to look for.
+pub fn detect_steps(ctx: &Context) -> std::result::Result<Vec<Step>, String> {
+    if ctx.k != ctx.d || ctx.d < 8 {
+        return Err(format!("mode detection needs all D = {} vectors and exponents; the frames carry {}", ctx.d, ctx.k));
+    }
+    let Some(gs) = &ctx.gs else {
+        return Err("the frame stream carries no forward GS spectrum to find the degenerate steps in".into());
+    };
+    if gs.exponents.len() != ctx.d || gs.stderr.len() != ctx.d {
+        return Err(format!("the GS spectrum has {} exponents, expected D = {}", gs.exponents.len(), ctx.d));
+    }
+    Ok(km::mode_steps(&gs.exponents, &gs.stderr, STEP_TOL, step_window(ctx.d)))
+}
+
+/// The steps to analyse, fixed at the first frame: `detected` (from [`detect_steps`]) with
+/// every two-fold step whose vectors classify as L, P or LP (half of an LP quadruplet split
+/// by the statistical test) widened to the four-fold block containing it, on the same side of
+/// the null space and overlapping no other step, whose vectors have the largest fraction in
+/// the LP(n_x, 0) span. The flag marks widened steps. Exponent means are recomputed from
+/// `exponents` (the GS spectrum).
+pub fn resolve_steps(detected: &[Step], frame: &Frame, lx: f64, exponents: &[f64]) -> Vec<(Step, bool)> {
+    let d = frame.d;
+    let (null_lo, null_hi) = (d / 2 - 3, d / 2 + 3);
+    let set = frame.g.as_deref().unwrap_or(&frame.v);
+    let mut out: Vec<(Step, bool)> = Vec::new();
+    for (i, step) in detected.iter().enumerate() {
+        let widened = match classify_step(frame, step, lx) {
+            Some(m) if step.len == 2 && m.kind != ModeKind::T => {
+                let free = |c: &Step| {
+                    let side = c.start + c.len <= null_lo || c.start >= null_hi;
+                    let clear = detected.iter().enumerate().all(|(j, o)| j == i || o.start >= c.start + c.len || c.start >= o.start + o.len);
+                    side && c.start + c.len <= d && clear
+                };
+                (step.start.saturating_sub(2)..=step.start)
+                    .map(|start| Step { start, len: 4, mean: exponents[start..start + 4].iter().sum::<f64>() / 4.0 })
+                    .filter(|c| free(c))
+                    .map(|c| {
+                        let lp = km::mode_fractions(group(set, d, &c), &frame.phase, lx, Part::Position, m.n_x)
+                            .into_iter()
+                            .find(|f| f.kind == ModeKind::LP && f.n_x == m.n_x)
+                            .map_or(f64::NAN, |f| f.fraction);
+                        (c, lp)
+                    })
+                    .filter(|(_, lp)| lp.is_finite())
+                    .max_by(|a, b| a.1.total_cmp(&b.1))
+                    .map(|(c, _)| c)
+            }
+            _ => None,
+        };
+        out.push(match widened {
+            Some(c) => (c, true),
+            None => (*step, false),
+        });
+    }
+    out
+}
+
+/// True for a step on the positive side of the null space (an unstable mode).
+pub fn is_positive(step: &Step, d: usize) -> bool {
+    step.start + step.len <= d / 2 - 3
+}
+
+/// The step's vectors (column-major D x len) out of a full set.
+pub fn group<'a>(set: &'a [f64], d: usize, step: &Step) -> &'a [f64] {
+    &set[step.start * d..(step.start + step.len) * d]
+}
+
+/// Best Table IV match of a step in one frame, by its GS vectors if the frame has them, else
+/// by its CLVs (paper Sec. 5.5: GS-based classification of the position perturbations).
+pub fn classify_step(frame: &Frame, step: &Step, lx: f64) -> Option<ModeMatch> {
+    let set = frame.g.as_deref().unwrap_or(&frame.v);
+    km::classify_mode(group(set, frame.d, step), &frame.phase, lx, Part::Position, MAX_N)
+}
+
+/// "T(1,0)", "LP(2,0)", ...
+pub fn mode_name(kind: ModeKind, n_x: usize) -> String {
+    format!("{kind:?}({n_x},0)")
+}
+
+/// Whether a class is what the step's degeneracy suggests (2: T; 4: L, P or LP).
+pub fn matches_degeneracy(step: &Step, kind: ModeKind) -> bool {
+    match step.len {
+        2 => kind == ModeKind::T,
+        4 => kind != ModeKind::T,
+        _ => false,
+    }
+}
+
+fn candidate(kind: ModeKind, n_x: usize) -> usize {
+    (n_x - 1) * KINDS.len() + KINDS.iter().position(|&k| k == kind).expect("kind")
+}
+
+fn candidate_of(c: usize) -> (ModeKind, usize) {
+    (KINDS[c % KINDS.len()], c / KINDS.len() + 1)
+}
+
+/// Write a CSV whose cells are already formatted (text columns such as mode names); cells
+/// with commas or quotes are quoted (RFC 4180).
+pub(super) fn write_text_csv(path: &Path, header: &[&str], rows: &[Vec<String>]) -> Result<()> {
+    let quote = |c: &str| if c.contains([',', '"', '\n']) { format!("\"{}\"", c.replace('"', "\"\"")) } else { c.to_string() };
+    let line = |cells: Vec<String>| cells.join(",") + "\n";
+    let mut s = line(header.iter().map(|c| quote(c)).collect());
+    for row in rows {
+        s += &line(row.iter().map(|c| quote(c)).collect());
+    }
+    std::fs::write(path, s).map_err(|e| Error::io(path, e))
+}
+
+struct StepAcc {
+    step: Step,
+    /// Widened from a two-fold step by [`resolve_steps`].
+    widened: bool,
+    /// Mean fractions of every candidate (order of `candidate`) for the GS and CLV groups.
+    gs: Mean,
+    clv: Mean,
+    /// Per-frame winners of the classification.
+    votes: Vec<u64>,
+    /// Two-fold steps: sine fits of every vector for every n_x, [source][vector][n_x][value].
+    fits: Option<Mean>,
+}
+
+pub struct Modes {
+    ctx: Context,
+    /// The detected steps, or why there are none.
+    detected: std::result::Result<Vec<Step>, String>,
+    /// The resolved steps with their accumulators, from the first frame on.
+    steps: Vec<StepAcc>,
+    /// The frame of the pattern figures (the first one consumed).
+    shown: Option<Frame>,
+}
+
+pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
+    if !ctx.is_disks() {
+        return None;
+    }
+    Some(Box::new(Modes { ctx: ctx.clone(), detected: detect_steps(ctx), steps: Vec::new(), shown: None }))
+}
+
+/// The row of the mode table (modes.csv, modes.json).
+#[derive(Clone, Debug, Serialize)]
+pub struct ModeRow {
+    /// "+" below the null space (positive exponents), "-" above it.
+    pub side: String,
+    /// Paper (1-based) indices of the first and last exponent of the step.
+    pub first: usize,
+    pub last: usize,
+    /// 2 or 4.
+    pub degeneracy: usize,
+    /// "degenerate" (equal exponents within the tolerance) or "widened" (a two-fold step
+    /// classified L/P/LP, widened to four by [`resolve_steps`]).
+    pub detection: String,
+    /// Mean forward GS exponent of the step.
+    pub lambda: f64,
+    /// Majority class over the frames ("T", "L", "P", "LP"; "-" if unclassified).
+    pub kind: String,
+    pub n_x: usize,
+    pub name: String,
+    /// Mean fraction (over frames) of the normalised position parts of the step's GS
+    /// (resp. CLV) vectors in the span of the majority candidate's basis.
+    pub fraction_gs: Option<f64>,
+    pub fraction_clv: Option<f64>,
+    /// Share of frames whose own best candidate is the majority one.
+    pub agreement: f64,
+    /// The class agrees with the degeneracy (2: T, 4: L/P/LP).
+    pub consistent: bool,
+    pub frames: u64,
+}
+
+fn finite(x: f64) -> Option<f64> {
+    x.is_finite().then_some(x)
+}
+
+fn fmt(x: f64) -> String {
+    if x.is_finite() { format!("{x:e}") } else { "nan".into() }
+}
+
+impl Analysis for Modes {
+    fn name(&self) -> &'static str {
+        "modes"
+    }
+
+    fn consume(&mut self, frame: &Frame) -> Result<()> {
+        let Ok(detected) = self.detected.as_ref() else {
+            return Ok(());
+        };
+        let (d, lx) = (frame.d, self.ctx.lx);
+        if self.shown.is_none() {
+            self.shown = Some(frame.clone());
+            let exponents = self.ctx.gs.as_ref().map(|g| g.exponents.as_slice()).unwrap_or_default();
+            let candidates = MAX_N * KINDS.len();
+            self.steps = resolve_steps(detected, frame, lx, exponents)
+                .into_iter()
+                .map(|(step, widened)| StepAcc {
+                    step,
+                    widened,
+                    gs: Mean::new(candidates),
+                    clv: Mean::new(candidates),
+                    votes: vec![0; candidates],
+                    fits: (step.len == 2).then(|| Mean::new(2 * step.len * MAX_N * FIT_VALUES)),
+                })
+                .collect();
+        }
+        let steps = &mut self.steps;
+        let fractions = |set: &[f64]| km::mode_fractions(set, &frame.phase, lx, Part::Position, MAX_N).into_iter().map(|m| m.fraction).collect::<Vec<_>>();
+        for acc in steps.iter_mut() {
+            let clv = group(&frame.v, d, &acc.step);
+            let gs = frame.g.as_deref().map(|g| group(g, d, &acc.step));
+            if let Some(m) = classify_step(frame, &acc.step, lx) {
+                acc.votes[candidate(m.kind, m.n_x)] += 1;
+            }
+            acc.clv.add(fractions(clv));
+            if let Some(gs) = gs {
+                acc.gs.add(fractions(gs));
+            }
+            if let Some(fits) = acc.fits.as_mut() {
+                let mut row = Vec::with_capacity(2 * acc.step.len * MAX_N * FIT_VALUES);
+                for set in [gs, Some(clv)] {
+                    for j in 0..acc.step.len {
+                        for n_x in 1..=MAX_N {
+                            match set {
+                                Some(set) => {
+                                    let (q, p) = km::fit_transverse(vecset::col(set, d, j), &frame.phase, lx, n_x);
+                                    row.extend([q.amplitude, q.residual, q.residual / q.amplitude, p.amplitude, p.residual, p.residual / p.amplitude]);
+                                }
+                                None => row.extend([f64::NAN; FIT_VALUES]),
+                            }
+                        }
+                    }
+                }
+                fits.add(row);
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
+        let ctx = &self.ctx;
+        let d = ctx.d;
+        let why = self.detected.as_ref().err().cloned();
+        let steps = &self.steps;
+        let source = if ctx.with_gs { "GS vectors" } else { "covariant vectors (the frames carry no GS vectors)" };
+        let mut rows = Vec::new();
+        let mut chosen = Vec::new();
+        for acc in steps {
+            let (gs, clv) = (acc.gs.mean(), acc.clv.mean());
+            // majority vote; ties go to the lower n_x
+            let best = (0..acc.votes.len()).filter(|&c| acc.votes[c] > 0).max_by_key(|&c| (acc.votes[c], std::cmp::Reverse(c)));
+            let (kind, n_x) = best.map(candidate_of).map_or((None, 0), |(k, n)| (Some(k), n));
+            let pick = |m: &Mean, v: &[f64]| best.filter(|_| m.n > 0).and_then(|c| finite(v[c]));
+            let lambda = ctx.gs.as_ref().map_or(f64::NAN, |g| g.exponents[acc.step.start..acc.step.start + acc.step.len].iter().sum::<f64>() / acc.step.len as f64);
+            rows.push(ModeRow {
+                side: if is_positive(&acc.step, d) { "+".into() } else { "-".into() },
+                first: acc.step.start + 1,
+                last: acc.step.start + acc.step.len,
+                degeneracy: acc.step.len,
+                detection: if acc.widened { "widened".into() } else { "degenerate".into() },
+                lambda,
+                kind: kind.map_or("-".into(), |k| format!("{k:?}")),
+                n_x,
+                name: kind.map_or("unclassified".into(), |k| mode_name(k, n_x)),
+                fraction_gs: pick(&acc.gs, &gs),
+                fraction_clv: pick(&acc.clv, &clv),
+                agreement: best.map_or(0.0, |c| acc.votes[c] as f64 / frames.max(1) as f64),
+                consistent: kind.is_some_and(|k| matches_degeneracy(&acc.step, k)),
+                frames,
+            });
+            chosen.push(kind.map(|k| (k, n_x)));
+        }
+
+        // The mode table.
+        let header = ["side", "first", "last", "degeneracy", "detection", "lambda", "kind", "n_x", "name", "fraction_gs", "fraction_clv", "agreement", "consistent", "frames"];
+        let text: Vec<Vec<String>> = rows
+            .iter()
+            .map(|r| {
+                vec![
+                    r.side.clone(),
+                    r.first.to_string(),
+                    r.last.to_string(),
+                    r.degeneracy.to_string(),
+                    r.detection.clone(),
+                    fmt(r.lambda),
+                    r.kind.clone(),
+                    r.n_x.to_string(),
+                    r.name.clone(),
+                    fmt(r.fraction_gs.unwrap_or(f64::NAN)),
+                    fmt(r.fraction_clv.unwrap_or(f64::NAN)),
+                    fmt(r.agreement),
+                    r.consistent.to_string(),
+                    r.frames.to_string(),
+                ]
+            })
+            .collect();
+        write_text_csv(&out.join("modes.csv"), &header, &text)?;
+        let json = serde_json::json!({
+            "source": source,
+            "frames": frames,
+            "step_tolerance": STEP_TOL,
+            "window": step_window(d),
+            "max_n": MAX_N,
+            "note": why,
+            "modes": rows,
+        });
+        let path = out.join("modes.json");
+        std::fs::write(&path, serde_json::to_vec_pretty(&json).unwrap_or_default()).map_err(|e| Error::io(&path, e))?;
+
+        // Averaged sine fits of the two-fold steps classified T.
+        let mut fit_rows = Vec::new();
+        for (acc, c) in steps.iter().zip(&chosen) {
+            let (Some(fits), Some((ModeKind::T, n_x))) = (acc.fits.as_ref(), c) else { continue };
+            let mean = fits.mean();
+            for (s, src) in ["GS", "CLV"].into_iter().enumerate() {
+                for j in 0..acc.step.len {
+                    let at = ((s * acc.step.len + j) * MAX_N + (n_x - 1)) * FIT_VALUES;
+                    let v = &mean[at..at + FIT_VALUES];
+                    if v.iter().all(|x| x.is_nan()) {
+                        continue;
+                    }
+                    let mut row = vec![(acc.step.start + 1).to_string(), (acc.step.start + acc.step.len).to_string(), (acc.step.start + j + 1).to_string(), src.into(), n_x.to_string(), "mean".into()];
+                    row.extend(v.iter().map(|&x| fmt(x)));
+                    fit_rows.push(row);
+                }
+            }
+        }
+
+        let mut produced = Vec::new();
+        let mut tables = vec!["modes.csv".to_string(), "modes.json".to_string()];
+        let shown = self.shown.as_ref();
+        let mut pattern_entries = Vec::new();
+        let mut lp_rows = Vec::new();
+        for (acc, c) in steps.iter().zip(&chosen) {
+            let (Some(frame), Some((kind, n_x))) = (shown, *c) else { continue };
+            if !is_positive(&acc.step, d) || !matches_degeneracy(&acc.step, kind) {
+                continue;
+            }
+            if kind == ModeKind::T {
+                let (entry, rows) = transverse_figures(ctx, frame, &acc.step, n_x, out)?;
+                fit_rows.extend(rows);
+                pattern_entries.push(entry);
+            } else {
+                let (entry, rows) = lp_figures(ctx, frame, &acc.step, n_x, out)?;
+                lp_rows.extend(rows);
+                pattern_entries.push(entry);
+            }
+        }
+        if !fit_rows.is_empty() {
+            let header = ["first", "last", "i", "source", "n_x", "scope", "amp_dqy", "resid_dqy", "rel_resid_dqy", "amp_dpy", "resid_dpy", "rel_resid_dpy"];
+            write_text_csv(&out.join("modes_fits.csv"), &header, &fit_rows)?;
+            tables.push("modes_fits.csv".into());
+        }
+        if !lp_rows.is_empty() {
+            let header = ["first", "last", "n_x", "source", "figure", "pattern", "overlap", "amplitude", "phase", "residual"];
+            write_text_csv(&out.join("modes_lp.csv"), &header, &lp_rows)?;
+            tables.push("modes_lp.csv".into());
+        }
+
+        let found: Vec<String> = rows
+            .iter()
+            .map(|r| format!("{} at i = {}..{} ({}-fold{}, λ = {:.4}, fraction {:.2}, {:.0}% of frames agree)", r.name, r.first, r.last, r.degeneracy, if r.detection == "widened" { ", widened" } else { "" }, r.lambda, r.fraction_gs.or(r.fraction_clv).unwrap_or(f64::NAN), 100.0 * r.agreement))
+            .collect();
+        let caption = match (&why, found.is_empty()) {
+            (Some(why), _) => format!("No mode table: {why}."),
+            (None, true) => format!(
+                "No 2- or 4-fold degenerate steps (neighbours equal within {STEP_TOL} combined standard errors) within {} indices of the null space in the forward GS spectrum: this system shows no Lyapunov modes at this precision. The table is empty.",
+                step_window(d)
+            ),
+            (None, false) => format!(
+                "Degenerate steps of the forward GS spectrum within {} indices of the null space (neighbours equal within {STEP_TOL} combined standard errors; a pair classified L/P/LP is widened to the four-fold block the LP basis explains best), classified in each of {frames} frames by projecting the position perturbations of their {source} onto the orthonormalised Table IV bases T, L, P, LP (n_x, 0), k = 2π n_x/L_x, n_x ≤ {MAX_N}; majority class, mean fraction of the group in its span. Found: {}.",
+                step_window(d),
+                found.join("; ")
+            ),
+        };
+        produced.push(Produced { title: "Lyapunov modes (Table IV)".into(), caption, figures: vec![], tables });
+        produced.extend(pattern_entries);
+        Ok(produced)
+    }
+}
+
+/// q_x of every disk, wrapped into [0, L_x).
+fn wrapped_x(phase: &[f64], lx: f64) -> Vec<f64> {
+    km::component(phase, Part::Position, 0).into_iter().map(|x| x.rem_euclid(lx)).collect()
+}
+
+/// The curve amplitude cos(k x + phase) on a fine grid over [0, L_x].
+fn fit_curve(fit: &SineFit, k: f64, lx: f64) -> (Vec<f64>, Vec<f64>) {
+    let x: Vec<f64> = (0..=200).map(|i| lx * i as f64 / 200.0).collect();
+    let y = x.iter().map(|&x| fit.amplitude * (k * x + fit.phase).cos()).collect();
+    (x, y)
+}
+
+/// A scatter figure of per-disk values against q_x with sine-fit curves.
+fn pattern_figure(title: &str, y_label: &str, x: &[f64], points: &[(String, Vec<f64>)], fits: &[(String, SineFit)], k: f64, lx: f64) -> Figure {
+    let mut fig = Figure::new(title).x_label("q_x").y_label(y_label).x_range(0.0, lx);
+    for (label, y) in points {
+        fig.series(label, x, y, Marker::Points);
+    }
+    for (label, fit) in fits {
+        if fit.amplitude.is_finite() {
+            let (cx, cy) = fit_curve(fit, k, lx);
+            fig.series(label, &cx, &cy, Marker::Line);
+        }
+    }
+    fig.hline(0.0);
+    fig
+}
+
+/// Columns of per-disk values (the first is q_x), written as one CSV.
+struct Columns(Vec<(String, Vec<f64>)>);
+
+impl Columns {
+    fn push(&mut self, name: String, y: &[f64]) {
+        self.0.push((name, y.to_vec()));
+    }
+    fn write(&self, path: &Path) -> Result<()> {
+        let header: Vec<&str> = self.0.iter().map(|(c, _)| c.as_str()).collect();
+        let n = self.0.first().map_or(0, |c| c.1.len());
+        write_csv(path, &header, (0..n).map(|r| self.0.iter().map(|(_, c)| c[r]).collect()))
+    }
+}
+
+fn fit_cells(fit: &[SineFit; 2]) -> Vec<String> {
+    fit.iter().flat_map(|f| [f.amplitude, f.residual, f.residual / f.amplitude]).map(fmt).collect()
+}
+
+/// Fig. 10 for one T step: dq_y and dp_y of its last vector (the one nearest the null space,
+/// as the paper's i = 393 for T(1,0)) against q_x, GS and CLV, with fits.
+fn transverse_figures(ctx: &Context, frame: &Frame, step: &Step, n_x: usize, out: &Path) -> Result<(Produced, Vec<Vec<String>>)> {
+    let lx = ctx.lx;
+    let i = step.start + step.len - 1;
+    let k = km::wave_number(n_x, lx);
+    let x = wrapped_x(&frame.phase, lx);
+    let gs = frame.g(i);
+    // the sign of a vector is arbitrary: show the CLV with the sign that best matches g^i
+    let sign = gs.map_or(1.0, |g| if vecset::dot(g, frame.v(i)) < 0.0 { -1.0 } else { 1.0 });
+    let clv: Vec<f64> = frame.v(i).iter().map(|x| sign * x).collect();
+    let mut sources: Vec<(&str, &[f64])> = Vec::new();
+    if let Some(g) = gs {
+        sources.push(("GS", g));
+    }
+    sources.push(("CLV", &clv));
+    let name = mode_name(ModeKind::T, n_x);
+    let stem = format!("fig10_T{n_x}_i{}", i + 1);
+    let mut rows = Vec::new();
+    let mut columns = Columns(vec![("q_x".into(), x.clone())]);
+    let mut figs = Vec::new();
+    for (part, comp, label) in [(Part::Position, "dqy", "δq_y"), (Part::Momentum, "dpy", "δp_y")] {
+        let mut points = Vec::new();
+        let mut fits = Vec::new();
+        for &(src, v) in &sources {
+            let y = km::component(v, part, 1);
+            let fit = km::fit_sine(&x, &y, k);
+            fits.push((format!("{src} fit: A = {:.3}, rms residual {:.3}", fit.amplitude, fit.residual), fit));
+            columns.push(format!("{comp}_{}", src.to_lowercase()), &y);
+            points.push((src.to_string(), y));
+        }
+        let title = format!("{name}, i = {}: {label} against q_x (step {})", i + 1, frame.step);
+        let fstem = format!("{stem}_{comp}");
+        save_figure(&pattern_figure(&title, label, &x, &points, &fits, k, lx), out, &fstem)?;
+        figs.push(fstem);
+    }
+    for &(src, v) in &sources {
+        let (q, p) = km::fit_transverse(v, &frame.phase, lx, n_x);
+        let mut row = vec![(step.start + 1).to_string(), (step.start + step.len).to_string(), (i + 1).to_string(), src.into(), n_x.to_string(), format!("step {}", frame.step)];
+        row.extend(fit_cells(&[q, p]));
+        rows.push(row);
+    }
+    columns.write(&out.join(format!("{stem}.csv")))?;
+    Ok((
+        Produced {
+            title: format!("Transverse mode {name} (Fig. 10)"),
+            caption: format!(
+                "Position (δq_y) and momentum (δp_y) perturbations of vector i = {} of the {name} pair (i = {}..{}) against q_x at step {}, for the {}, with least-squares fits A cos(kx + φ), k = 2π·{n_x}/L_x. Fits of both vectors of the pair averaged over the frames are in modes_fits.csv.",
+                i + 1,
+                step.start + 1,
+                step.start + step.len,
+                frame.step,
+                if gs.is_some() { "GS vector and the covariant vector (sign matched to the GS vector)" } else { "covariant vector" }
+            ),
+            figures: figs,
+            tables: vec![format!("{stem}.csv"), "modes_fits.csv".into()],
+        },
+        rows,
+    ))
+}
+
+/// Figs. 11 and 12 for one LP step: pure L and P vectors reconstructed inside the GS and the
+/// CLV group from the position (sine patterns) and the momentum (cosine patterns) parts.
+fn lp_figures(ctx: &Context, frame: &Frame, step: &Step, n_x: usize, out: &Path) -> Result<(Produced, Vec<Vec<String>>)> {
+    let (d, lx) = (frame.d, ctx.lx);
+    let k = km::wave_number(n_x, lx);
+    let x = wrapped_x(&frame.phase, lx);
+    let mut sources: Vec<(&str, &[f64])> = Vec::new();
+    if let Some(g) = frame.g.as_deref() {
+        sources.push(("GS", group(g, d, step)));
+    }
+    sources.push(("CLV", group(&frame.v, d, step)));
+    let name = mode_name(ModeKind::LP, n_x);
+    let stem = format!("LP{n_x}_i{}", step.start + 1);
+    let mut rows = Vec::new();
+    let mut columns = Columns(vec![("q_x".into(), x.clone())]);
+    let mut figs = Vec::new();
+    // Fig. 11 from the position part (sine patterns), Fig. 12 from the momentum part (cosine).
+    for (fig_no, part, c, pattern) in [(11, Part::Position, 'q', "sin"), (12, Part::Momentum, 'p', "cos")] {
+        let (mut l_points, mut p_points, mut l_fits, mut p_fits) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for &(src, set) in &sources {
+            let rec = km::reconstruct_lp(set, &frame.phase, lx, n_x, part);
+            let (l, p) = if part == Part::Position { (rec.l_sin, rec.p_sin) } else { (rec.l_cos, rec.p_cos) };
+            let l_x = km::component(&l.vector, part, 0);
+            let l_y = km::component(&l.vector, part, 1);
+            let p_f = km::divide_out_momenta(km::part_of(&p.vector, part), &frame.phase);
+            let (lfit, pfit) = (km::fit_sine(&x, &l_x, k), km::fit_sine(&x, &p_f, k));
+            for (which, overlap, fit) in [("L", l.overlap, lfit), ("P", p.overlap, pfit)] {
+                rows.push(vec![
+                    (step.start + 1).to_string(),
+                    (step.start + step.len).to_string(),
+                    n_x.to_string(),
+                    src.into(),
+                    fig_no.to_string(),
+                    format!("{which}_{pattern}"),
+                    fmt(overlap),
+                    fmt(fit.amplitude),
+                    fmt(fit.phase),
+                    fmt(fit.residual),
+                ]);
+            }
+            let s = src.to_lowercase();
+            columns.push(format!("fig{fig_no}_L_d{c}x_{s}"), &l_x);
+            columns.push(format!("fig{fig_no}_L_d{c}y_{s}"), &l_y);
+            columns.push(format!("fig{fig_no}_P_d{c}_over_p_{s}"), &p_f);
+            l_points.push((format!("{src} δ{c}_x"), l_x));
+            l_points.push((format!("{src} δ{c}_y (vanishes)"), l_y));
+            p_points.push((format!("{src} (δ{c}·p)/p²"), p_f));
+            l_fits.push((format!("{src} fit: A = {:.3}", lfit.amplitude), lfit));
+            p_fits.push((format!("{src} fit: A = {:.3}", pfit.amplitude), pfit));
+        }
+        let what = if part == Part::Position { "position" } else { "momentum" };
+        for (which, points, fits, y_label) in [("L", &l_points, &l_fits, format!("δ{c}")), ("P", &p_points, &p_fits, format!("(δ{c}·p)/p²"))] {
+            let title = format!("{name}: pure {which} ({pattern} pattern) from the {what} perturbations, step {}", frame.step);
+            let fstem = format!("fig{fig_no}_{stem}_{which}");
+            save_figure(&pattern_figure(&title, &y_label, &x, points, fits, k, lx), out, &fstem)?;
+            figs.push(fstem);
+        }
+    }
+    columns.write(&out.join(format!("{stem}.csv")))?;
+    Ok((
+        Produced {
+            title: format!("Longitudinal-momentum mode {name} (Figs. 11, 12)"),
+            caption: format!(
+                "Pure L and P vectors reconstructed at step {} inside the four-dimensional {} of {name} (i = {}..{}) by least squares against the Table IV patterns: Fig. 11 from the position perturbations (sine patterns: δq_x of L, with δq_y as a check that it vanishes, and (δq·p)/p² of P, the momenta divided out), Fig. 12 likewise from the momentum perturbations (cosine patterns). Overlaps and sine fits are in modes_lp.csv.",
+                frame.step,
+                if frame.g.is_some() { "GS and covariant subspaces" } else { "covariant subspace" },
+                step.start + 1,
+                step.start + step.len
+            ),
+            figures: figs,
+            tables: vec![format!("{stem}.csv"), "modes_lp.csv".into()],
+        },
+        rows,
+    ))
+}
+
+/// Synthetic contexts and frames for the unit tests of the analyses in this directory.
+#[cfg(test)]
+pub(super) mod testdata {
+    use super::super::{Context, Options};
+    use crate::report::SpectrumSummary;
+    use crate::stage::frame::Frame;
+    use std::path::PathBuf;
+
+    /// SplitMix64 with Box-Muller normals: deterministic test data.
+    pub struct Rng(u64);
+
+    impl Rng {
+        pub fn new(seed: u64) -> Self {
+            Rng(seed)
+        }
+        pub fn uniform(&mut self) -> f64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+        }
+        pub fn normal(&mut self) -> f64 {
+            let (u, v) = (1.0 - self.uniform(), self.uniform());
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        }
+    }
+
+    pub fn unit(mut v: Vec<f64>) -> Vec<f64> {
+        let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        v.iter_mut().for_each(|x| *x /= n);
+        v
+    }
+
+    /// Random disk positions in the box and momenta (paper ordering), 4N values.
+    pub fn phase(n: usize, lx: f64, ly: f64, rng: &mut Rng) -> Vec<f64> {
+        let mut g: Vec<f64> = (0..n).flat_map(|_| [lx, ly]).map(|l| l * rng.uniform()).collect();
+        g.extend((0..2 * n).map(|_| rng.normal()));
+        g
+    }
+
+    /// A full set of d random unit vectors (column-major).
+    pub fn random_set(d: usize, rng: &mut Rng) -> Vec<f64> {
+        (0..d).flat_map(|_| unit((0..d).map(|_| rng.normal()).collect())).collect()
+    }
+
+    /// Symmetric spectrum of 4N exponents with well separated values, six zeros in the null
+    /// space and, on both sides, a degenerate run of `len` exponents ending next to it.
+    pub fn spectrum(n: usize, len: usize) -> SpectrumSummary {
+        let m = 2 * n - 3;
+        let mut pos: Vec<f64> = (0..m).map(|i| 3.0 - 2.5 * i as f64 / m as f64).collect();
+        for x in &mut pos[m - len..] {
+            *x = 0.1;
+        }
+        let mut e = pos.clone();
+        e.extend([0.0; 6]);
+        e.extend(pos.iter().rev().map(|x| -x));
+        SpectrumSummary { stderr: vec![1e-3; e.len()], exponents: e }
+    }
+
+    pub fn context(system: &str, n: usize, d: usize, lx: f64, ly: f64, gs: Option<SpectrumSummary>, with_gs: bool) -> Context {
+        Context {
+            run: None,
+            gs,
+            system: system.into(),
+            d,
+            k: d,
+            n,
+            lx,
+            ly,
+            tau: if system == "henon" { 1.0 } else { 0.6 },
+            with_gs,
+            options: Options { every: 1, j: vec![1], deltas: vec![1] },
+            source: "synthetic".into(),
+        }
+    }
+
+    pub fn frame(step: u64, phase: Vec<f64>, v: Vec<f64>, g: Option<Vec<f64>>) -> Frame {
+        let d = phase.len();
+        Frame { step, time: step as f64, d, k: v.len() / d, phase, local: vec![0.0; v.len() / d], v, g }
+    }
+
+    /// A fresh output directory for one test.
+    pub fn out_dir(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("clv-analyses-b-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    /// Cells of one CSV line (double-quoted cells may contain commas).
+    pub fn split_csv(line: &str) -> Vec<String> {
+        let (mut cells, mut cell, mut quoted) = (Vec::new(), String::new(), false);
+        let mut chars = line.chars().peekable();
+        while let Some(c) = chars.next() {
+            match (c, quoted) {
+                ('"', true) if chars.peek() == Some(&'"') => {
+                    cell.push('"');
+                    chars.next();
+                }
+                ('"', _) => quoted = !quoted,
+                (',', false) => cells.push(std::mem::take(&mut cell)),
+                _ => cell.push(c),
+            }
+        }
+        cells.push(cell);
+        cells
+    }
+
+    /// Rows of a CSV file as maps from header to cell.
+    pub fn read_csv(path: &std::path::Path) -> Vec<std::collections::BTreeMap<String, String>> {
+        let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let mut lines = text.lines();
+        let header = split_csv(lines.next().unwrap());
+        lines.map(|l| header.iter().cloned().zip(split_csv(l)).collect()).collect()
+    }
+
+    pub fn is_png(path: &std::path::Path) -> bool {
+        std::fs::read(path).is_ok_and(|b| b.starts_with(b"\x89PNG\r\n\x1a\n"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::testdata::*;
+    use super::*;
+
+    const N: usize = 30;
+    const LX: f64 = 14.0;
+    const LY: f64 = 3.0;
+
+    /// Place `cols` (4N each) into a random full set at 0-based index `at` onwards.
+    fn plant(set: &mut [f64], d: usize, at: usize, cols: &[Vec<f64>]) {
+        for (j, c) in cols.iter().enumerate() {
+            set[(at + j) * d..(at + j + 1) * d].copy_from_slice(c);
+        }
+    }
+
+    /// dq = pattern (2N), dp = c dq; returns the unit vector and the factor 1/norm.
+    fn tangent(dq: &[f64], c: f64) -> (Vec<f64>, f64) {
+        let mut v = dq.to_vec();
+        v.extend(dq.iter().map(|x| c * x));
+        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        (unit(v), 1.0 / norm)
+    }
+
+    fn run(ctx: &Context, frames: &[Frame], name: &str) -> (std::path::PathBuf, Vec<Produced>) {
+        let out = out_dir(name);
+        let mut a = new(ctx).expect("disks");
+        for f in frames {
+            a.consume(f).unwrap();
+        }
+        let produced = a.finish(&out, frames.len() as u64).unwrap();
+        (out, produced)
+    }
+
+    #[test]
+    fn planted_transverse_pair_is_t2_with_the_right_amplitude() {
+        let d = 4 * N;
+        let mut rng = Rng::new(1);
+        let ctx = context("disks", N, d, LX, LY, Some(spectrum(N, 2)), true);
+        let k = km::wave_number(2, LX);
+        let (amp, phi) = (0.8, [0.3, 1.9]);
+        let mut frames = Vec::new();
+        let mut expected = Vec::new(); // per frame: amplitude of dq_y of the two vectors
+        for f in 0..3 {
+            let phase = phase(N, LX, LY, &mut rng);
+            let mut g = random_set(d, &mut rng);
+            let mut amps = Vec::new();
+            let cols: Vec<Vec<f64>> = phi
+                .iter()
+                .map(|&ph| {
+                    let mut dq = vec![0.0; 2 * N];
+                    for i in 0..N {
+                        dq[2 * i + 1] = amp * (k * phase[2 * i] + ph).cos();
+                    }
+                    let (v, scale) = tangent(&dq, 0.6);
+                    amps.push(amp * scale);
+                    v
+                })
+                .collect();
+            plant(&mut g, d, 2 * N - 5, &cols);
+            expected.push(amps);
+            let v = g.clone();
+            frames.push(frame(100 - f, phase, v, Some(g)));
+        }
+        let (out, produced) = run(&ctx, &frames, "t2");
+        let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("modes.json")).unwrap()).unwrap();
+        let modes = json["modes"].as_array().unwrap();
+        assert_eq!(modes.len(), 2, "{json}"); // the pair and its conjugate
+        let t = modes.iter().find(|m| m["side"] == "+").unwrap();
+        assert_eq!((t["first"].as_u64(), t["last"].as_u64()), (Some(2 * N as u64 - 4), Some(2 * N as u64 - 3)));
+        assert_eq!((t["kind"].as_str(), t["n_x"].as_u64(), t["consistent"].as_bool()), (Some("T"), Some(2), Some(true)));
+        assert!(t["fraction_gs"].as_f64().unwrap() > 0.999 && t["agreement"].as_f64() == Some(1.0), "{t}");
+        // averaged fits of both vectors: the planted amplitude, zero residual
+        let fits = read_csv(&out.join("modes_fits.csv"));
+        for (j, want) in (0..2).map(|j| (j, expected.iter().map(|a| a[j]).sum::<f64>() / 3.0)) {
+            let i = (2 * N - 4 + j).to_string();
+            let row = fits.iter().find(|r| r["i"] == i && r["source"] == "GS" && r["scope"] == "mean").unwrap();
+            let got: f64 = row["amp_dqy"].parse().unwrap();
+            assert!((got - want).abs() < 1e-12, "vector {i}: amplitude {got}, planted {want}");
+            assert!(row["resid_dqy"].parse::<f64>().unwrap() < 1e-12);
+            assert!((row["amp_dpy"].parse::<f64>().unwrap() - 0.6 * want).abs() < 1e-12);
+        }
+        // the Fig. 10 panels of the plotted frame
+        let stem = format!("fig10_T2_i{}", 2 * N - 3);
+        for f in ["dqy", "dpy"] {
+            assert!(is_png(&out.join(format!("{stem}_{f}.png"))));
+        }
+        let plotted = fits.iter().find(|r| r["scope"] == "step 100" && r["source"] == "CLV").unwrap();
+        assert!((plotted["amp_dqy"].parse::<f64>().unwrap() - expected[0][1]).abs() < 1e-12);
+        assert!(produced.iter().any(|p| p.figures.contains(&format!("{stem}_dqy"))));
+        assert!(produced[0].caption.contains("T(2,0)"), "{}", produced[0].caption);
+    }
+
+    #[test]
+    fn planted_lp_quadruplet_is_reconstructed() {
+        let d = 4 * N;
+        let mut rng = Rng::new(2);
+        let ctx = context("disks", N, d, LX, LY, Some(spectrum(N, 4)), false);
+        let phase = phase(N, LX, LY, &mut rng);
+        let pat = km::mode_patterns(ModeKind::LP, 1, &phase, LX);
+        let h = 2 * N;
+        // four random mixtures of the pure L, P patterns (dp = 0.7 dq)
+        let pure: Vec<Vec<f64>> = (0..4).map(|j| tangent(&pat[j * h..(j + 1) * h], 0.7).0).collect();
+        let cols: Vec<Vec<f64>> = (0..4)
+            .map(|_| {
+                let c: Vec<f64> = (0..4).map(|_| rng.normal()).collect();
+                unit((0..d).map(|r| (0..4).map(|j| c[j] * pure[j][r]).sum()).collect())
+            })
+            .collect();
+        let mut v = random_set(d, &mut rng);
+        plant(&mut v, d, 2 * N - 7, &cols);
+        let (out, produced) = run(&ctx, &[frame(7, phase, v, None)], "lp");
+        let rows = read_csv(&out.join("modes.csv"));
+        let lp = rows.iter().find(|r| r["side"] == "+").unwrap();
+        assert_eq!((lp["kind"].as_str(), lp["n_x"].as_str(), lp["degeneracy"].as_str()), ("LP", "1", "4"));
+        assert_eq!(lp["fraction_gs"], "nan"); // classified with CLVs: no GS vectors
+        assert!(lp["fraction_clv"].parse::<f64>().unwrap() > 0.999);
+        let rec = read_csv(&out.join("modes_lp.csv"));
+        assert_eq!(rec.len(), 4); // CLV only: L and P for Figs. 11 and 12
+        assert!(rec.iter().all(|r| r["overlap"].parse::<f64>().unwrap() > 0.999999), "{rec:?}");
+        for fig in ["fig11", "fig12"] {
+            for m in ["L", "P"] {
+                assert!(is_png(&out.join(format!("{fig}_LP1_i{}_{m}.png", 2 * N - 6))));
+            }
+        }
+        assert!(produced.iter().any(|p| p.title.contains("LP(1,0)")));
+        assert_eq!(lp["name"], "LP(1,0)");
+        assert!(std::fs::read_to_string(out.join("modes.csv")).unwrap().contains(",\"LP(1,0)\","));
+    }
+
+    /// Finite-N LP exponents are not exactly degenerate: only the middle pair of the planted
+    /// quadruplet passes the statistical test; the pair classifies as LP and is widened to the
+    /// planted block, for the mode table and for the transversality analysis.
+    #[test]
+    fn split_lp_quadruplet_is_widened() {
+        let d = 4 * N;
+        let mut rng = Rng::new(4);
+        let mut spec = spectrum(N, 4);
+        let at = 2 * N - 7; // 0-based first index of the planted block
+        for (i, x) in [(at, 0.13), (at + 3, 0.07), (d - 1 - at, -0.13), (d - 1 - at - 3, -0.07)] {
+            spec.exponents[i] = x;
+        }
+        let detected = km::mode_steps(&spec.exponents, &spec.stderr, STEP_TOL, step_window(d));
+        assert_eq!(detected.iter().map(|s| (s.start, s.len)).collect::<Vec<_>>(), [(at + 1, 2), (d - at - 3, 2)]);
+        let ctx = context("disks", N, d, LX, LY, Some(spec), true);
+        let phase = phase(N, LX, LY, &mut rng);
+        let pat = km::mode_patterns(ModeKind::LP, 2, &phase, LX);
+        let h = 2 * N;
+        let cols: Vec<Vec<f64>> = (0..4).map(|j| tangent(&pat[j * h..(j + 1) * h], -0.4).0).collect();
+        let mut g = random_set(d, &mut rng);
+        plant(&mut g, d, at, &cols);
+        let f = frame(3, phase, g.clone(), Some(g));
+        let (out, _) = run(&ctx, std::slice::from_ref(&f), "widened");
+        let rows = read_csv(&out.join("modes.csv"));
+        let lp = rows.iter().find(|r| r["side"] == "+").unwrap();
+        assert_eq!((lp["first"].as_str(), lp["last"].as_str()), ((at + 1).to_string().as_str(), (at + 4).to_string().as_str()));
+        assert_eq!((lp["detection"].as_str(), lp["name"].as_str(), lp["consistent"].as_str()), ("widened", "LP(2,0)", "true"));
+        assert!(lp["fraction_gs"].parse::<f64>().unwrap() > 0.999);
+        assert!((lp["lambda"].parse::<f64>().unwrap() - 0.1).abs() < 1e-12);
+        let mut t = super::super::transversality::new(&ctx).unwrap();
+        t.consume(&f).unwrap();
+        let tout = out_dir("widened-transversality");
+        t.finish(&tout, 1).unwrap();
+        let header = std::fs::read_to_string(tout.join("transversality.csv")).unwrap();
+        assert!(header.starts_with(&format!("step,psi_unstable_stable,phi_{}_{}\n", at + 1, at + 4)), "{header}");
+    }
+
+    #[test]
+    fn no_modes_gives_an_empty_table_that_says_so() {
+        let d = 4 * N;
+        let mut rng = Rng::new(3);
+        let f = frame(0, phase(N, LX, LY, &mut rng), random_set(d, &mut rng), None);
+        for (gs, name, says) in [(Some(spectrum(N, 1)), "none", "No 2- or 4-fold"), (None, "nogs", "no forward GS spectrum")] {
+            let ctx = context("disks", N, d, LX, LY, gs, false);
+            let (out, produced) = run(&ctx, std::slice::from_ref(&f), name);
+            assert_eq!(std::fs::read_to_string(out.join("modes.csv")).unwrap().lines().count(), 1);
+            let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("modes.json")).unwrap()).unwrap();
+            assert_eq!(json["modes"].as_array().map(|a| a.len()), Some(0));
+            assert_eq!(produced.len(), 1);
+            assert!(produced[0].caption.contains(says), "{}", produced[0].caption);
+        }
+        assert!(new(&context("henon", 0, 2, 0.0, 0.0, None, false)).is_none());
+    }
+}
