@@ -2,8 +2,10 @@
 //! stable manifold, and the GS and covariant vectors at one point "0".
 //!
 //! * Attractor: the phase points of all frames.
-//! * Point 0: among the middle half of the frames (in time), the one with the smallest |x|,
-//!   so that the vectors are drawn in the middle of the picture.
+//! * Point 0: among the middle half of the frames (in time) and near the middle of the
+//!   picture (|x| < 1), the one where v^1 and v^2 are closest to 45 degrees apart: near
+//!   homoclinic tangencies they nearly coincide, and where they are orthogonal g^2 = v^2, so
+//!   either extreme would hide what the figure shows (CLVs are not GS vectors).
 //! * Stable manifold through point 0: a short straight segment of half-length eps along
 //!   the stable covariant vector v^2 at the point x_n reached n steps after point 0 (its local
 //!   stable manifold, to first order), mapped n times backward with the inverse map
@@ -152,7 +154,11 @@ impl Analysis for HenonPicture {
         write_csv(&out.join("henon_attractor.csv"), &["step", "x", "y"], pts.iter().map(|p| vec![p.step as f64, p.x[0], p.x[1]]))?;
         let bounds = Bounds::of(pts.iter().map(|p| p.x), 0.15);
         let quarter = pts.len() / 4;
-        let i0 = (quarter..pts.len() - quarter).min_by(|&i, &j| pts[i].x[0].abs().total_cmp(&pts[j].x[0].abs())).unwrap_or(0);
+        let score = |p: &Point| {
+            let sine = if p.v.len() >= 4 { (p.v[0] * p.v[3] - p.v[1] * p.v[2]).abs() } else { 0.0 };
+            if p.x[0].abs() < 1.0 { -(sine - std::f64::consts::FRAC_1_SQRT_2).abs() - 0.01 * p.x[0].abs() } else { -1.0 - p.x[0].abs() }
+        };
+        let i0 = (quarter..pts.len() - quarter).max_by(|&i, &j| score(&pts[i]).total_cmp(&score(&pts[j]))).unwrap_or(0);
         let zero = &pts[i0];
 
         // Stable manifold through point 0.
