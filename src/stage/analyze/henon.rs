@@ -239,7 +239,7 @@ impl Analysis for HenonPicture {
 
 #[cfg(test)]
 mod tests {
-    use super::super::modes::testdata::*;
+    use super::super::testing::*;
     use super::*;
 
     fn step(p: [f64; 2]) -> [f64; 2] {

@@ -274,43 +274,17 @@ impl Analysis for LocalExponents {
 mod tests {
     use super::super::Options;
     use super::*;
+    use super::super::testing::{self, column, out_dir as scratch, read_table as read_csv};
 
     fn context(n: usize, j: Vec<usize>, deltas: Vec<u64>) -> Context {
-        Context {
-            run: None,
-            gs: None,
-            system: "disks".into(),
-            d: 4 * n,
-            k: 4 * n,
-            n,
-            lx: 5.0,
-            ly: 5.0,
-            tau: 0.6,
-            with_gs: false,
-            options: Options { every: 7, j, deltas },
-            source: "synthetic".into(),
-        }
+        let mut ctx = testing::context("disks", n, 4 * n, 5.0, 5.0, None, false);
+        ctx.options = Options { every: 7, j, deltas };
+        ctx
     }
 
-    fn scratch(name: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("clv-local-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
 
-    fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-        let text = std::fs::read_to_string(path).unwrap();
-        let mut lines = text.lines();
-        let header = lines.next().unwrap().split(',').map(String::from).collect();
-        let rows = lines.map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
-        (header, rows)
-    }
 
-    fn column(table: &(Vec<String>, Vec<Vec<f64>>), name: &str) -> Vec<f64> {
-        let c = table.0.iter().position(|h| h == name).unwrap_or_else(|| panic!("no {name} in {:?}", table.0));
-        table.1.iter().map(|r| r[c]).collect()
-    }
+
 
     /// Deterministic noise in [-0.5, 0.5).
     fn noise(s: u64, i: usize) -> f64 {

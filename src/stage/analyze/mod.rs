@@ -20,6 +20,8 @@ pub mod nullspace;
 pub mod overlaps;
 pub mod projections;
 pub mod spectrum;
+#[cfg(test)]
+mod testing;
 pub mod transversality;
 
 use super::frame::Frame;

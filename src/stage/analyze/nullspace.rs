@@ -188,32 +188,14 @@ impl Analysis for NullSpace {
 #[cfg(test)]
 mod tests {
     use super::super::kernels::nullspace::null_vectors;
-    use super::super::Options;
     use super::*;
+    use super::super::testing::{self, out_dir as scratch};
 
     fn context(n: usize, with_gs: bool) -> Context {
-        Context {
-            run: None,
-            gs: None,
-            system: "disks".into(),
-            d: 4 * n,
-            k: 4 * n,
-            n,
-            lx: 5.0,
-            ly: 5.0,
-            tau: 0.6,
-            with_gs,
-            options: Options { every: 1, j: vec![1], deltas: vec![1] },
-            source: "synthetic".into(),
-        }
+        testing::context("disks", n, 4 * n, 5.0, 5.0, None, with_gs)
     }
 
-    fn scratch(name: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("clv-nullspace-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
+
 
     /// A phase point of n disks with zero total momentum (so e_1..e_6 are orthonormal).
     fn phase(n: usize, seed: u64) -> Vec<f64> {

@@ -238,23 +238,14 @@ fn list(js: &[usize]) -> String {
 mod tests {
     use super::super::Options;
     use super::*;
+    use super::super::testing::{self, column, out_dir as scratch, read_table as read_csv};
 
     fn context(system: &str, n: usize, d: usize, with_gs: bool, j: Vec<usize>) -> Context {
-        Context {
-            run: None,
-            gs: None,
-            system: system.into(),
-            d,
-            k: d,
-            n,
-            lx: 5.0,
-            ly: 5.0,
-            tau: 0.6,
-            with_gs,
-            options: Options { every: 1, j, deltas: vec![1, 2] },
-            source: "synthetic".into(),
-        }
+        let mut ctx = testing::context(system, n, d, 5.0, 5.0, None, with_gs);
+        ctx.options = Options { every: 1, j, deltas: vec![1, 2] };
+        ctx
     }
+
 
     fn frame(step: u64, d: usize, v: Vec<f64>, g: Option<Vec<f64>>) -> Frame {
         let k = v.len() / d;
@@ -265,25 +256,8 @@ mod tests {
         (0..d * d).map(|x| if x % (d + 1) == 0 { 1.0 } else { 0.0 }).collect()
     }
 
-    fn scratch(name: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("clv-overlaps-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
 
-    fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-        let text = std::fs::read_to_string(path).unwrap();
-        let mut lines = text.lines();
-        let header = lines.next().unwrap().split(',').map(String::from).collect();
-        let rows = lines.map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
-        (header, rows)
-    }
 
-    fn column(table: &(Vec<String>, Vec<Vec<f64>>), name: &str) -> Vec<f64> {
-        let c = table.0.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name} in {:?}", table.0));
-        table.1.iter().map(|r| r[c]).collect()
-    }
 
     #[test]
     fn equal_sets_overlap_one_and_gs_basis_is_triangular() {

@@ -189,45 +189,16 @@ impl Analysis for Projections {
 
 #[cfg(test)]
 mod tests {
-    use super::super::Options;
     use super::*;
+    use super::super::testing::{self, column, out_dir as scratch, read_table as read_csv};
 
     fn context(n: usize, with_gs: bool) -> Context {
-        Context {
-            run: None,
-            gs: None,
-            system: "disks".into(),
-            d: 4 * n,
-            k: 4 * n,
-            n,
-            lx: 5.0,
-            ly: 5.0,
-            tau: 0.6,
-            with_gs,
-            options: Options { every: 1, j: vec![1], deltas: vec![1] },
-            source: "synthetic".into(),
-        }
+        testing::context("disks", n, 4 * n, 5.0, 5.0, None, with_gs)
     }
 
-    fn scratch(name: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("clv-projections-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
 
-    fn read_csv(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
-        let text = std::fs::read_to_string(path).unwrap();
-        let mut lines = text.lines();
-        let header = lines.next().unwrap().split(',').map(String::from).collect();
-        let rows = lines.map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
-        (header, rows)
-    }
 
-    fn column(table: &(Vec<String>, Vec<Vec<f64>>), name: &str) -> Vec<f64> {
-        let c = table.0.iter().position(|h| h == name).unwrap();
-        table.1.iter().map(|r| r[c]).collect()
-    }
+
 
     /// A unit vector of dimension d = 4N with dq = a u and dp = b w (u, w unit 2N-vectors).
     fn vector(d: usize, a: f64, u: &[f64], b: f64, w: &[f64]) -> Vec<f64> {

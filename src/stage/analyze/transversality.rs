@@ -316,7 +316,7 @@ impl Analysis for Transversality {
 
 #[cfg(test)]
 mod tests {
-    use super::super::modes::testdata::*;
+    use super::super::testing::*;
     use super::*;
 
     #[test]

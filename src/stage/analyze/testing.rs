@@ -1,0 +1,116 @@
+//! Synthetic contexts, frames and table readers shared by the unit tests of the analyses.
+
+use super::{Context, Options};
+use crate::report::SpectrumSummary;
+use crate::stage::frame::Frame;
+use std::path::PathBuf;
+
+pub use crate::rng::Rng;
+
+pub fn unit(mut v: Vec<f64>) -> Vec<f64> {
+    let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    v.iter_mut().for_each(|x| *x /= n);
+    v
+}
+
+/// Random disk positions in the box and momenta (paper ordering), 4N values.
+pub fn phase(n: usize, lx: f64, ly: f64, rng: &mut Rng) -> Vec<f64> {
+    let mut g: Vec<f64> = (0..n).flat_map(|_| [lx, ly]).map(|l| l * rng.uniform()).collect();
+    g.extend((0..2 * n).map(|_| rng.normal()));
+    g
+}
+
+/// A full set of d random unit vectors (column-major).
+pub fn random_set(d: usize, rng: &mut Rng) -> Vec<f64> {
+    (0..d).flat_map(|_| unit((0..d).map(|_| rng.normal()).collect())).collect()
+}
+
+/// Symmetric spectrum of 4N exponents with well separated values, six zeros in the null
+/// space and, on both sides, a degenerate run of `len` exponents ending next to it.
+pub fn spectrum(n: usize, len: usize) -> SpectrumSummary {
+    let m = 2 * n - 3;
+    let mut pos: Vec<f64> = (0..m).map(|i| 3.0 - 2.5 * i as f64 / m as f64).collect();
+    for x in &mut pos[m - len..] {
+        *x = 0.1;
+    }
+    let mut e = pos.clone();
+    e.extend([0.0; 6]);
+    e.extend(pos.iter().rev().map(|x| -x));
+    SpectrumSummary { stderr: vec![1e-3; e.len()], exponents: e }
+}
+
+pub fn context(system: &str, n: usize, d: usize, lx: f64, ly: f64, gs: Option<SpectrumSummary>, with_gs: bool) -> Context {
+    Context {
+        run: None,
+        gs,
+        system: system.into(),
+        d,
+        k: d,
+        n,
+        lx,
+        ly,
+        tau: if system == "henon" { 1.0 } else { 0.6 },
+        with_gs,
+        options: Options { every: 1, j: vec![1], deltas: vec![1] },
+        source: "synthetic".into(),
+    }
+}
+
+pub fn frame(step: u64, phase: Vec<f64>, v: Vec<f64>, g: Option<Vec<f64>>) -> Frame {
+    let d = phase.len();
+    Frame { step, time: step as f64, d, k: v.len() / d, phase, local: vec![0.0; v.len() / d], v, g }
+}
+
+/// A fresh output directory for one test.
+pub fn out_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("clv-analyses-b-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Cells of one CSV line (double-quoted cells may contain commas).
+pub fn split_csv(line: &str) -> Vec<String> {
+    let (mut cells, mut cell, mut quoted) = (Vec::new(), String::new(), false);
+    let mut chars = line.chars().peekable();
+    while let Some(c) = chars.next() {
+        match (c, quoted) {
+            ('"', true) if chars.peek() == Some(&'"') => {
+                cell.push('"');
+                chars.next();
+            }
+            ('"', _) => quoted = !quoted,
+            (',', false) => cells.push(std::mem::take(&mut cell)),
+            _ => cell.push(c),
+        }
+    }
+    cells.push(cell);
+    cells
+}
+
+/// Rows of a CSV file as maps from header to cell.
+pub fn read_csv(path: &std::path::Path) -> Vec<std::collections::BTreeMap<String, String>> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut lines = text.lines();
+    let header = split_csv(lines.next().unwrap());
+    lines.map(|l| header.iter().cloned().zip(split_csv(l)).collect()).collect()
+}
+
+pub fn is_png(path: &std::path::Path) -> bool {
+    std::fs::read(path).is_ok_and(|b| b.starts_with(b"\x89PNG\r\n\x1a\n"))
+}
+
+/// A CSV of numbers: its header and rows.
+pub fn read_table(path: &std::path::Path) -> (Vec<String>, Vec<Vec<f64>>) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows = lines.map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+    (header, rows)
+}
+
+/// One column of a [`read_table`] result.
+pub fn column(table: &(Vec<String>, Vec<Vec<f64>>), name: &str) -> Vec<f64> {
+    let c = table.0.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name} in {:?}", table.0));
+    table.1.iter().map(|r| r[c]).collect()
+}
