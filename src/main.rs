@@ -206,6 +206,10 @@ struct AnalyzeArgs {
     /// paper's choice scaled to this system's D).
     #[arg(long, value_delimiter = ',')]
     j: Option<Vec<usize>>,
+    /// Window lengths Delta (steps) for finite-time exponents, e.g. 1,10,100 (default: 1, 2,
+    /// 5, ... up to a quarter of the CLV window).
+    #[arg(long, value_delimiter = ',')]
+    deltas: Option<Vec<u64>>,
     /// Run only these analyses (comma-separated names, e.g. spectrum,localization).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
@@ -441,7 +445,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
 }
 
 fn analyze(args: &AnalyzeArgs) -> Result<()> {
-    let (produced, frames) = clv::stage::analyze::analyze_source(&args.source, &args.out, args.every, args.j.clone(), &args.only)?;
+    let (produced, frames) = clv::stage::analyze::analyze_source(&args.source, &args.out, args.every, args.j.clone(), args.deltas.clone(), &args.only)?;
     let figures: usize = produced.iter().map(|p| p.figures.len()).sum();
     eprintln!("clv analyze: {frames} frames, {} analyses, {figures} figures; open {}", produced.len(), args.out.join("index.html").display());
     Ok(())
@@ -491,25 +495,32 @@ fn backward(args: &BackwardArgs) -> Result<()> {
     opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| args.dir.join("frames.mcap"))) };
     let stream_meta = clv::store::frames::stream_metadata(&serde_json::to_string(&meta).unwrap_or_default(), std::fs::read_to_string(args.dir.join("spectrum.json")).ok().as_deref());
     let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
-    let bar = progress("backward", args.quiet);
-    if let Some(bar) = &bar {
-        bar.set_length(meta.store.clv_steps + meta.store.transient);
-        bar.set_message("backward (recompute + sweep)");
-    }
+    // Two bars: segments recomputed (from the checkpoints) and frames emitted by the sweep.
+    let bars = (!args.quiet).then(|| {
+        let multi = indicatif::MultiProgress::new();
+        let recompute = multi.add(progress("recompute", false).expect("not quiet"));
+        recompute.set_length(meta.store.clv_steps + meta.store.transient);
+        let sweep = multi.add(progress("sweep (frames)", false).expect("not quiet"));
+        sweep.set_length(meta.store.clv_steps.saturating_sub(opts.transient.saturating_sub(meta.store.transient)) + 1);
+        (multi, recompute, sweep)
+    });
     let mut consumer = |frame: std::sync::Arc<clv::stage::frame::Frame>| -> Result<Flow> {
         match stdout.as_mut() {
             Some(out) => out.write(&frame),
             None => Ok(Flow::Continue),
         }
     };
-    let mut on_progress = |recomputed: u64, _frames: u64| {
-        if let Some(bar) = &bar {
-            bar.set_position(recomputed);
+    let mut on_progress = |recomputed: u64, frames: u64| {
+        if let Some((_, recompute, sweep)) = &bars {
+            recompute.set_position(recomputed);
+            sweep.set_position(frames);
         }
     };
     let report = backward::run(&args.dir, &opts, args.resume, args.memory << 20, &mut consumer, &mut on_progress)?;
-    if let Some(bar) = &bar {
-        bar.finish_and_clear();
+    if let Some((multi, recompute, sweep)) = &bars {
+        recompute.finish_and_clear();
+        sweep.finish_and_clear();
+        let _ = multi.clear();
     }
     if let Some(out) = stdout {
         out.finish()?;

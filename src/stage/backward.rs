@@ -119,10 +119,13 @@ struct Window {
     last: u64,
 }
 
-/// Reads checkpoints (and stored R) of a run by step, one segment file at a time.
+/// Reads checkpoints (and stored R) of a run by step. Only the last checkpoint read is kept
+/// (the older end of one segment is the newer end of the next): memory stays at one
+/// checkpoint whatever the layout of the files; re-reading a file costs far less than
+/// recomputing its steps.
 struct Checkpoints {
     segments: Vec<SegmentFile>,
-    cached: Option<(PathBuf, BTreeMap<u64, ForwardState>)>,
+    last: Option<ForwardState>,
 }
 
 impl Checkpoints {
@@ -133,20 +136,21 @@ impl Checkpoints {
     }
 
     fn get(&mut self, step: u64) -> Result<ForwardState> {
-        let seg = self.segment_of(step)?.path.clone();
-        if self.cached.as_ref().is_none_or(|(p, _)| *p != seg) {
-            let mut map = BTreeMap::new();
-            read_segment(&seg, crate::store::segment::ReadMode::Strict, |m| {
-                if m.topic == CHECKPOINT.topic {
-                    let cp = Checkpoint::decode(m.data).map_err(|e| Error::corrupt(&seg, format!("step {}: {e}", m.step)))?;
-                    map.insert(m.step, cp.state);
-                }
-                Ok(())
-            })?;
-            self.cached = Some((seg.clone(), map));
+        if let Some(cp) = self.last.as_ref().filter(|cp| cp.step == step) {
+            return Ok(cp.clone());
         }
-        let (_, map) = self.cached.as_ref().expect("just loaded");
-        map.get(&step).cloned().ok_or_else(|| Error::corrupt(&seg, format!("no checkpoint at step {step}")))
+        let seg = self.segment_of(step)?.path.clone();
+        let mut found = None;
+        read_segment(&seg, crate::store::segment::ReadMode::Strict, |m| {
+            if m.topic == CHECKPOINT.topic && m.step == step {
+                let cp = Checkpoint::decode(m.data).map_err(|e| Error::corrupt(&seg, format!("step {}: {e}", m.step)))?;
+                found = Some(cp.state);
+            }
+            Ok(())
+        })?;
+        let cp = found.ok_or_else(|| Error::corrupt(&seg, format!("no checkpoint at step {step}")))?;
+        self.last = Some(cp.clone());
+        Ok(cp)
     }
 
     /// Stored R_n (packed) for n in (from, to].
@@ -383,7 +387,7 @@ pub fn run(
     let producer = std::thread::Builder::new()
         .name("clv-recompute".into())
         .spawn(move || {
-            let mut cps = Checkpoints { segments, cached: None };
+            let mut cps = Checkpoints { segments, last: None };
             let mut allocated = 0;
             for (s0, s1) in producer_todo {
                 let buffer = match free_rx.try_recv() {

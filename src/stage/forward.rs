@@ -6,7 +6,7 @@
 
 use crate::config::RunConfig;
 use crate::error::{Error, Result};
-use crate::linalg::{par, Qr};
+use crate::linalg::{qr_for, Qr};
 use crate::system::{DynamicalSystem, Snapshot, Tangent};
 use faer::Mat;
 use serde::{Deserialize, Serialize};
@@ -111,7 +111,7 @@ impl Forward {
             step: 0,
             acc: Accumulator::new(k, block_len),
             relax_steps: config.relax_steps,
-            qr: Qr::new(d, k, par(config.threads)),
+            qr: qr_for(d, k, config.threads),
         })
     }
 

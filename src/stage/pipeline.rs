@@ -48,7 +48,7 @@ pub fn run(config: &RunConfig, out: &Path, feedback: &mut Feedback, say: &mut dy
     let source = format!("clv run, in-process stream of {}", run_dir.display());
     let mut consumer = |frame: Arc<super::frame::Frame>| -> Result<Flow> {
         if analyzer.is_none() {
-            let ctx = Context::new(&info, &frame, &source, None, None)?;
+            let ctx = Context::new(&info, &frame, &source, None, None, None)?;
             let analyses = registry(&ctx);
             analyzer = Some(Analyzer::start(ctx, analyses, &report_dir)?);
         }

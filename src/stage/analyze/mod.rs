@@ -70,7 +70,7 @@ pub struct Context {
 
 impl Context {
     /// The context of a stream, from its description and its first frame.
-    pub fn new(info: &StreamInfo, first: &Frame, source: &str, every: Option<u64>, j: Option<Vec<usize>>) -> Result<Self> {
+    pub fn new(info: &StreamInfo, first: &Frame, source: &str, every: Option<u64>, j: Option<Vec<usize>>, deltas: Option<Vec<u64>>) -> Result<Self> {
         let run: Option<RunMeta> = info.run_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
         let gs: Option<SpectrumSummary> = info.spectrum_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
         let (system, n, lx, ly, tau, clv_steps) = match &run {
@@ -101,7 +101,10 @@ impl Context {
         if every == 0 {
             return Err(Error::param("every", "must be at least 1"));
         }
-        let deltas = [1u64, 2, 5, 10, 20, 50, 100, 200, 500].into_iter().filter(|&dl| dl * 4 <= clv_steps.max(4)).collect();
+        let deltas = deltas.unwrap_or_else(|| [1u64, 2, 5, 10, 20, 50, 100, 200, 500].into_iter().filter(|&dl| dl * 4 <= clv_steps.max(4)).collect());
+        if deltas.contains(&0) {
+            return Err(Error::param("deltas", "window lengths must be at least 1 step"));
+        }
         Ok(Context {
             run,
             gs,
@@ -361,7 +364,7 @@ impl Mean {
 
 /// Run every applicable analysis over the frames of `source` (a file, or "-" for standard
 /// input) into `out`. Returns what was produced and the number of frames read.
-pub fn analyze_source(source: &Path, out: &Path, every: Option<u64>, j: Option<Vec<usize>>, only: &[String]) -> Result<(Vec<Produced>, u64)> {
+pub fn analyze_source(source: &Path, out: &Path, every: Option<u64>, j: Option<Vec<usize>>, deltas: Option<Vec<u64>>, only: &[String]) -> Result<(Vec<Produced>, u64)> {
     let info = std::cell::RefCell::new(StreamInfo::default());
     let mut analyzer: Option<Analyzer> = None;
     let name = if source == Path::new("-") { "<stdin>".to_string() } else { source.display().to_string() };
@@ -373,7 +376,7 @@ pub fn analyze_source(source: &Path, out: &Path, every: Option<u64>, j: Option<V
         },
         |frame| {
             if analyzer.is_none() {
-                let ctx = Context::new(&info.borrow(), &frame, &name, every, j.clone())?;
+                let ctx = Context::new(&info.borrow(), &frame, &name, every, j.clone(), deltas.clone())?;
                 let analyses = select(&ctx, only)?;
                 analyzer = Some(Analyzer::start(ctx, analyses, out)?);
             }
