@@ -140,15 +140,21 @@ impl Checkpoints {
             return Ok(cp.clone());
         }
         let seg = self.segment_of(step)?.path.clone();
-        let mut found = None;
-        read_segment(&seg, crate::store::segment::ReadMode::Strict, |m| {
-            if m.topic == CHECKPOINT.topic && m.step == step {
-                let cp = Checkpoint::decode(m.data).map_err(|e| Error::corrupt(&seg, format!("step {}: {e}", m.step)))?;
-                found = Some(cp.state);
+        let bytes = match indexed_checkpoint(&seg, step) {
+            Some(bytes) => bytes,
+            None => {
+                // No usable index: read the whole file, every CRC checked.
+                let mut found = None;
+                read_segment(&seg, crate::store::segment::ReadMode::Strict, |m| {
+                    if m.topic == CHECKPOINT.topic && m.step == step {
+                        found = Some(m.data.to_vec());
+                    }
+                    Ok(())
+                })?;
+                found.ok_or_else(|| Error::corrupt(&seg, format!("no checkpoint at step {step}")))?
             }
-            Ok(())
-        })?;
-        let cp = found.ok_or_else(|| Error::corrupt(&seg, format!("no checkpoint at step {step}")))?;
+        };
+        let cp = Checkpoint::decode(&bytes).map_err(|e| Error::corrupt(&seg, format!("step {step}: {e}")))?.state;
         self.last = Some(cp.clone());
         Ok(cp)
     }
@@ -167,6 +173,27 @@ impl Checkpoints {
         }
         Ok(out)
     }
+}
+
+/// The checkpoint message at `step`, found through the file's chunk index so that only its
+/// chunk is decompressed. None when the index is missing or unusable (the caller then reads
+/// the file whole). A damaged chunk here cannot pass unnoticed: it fails to decode, or the
+/// recomputation from it fails the bitwise check against the next checkpoint.
+fn indexed_checkpoint(path: &Path, step: u64) -> Option<Vec<u8>> {
+    let file = std::fs::File::open(path).ok()?;
+    // SAFETY: finished segments are never modified (written under a temporary name, renamed).
+    let map = unsafe { memmap2::Mmap::map(&file) }.ok()?;
+    let summary = mcap::Summary::read(&map).ok()??;
+    let channel = summary.channels.values().find(|c| c.topic == CHECKPOINT.topic)?.id;
+    for index in summary.chunk_indexes.iter().filter(|c| c.message_start_time <= step && step <= c.message_end_time) {
+        for message in summary.stream_chunk(&map, index).ok()? {
+            let message = message.ok()?;
+            if message.channel.id == channel && message.log_time == step {
+                return Some(message.data.into_owned());
+            }
+        }
+    }
+    None
 }
 
 /// A contiguous buffer of f64, on the heap or in an unlinked scratch file.
