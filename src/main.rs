@@ -479,20 +479,37 @@ fn spectrum(config: RunConfig, json: bool, quiet: bool) -> Result<()> {
     print_report(&report, json)
 }
 
-fn backward(args: &BackwardArgs) -> Result<()> {
+fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     use clv::stage::backward::{self, BackwardOptions, CInit};
     use clv::store::frames::{FrameStdout, Flow};
     let (_, meta) = clv::store::RunDir::open(&args.dir)?;
-    let to_stdout = args.out.as_deref() == Some(std::path::Path::new("-"));
-    let mut opts = BackwardOptions::for_run(&meta);
-    opts.transient = args.transient.unwrap_or(opts.transient);
-    opts.c_init = match args.c_init {
-        CInitArg::Identity => CInit::Identity,
-        CInitArg::Random => CInit::Random,
+    let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
+    // A resumed sweep continues with the options it was started with; flags given again
+    // must agree with them (the stage refuses a contradiction).
+    let stored = if args.resume { backward::stored_options(&args.dir) } else { None };
+    let mut opts = stored.clone().unwrap_or_else(|| BackwardOptions::for_run(&meta));
+    if stored.is_none() || given("transient") {
+        opts.transient = args.transient.unwrap_or(BackwardOptions::for_run(&meta).transient);
+    }
+    if stored.is_none() || given("c_init") {
+        opts.c_init = match args.c_init {
+            CInitArg::Identity => CInit::Identity,
+            CInitArg::Random => CInit::Random,
+        };
+    }
+    if stored.is_none() || given("with_gs") {
+        opts.with_gs = args.with_gs;
+    }
+    let to_stdout = match (&stored, given("out")) {
+        (Some(s), false) => s.frames_path.is_none(),
+        _ => args.out.as_deref() == Some(std::path::Path::new("-")),
     };
-    opts.with_gs = args.with_gs;
-    opts.save_every = if to_stdout { 0 } else { args.save_every };
-    opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| args.dir.join("frames.mcap"))) };
+    if stored.is_none() || given("out") {
+        opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| args.dir.join("frames.mcap"))) };
+    }
+    if stored.is_none() || given("save_every") || given("out") {
+        opts.save_every = if to_stdout { 0 } else { args.save_every };
+    }
     let stream_meta = clv::store::frames::stream_metadata(&serde_json::to_string(&meta).unwrap_or_default(), std::fs::read_to_string(args.dir.join("spectrum.json")).ok().as_deref());
     let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
     // Two bars: segments recomputed (from the checkpoints) and frames emitted by the sweep.
@@ -569,7 +586,7 @@ fn main() {
     };
     let result = match &cli.command {
         Command::Forward(args) => forward(args, matches.subcommand_matches("forward").expect("subcommand parsed")),
-        Command::Backward(args) => backward(args),
+        Command::Backward(args) => backward(args, matches.subcommand_matches("backward").expect("subcommand parsed")),
         Command::Inspect(args) => inspect_cmd(args),
         Command::Analyze(args) => analyze(args),
         Command::Run(args) => run(args),

@@ -108,6 +108,12 @@ fn progress_path(dir: &RunDir) -> PathBuf {
     dir.path.join("backward.json")
 }
 
+/// The options of the sweep recorded in the run's progress record, if there is one.
+pub fn stored_options(run: &Path) -> Option<BackwardOptions> {
+    let text = std::fs::read_to_string(progress_path(&RunDir { path: run.to_path_buf() })).ok()?;
+    serde_json::from_str::<Progress>(&text).ok().map(|p| p.options)
+}
+
 pub fn report_path(dir: &RunDir) -> PathBuf {
     dir.path.join("clv_spectrum.json")
 }
