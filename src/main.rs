@@ -22,6 +22,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Forward Gram-Schmidt pass: the Lyapunov spectrum; with --out, a resumable run directory.
+    #[command(args_override_self = true)]
     Forward(ForwardArgs),
     /// Backward Ginelli pass over a finished run: covariant Lyapunov vectors, frame by frame.
     Backward(BackwardArgs),
@@ -33,6 +34,15 @@ enum Command {
     Run(RunArgs),
     /// Measure kernels and stages side by side on this machine (medians, ratios, memory).
     Bench(BenchArgs),
+    /// Print a configuration file to start from (keys are the flags of `clv forward`).
+    Config(ConfigArgs),
+}
+
+#[derive(Args)]
+struct ConfigArgs {
+    /// Embedded configuration: default, paper or henon.
+    #[arg(long, default_value = "default")]
+    preset: String,
 }
 
 #[derive(Args)]
@@ -75,6 +85,10 @@ enum StoreRArg {
 
 #[derive(Args)]
 struct ForwardArgs {
+    /// Read settings from a configuration file (TOML; keys are these flags, e.g. `steps =
+    /// 1000`); flags on the command line override it. `clv config` prints one.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
     /// The dynamical system.
     #[arg(long, value_enum, default_value = "disks")]
     system: SystemKind,
@@ -220,6 +234,9 @@ struct RunArgs {
     /// Embedded configuration: default, paper or henon.
     #[arg(long, default_value = "default")]
     preset: String,
+    /// A configuration file (as printed by `clv config`) instead of a preset.
+    #[arg(long, value_name = "FILE", conflicts_with = "preset")]
+    config: Option<PathBuf>,
     /// Output directory: OUT/run (the run) and OUT/report (index.html, figures, tables).
     #[arg(long, default_value = "clv-out")]
     out: PathBuf,
@@ -388,6 +405,7 @@ fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
     if let Some(dir) = &args.out {
         let meta = args.meta()?;
         if !args.quiet {
+            eprintln!("clv: configuration: {}", serde_json::to_string(&meta.config).unwrap_or_default());
             eprintln!("clv: writing {}: {}", dir.display(), meta.store.footprint(&meta.config).1);
         }
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
@@ -400,8 +418,34 @@ fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
     spectrum(args.config()?, args.json, args.quiet)
 }
 
+/// The run configuration a configuration file describes (read through `clv forward`'s flags).
+fn config_from_file(path: &std::path::Path) -> Result<RunConfig> {
+    let mut argv = vec!["clv".to_string(), "forward".to_string()];
+    argv.extend(clv::report::config_file::expand(path, &config_keys())?);
+    let cli = Cli::try_parse_from(&argv).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
+    match cli.command {
+        Command::Forward(f) => f.config(),
+        _ => unreachable!("parsed as forward"),
+    }
+}
+
+/// The settings a configuration file may hold: the flags of `clv forward` that define a run.
+fn config_keys() -> Vec<String> {
+    let cmd = Cli::command();
+    let forward = cmd.find_subcommand("forward").expect("forward exists");
+    forward
+        .get_arguments()
+        .filter_map(|a| a.get_long())
+        .filter(|l| !["config", "out", "resume", "json", "quiet", "help"].contains(l))
+        .map(String::from)
+        .collect()
+}
+
 fn run(args: &RunArgs) -> Result<()> {
-    let config = RunConfig::preset(&args.preset)?;
+    let config = match &args.config {
+        Some(path) => config_from_file(path)?,
+        None => RunConfig::preset(&args.preset)?,
+    };
     let quiet = args.quiet;
     let mut say = |msg: String| {
         if !quiet {
@@ -578,8 +622,40 @@ fn inspect_cmd(args: &InspectArgs) -> Result<()> {
     if found.intact { Ok(()) } else { Err(Error::Other(format!("{}: damaged files found (see above)", args.dir.display()))) }
 }
 
+/// The command line with a `--config FILE` of `clv forward` expanded into flags, placed
+/// before the command line's own so that those override the file.
+fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
+    if raw.get(1).map(String::as_str) != Some("forward") {
+        return Ok(raw);
+    }
+    let mut rest = Vec::new();
+    let mut file = None;
+    let mut it = raw[2..].iter();
+    while let Some(a) = it.next() {
+        if a == "--config" {
+            file = it.next().cloned();
+        } else if let Some(f) = a.strip_prefix("--config=") {
+            file = Some(f.to_string());
+        } else {
+            rest.push(a.clone());
+        }
+    }
+    let Some(file) = file else { return Ok(raw) };
+    let mut argv = raw[..2].to_vec();
+    argv.extend(clv::report::config_file::expand(std::path::Path::new(&file), &config_keys())?);
+    argv.extend(rest);
+    Ok(argv)
+}
+
 fn main() {
-    let matches = Cli::command().get_matches();
+    let argv = match expand_config(std::env::args().collect()) {
+        Ok(a) => a,
+        Err(e) => {
+            eprintln!("clv: error: {e}");
+            std::process::exit(1);
+        }
+    };
+    let matches = Cli::command().get_matches_from(argv);
     let cli = match Cli::from_arg_matches(&matches) {
         Ok(cli) => cli,
         Err(e) => e.exit(),
@@ -591,6 +667,9 @@ fn main() {
         Command::Analyze(args) => analyze(args),
         Command::Run(args) => run(args),
         Command::Bench(args) => bench(args),
+        Command::Config(args) => RunConfig::preset(&args.preset).map(|c| {
+            print!("{}", clv::report::config_file::render(&args.preset, &c, &clv::store::run::StoreConfig::for_run(&c)));
+        }),
     };
     if std::env::var_os("CLV_REPORT_PEAK_RSS").is_some() {
         if let Some(kb) = clv::bench::peak_rss_kb() {

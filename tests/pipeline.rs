@@ -132,3 +132,27 @@ fn python_reads_frame_files() {
         assert!((a - b).abs() <= 1e-12 * b.abs().max(1.0), "Python {a} vs clv {b}");
     }
 }
+
+/// `clv config` prints a file that `--config` reads back; command-line flags override it;
+/// `clv run --config` runs the whole pipeline from a file.
+#[test]
+fn configuration_files_round_trip_and_flags_override_them() {
+    let base = scratch("config");
+    let file = base.join("default.toml");
+    let printed = ok(clv(&["config", "--preset", "default"]));
+    std::fs::write(&file, &printed.stdout).unwrap();
+    let f = file.to_str().unwrap();
+    let out = ok(clv(&["forward", "--config", f, "--n", "8", "--aspect", "1", "--vectors", "32", "--steps", "300", "--relax-steps", "10", "--json", "--quiet"]));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["config"]["system"]["n"], 8, "the flag overrides the file");
+    assert_eq!(v["config"]["steps"], 300);
+    assert_eq!(v["config"]["system"]["density"], 0.7, "the file provides what the flags do not");
+    assert_eq!(v["config"]["blocks"], 20);
+    let small = base.join("small.toml");
+    std::fs::write(&small, "[system]\nsystem = \"disks\"\nn = 8\naspect = 1\n[run]\nsteps = 600\nrelax-steps = 50\nvectors = 32\n[store]\nclv-steps = 100\ntransient = 50\n").unwrap();
+    let out_dir = base.join("out");
+    ok(clv(&["run", "--config", small.to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--quiet"]));
+    assert!(out_dir.join("report/index.html").exists());
+    let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("run/run.json")).unwrap()).unwrap();
+    assert_eq!(run["config"]["system"]["n"], 8);
+}

@@ -1,0 +1,108 @@
+//! Configuration files: a small TOML subset whose keys are the command-line flags.
+//!
+//! Why flags: one vocabulary for the command line and files. A file is expanded into
+//! `--key value` arguments placed before the command line's own, so flags given on the
+//! command line override the file. Supported TOML: `[section]` headers (for readability
+//! only), `key = value` with numbers, "strings" and booleans, and `#` comments.
+
+use crate::config::{RunConfig, SystemConfig};
+use crate::error::{Error, Result};
+use crate::store::run::StoreConfig;
+use std::fmt::Write;
+use std::path::Path;
+
+/// The arguments a configuration file stands for. `known` lists the accepted keys.
+pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut args = Vec::new();
+    for (no, raw) in text.lines().enumerate() {
+        let line = strip_comment(raw).trim();
+        if line.is_empty() || (line.starts_with('[') && line.ends_with(']')) {
+            continue;
+        }
+        let bad = |msg: String| Error::Other(format!("{}:{}: {msg}", path.display(), no + 1));
+        let (key, value) = line.split_once('=').ok_or_else(|| bad(format!("expected `key = value`, found {line:?}")))?;
+        let key = key.trim().replace('_', "-");
+        if !known.iter().any(|k| *k == key) {
+            return Err(bad(format!("unknown setting {key:?}; valid settings: {}", known.join(", "))));
+        }
+        let value = value.trim();
+        let value = match value.strip_prefix('"').and_then(|v| v.strip_suffix('"')) {
+            Some(s) => s.to_string(),
+            None if value == "true" || value == "false" => value.to_string(),
+            None if value.parse::<f64>().is_ok() => value.to_string(),
+            None => return Err(bad(format!("the value of {key} must be a number, a \"string\" or true/false, found {value:?}"))),
+        };
+        match value.as_str() {
+            "true" => args.push(format!("--{key}")),
+            "false" => {}
+            _ => args.extend([format!("--{key}"), value]),
+        }
+    }
+    Ok(args)
+}
+
+fn strip_comment(line: &str) -> &str {
+    let mut in_string = false;
+    for (i, c) in line.char_indices() {
+        match c {
+            '"' => in_string = !in_string,
+            '#' if !in_string => return &line[..i],
+            _ => {}
+        }
+    }
+    line
+}
+
+/// A configuration file for a run (what `clv config --preset NAME` prints).
+pub fn render(name: &str, config: &RunConfig, store: &StoreConfig) -> String {
+    let mut s = format!("# clv configuration: preset {name:?}. Keys are the flags of `clv forward`;\n# use with `clv forward --config FILE --out DIR` or `clv run --config FILE`.\n\n[system]\n");
+    match &config.system {
+        SystemConfig::Henon { .. } => {
+            let _ = writeln!(s, "system = \"henon\"");
+        }
+        SystemConfig::Disks { n, density, aspect, .. } => {
+            let _ = writeln!(s, "system = \"disks\"\nn = {n}\ndensity = {density}\naspect = {aspect}    # Ly/Lx");
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\n[run]\ntau = {}\nrelax-steps = {}\nsteps = {}\nvectors = {}\nseed = {}\nthreads = {}\nblocks = {}",
+        config.tau, config.relax_steps, config.steps, config.vectors, config.seed, config.threads, config.blocks
+    );
+    let _ = writeln!(
+        s,
+        "\n[store]\ncheckpoint-every = {}\nsegment-checkpoints = {}\nclv-steps = {}\ntransient = {}",
+        store.checkpoint_every, store.segment_checkpoints, store.clv_steps, store.transient
+    );
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_render_to_files_that_expand_to_flags() {
+        let dir = std::env::temp_dir().join(format!("clv-config-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let config = RunConfig::preset("paper").unwrap();
+        let text = render("paper", &config, &StoreConfig::for_run(&config));
+        let path = dir.join("paper.toml");
+        std::fs::write(&path, &text).unwrap();
+        let known: Vec<String> = ["system", "n", "density", "aspect", "tau", "relax-steps", "steps", "vectors", "seed", "threads", "blocks", "checkpoint-every", "segment-checkpoints", "clv-steps", "transient"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        let args = expand(&path, &known).unwrap();
+        let joined = args.join(" ");
+        assert!(joined.contains("--n 198") && joined.contains("--steps 250000") && joined.contains("--system disks"), "{joined}");
+        std::fs::write(&path, "[run]\nsteps = 10 # comment\nbogus = 3\n").unwrap();
+        let err = expand(&path, &known).unwrap_err().to_string();
+        assert!(err.contains("paper.toml:3") && err.contains("bogus") && err.contains("steps"), "{err}");
+        std::fs::write(&path, "name = \"a # b\"\n").unwrap();
+        assert!(expand(&path, &["name".to_string()]).unwrap() == ["--name", "a # b"]);
+        std::fs::write(&path, "steps = ten\n").unwrap();
+        assert!(expand(&path, &known).unwrap_err().to_string().contains("must be a number"));
+    }
+}
