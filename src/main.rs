@@ -53,6 +53,7 @@ struct BenchArgs {
     /// Tangent vectors (default D).
     #[arg(long)]
     vectors: Option<usize>,
+    /// Threads for the linear algebra.
     #[arg(long, default_value_t = 1)]
     threads: usize,
     /// Repetitions of each measurement.
@@ -67,6 +68,7 @@ struct BenchArgs {
     /// Skip the peak-memory measurement (child processes).
     #[arg(long)]
     no_rss: bool,
+    /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
 }
@@ -119,6 +121,7 @@ struct ForwardArgs {
     /// Number k of tangent vectors (default: all, k = D).
     #[arg(long)]
     vectors: Option<usize>,
+    /// Seed of the initial state (positions on the start lattice, velocities).
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Threads for the linear algebra (recorded: results differ in the last bits).
@@ -155,6 +158,7 @@ struct ForwardArgs {
     #[arg(long)]
     json: bool,
     /// No progress bar or notices.
+    /// No progress bars or notices.
     #[arg(long)]
     quiet: bool,
 }
@@ -194,6 +198,8 @@ struct BackwardArgs {
     /// Print one JSON object (CLV and GS spectra, statistics) instead of the table.
     #[arg(long)]
     json: bool,
+    /// No progress bars or notices.
+    /// No progress bars or notices.
     #[arg(long)]
     quiet: bool,
 }
@@ -202,6 +208,7 @@ struct BackwardArgs {
 struct InspectArgs {
     /// The run directory.
     dir: PathBuf,
+    /// Print one JSON object instead of the summary.
     #[arg(long)]
     json: bool,
 }
@@ -240,6 +247,7 @@ struct RunArgs {
     /// Output directory: OUT/run (the run) and OUT/report (index.html, figures, tables).
     #[arg(long, default_value = "clv-out")]
     out: PathBuf,
+    /// No progress bars or notices.
     #[arg(long)]
     quiet: bool,
 }
