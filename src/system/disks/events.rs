@@ -65,9 +65,29 @@ pub struct Disks<'a> {
     pub vel: &'a mut [[f64; 2]],
 }
 
+/// A collision as the tangent vectors see it: the free flights of both disks since their
+/// last update, then the linearised collision map.
+#[derive(Clone, Copy, Debug)]
+struct TangentCollision {
+    i: u32,
+    j: u32,
+    dt_i: f64,
+    dt_j: f64,
+    n: [f64; 2],
+    v: [f64; 2],
+    vn: f64,
+}
+
+/// Columns of the tangent block processed together when the collisions of an interval are
+/// replayed: 4N rows of this many columns stay in the L2 cache (792 x 32 x 8 B = 200 kB)
+/// instead of the whole block streaming through memory once per collision.
+const COLUMN_BLOCK: usize = 32;
+
 /// Scratch space reused from interval to interval (no allocation per step).
 #[derive(Clone, Debug, Default)]
 pub struct Engine {
+    /// The interval's collisions, replayed on the tangent block column block by block.
+    log: Vec<TangentCollision>,
     nc: [usize; 2],
     w: [f64; 2],
     cell: Vec<[u32; 2]>,
@@ -158,7 +178,7 @@ impl Engine {
                         self.predict(d, i, ev.t, tau);
                         continue;
                     }
-                    if self.collide(d, tangent, k, i, j, [sx, sy], ev.t) {
+                    if self.collide(d, k, i, j, [sx, sy], ev.t) {
                         collisions += 1;
                         self.predict(d, i, ev.t, tau);
                         self.predict(d, j, ev.t, tau);
@@ -168,18 +188,46 @@ impl Engine {
                 }
             }
         }
-        let rows = tangent.rows_mut();
         for i in 0..n {
             let dt = tau - self.t_pos[i];
             for a in 0..2 {
                 let l = if a == 0 { d.lx } else { d.ly };
                 d.pos[i][a] = wrap(d.pos[i][a] + d.vel[i][a] * dt, l);
             }
-            if k > 0 {
-                collision::fly(&mut rows[4 * i * k..4 * (i + 1) * k], k, tau - self.t_tan[i]);
-            }
+        }
+        if k > 0 {
+            self.replay(tangent, tau);
         }
         Ok(collisions)
+    }
+
+    /// Apply the interval's collisions and the final free flights to the tangent block,
+    /// one block of columns at a time.
+    fn replay(&self, tangent: &mut Tangent, tau: f64) {
+        let k = tangent.count();
+        let n = self.t_tan.len();
+        let rows = tangent.rows_mut();
+        for c0 in (0..k).step_by(COLUMN_BLOCK) {
+            let cols = c0..(c0 + COLUMN_BLOCK).min(k);
+            for e in &self.log {
+                let (i, j) = (e.i as usize, e.j as usize);
+                let (lo, hi) = (i.min(j), i.max(j));
+                let (a, b) = rows.split_at_mut(4 * hi * k);
+                let rlo = &mut a[4 * lo * k..4 * (lo + 1) * k];
+                let rhi = &mut b[..4 * k];
+                let (dt_lo, dt_hi) = if i < j { (e.dt_i, e.dt_j) } else { (e.dt_j, e.dt_i) };
+                collision::fly(rlo, k, cols.clone(), dt_lo);
+                collision::fly(rhi, k, cols.clone(), dt_hi);
+                if i < j {
+                    collision::collide(rlo, rhi, k, cols.clone(), e.n, e.v, e.vn);
+                } else {
+                    collision::collide(rhi, rlo, k, cols.clone(), e.n, e.v, e.vn);
+                }
+            }
+            for i in 0..n {
+                collision::fly(&mut rows[4 * i * k..4 * (i + 1) * k], k, cols.clone(), tau - self.t_tan[i]);
+            }
+        }
     }
 
     fn rebuild(&mut self, d: &mut Disks) {
@@ -194,6 +242,7 @@ impl Engine {
         self.t_pos.resize(n, 0.0);
         self.t_tan.clear();
         self.t_tan.resize(n, 0.0);
+        self.log.clear();
         self.count.clear();
         self.count.resize(n, 0);
         self.heap.clear();
@@ -285,7 +334,7 @@ impl Engine {
     /// point and the tangent vectors. Returns false (and changes nothing) if rounding has
     /// left the pair not approaching.
     #[allow(clippy::too_many_arguments)]
-    fn collide(&mut self, d: &mut Disks, tangent: &mut Tangent, k: usize, i: usize, j: usize, shift: [i8; 2], t: f64) -> bool {
+    fn collide(&mut self, d: &mut Disks, k: usize, i: usize, j: usize, shift: [i8; 2], t: f64) -> bool {
         let ri = self.position(d, i, t);
         let rj = self.position(d, j, t);
         let r = [ri[0] - rj[0] - shift[0] as f64 * d.lx, ri[1] - rj[1] - shift[1] as f64 * d.ly];
@@ -301,20 +350,9 @@ impl Engine {
         self.t_pos[i] = t;
         self.t_pos[j] = t;
         if k > 0 {
-            let rows = tangent.rows_mut();
-            let (lo, hi) = (i.min(j), i.max(j));
-            let (a, b) = rows.split_at_mut(4 * hi * k);
-            let rlo = &mut a[4 * lo * k..4 * (lo + 1) * k];
-            let rhi = &mut b[..4 * k];
-            collision::fly(rlo, k, t - self.t_tan[lo]);
-            collision::fly(rhi, k, t - self.t_tan[hi]);
+            self.log.push(TangentCollision { i: i as u32, j: j as u32, dt_i: t - self.t_tan[i], dt_j: t - self.t_tan[j], n, v, vn });
             self.t_tan[i] = t;
             self.t_tan[j] = t;
-            if i < j {
-                collision::collide(rlo, rhi, k, n, v, vn);
-            } else {
-                collision::collide(rhi, rlo, k, n, v, vn);
-            }
         }
         for a in 0..2 {
             d.vel[i][a] -= vn * n[a];
