@@ -3,16 +3,16 @@
 # Disk Systems", end to end: 198 disks, density 0.7, Ly/Lx = 2/11, tau = 0.6, 1e4 relaxation
 # steps, 2.5e5 forward steps, CLVs for the last 2.5e4 steps (as in the paper).
 #
-#   scripts/reproduce_paper.sh [OUT_DIR] [THREADS]      (defaults: paper-out, 2)
+#   scripts/reproduce_paper.sh [OUT_DIR] [THREADS]      (defaults: paper-out, 1; at D = 792 two threads are not faster)
 #
 # How long: `clv bench` on this machine projects the run (see README, Performance): about
-# 3.5 hours forward + 0.8 hours backward on one core of a 2-core machine of the CI kind.
+# 2.7 hours forward + 0.6 hours backward on a 2-core machine of the CI kind.
 # The run is resumable: start the script again after a crash or a kill and it continues.
 # Disk: about 3 GB for the kept checkpoints; the frames are streamed to the analyses.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-paper-out}
-THREADS=${2:-2}
+THREADS=${2:-1}
 cargo build --release --quiet
 CLV=target/release/clv
 if [ -f "$OUT/run/run.json" ]; then

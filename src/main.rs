@@ -59,8 +59,8 @@ struct BenchArgs {
     /// Repetitions of each measurement.
     #[arg(long, default_value_t = 5)]
     reps: usize,
-    /// Forward steps per stage measurement.
-    #[arg(long, default_value_t = 40)]
+    /// Steps of the stored forward run measured (at least 100, one checkpoint interval).
+    #[arg(long, default_value_t = 100)]
     steps: u64,
     /// System sizes N for the collision-rate measurement (k = 0).
     #[arg(long, value_delimiter = ',', default_value = "198,1980,19800")]
