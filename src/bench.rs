@@ -224,12 +224,12 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     let mut bsteps = Vec::new();
     for rep in 0..reps.min(3) {
         let dir = tmp.join(format!("bwd{rep}"));
-        let steps = 48;
-        let cfg = disk_config(n, k, threads, 2, steps)?;
+        let steps = 120;
+        let cfg = disk_config(n, k, threads, 0, steps)?;
         let mut st = StoreConfig::for_run(&cfg);
-        st.checkpoint_every = 6; // eight segments, so the recompute/sweep pipeline fills
-        st.clv_steps = steps / 2;
-        st.transient = steps / 4;
+        st.checkpoint_every = 10; // ten segments: the recompute/sweep pipeline fills
+        st.clv_steps = 80;
+        st.transient = 20;
         let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: st.clone(), build: BuildInfo::current() };
         forward_run::create(&dir, &meta, &mut Feedback::default())?;
         let mut opts = BackwardOptions::for_run(&meta);
