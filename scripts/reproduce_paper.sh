@@ -6,7 +6,7 @@
 #   scripts/reproduce_paper.sh [OUT_DIR] [THREADS]      (defaults: paper-out, 1; at D = 792 two threads are not faster)
 #
 # How long: `clv bench` on this machine projects the run (see README, Performance): about
-# 2.7 hours forward + 0.6 hours backward on a 2-core machine of the CI kind.
+# 2.7 hours forward + 0.5 hours backward on a 2-core machine of the CI kind (3.2 h).
 # The run is resumable: start the script again after a crash or a kill and it continues.
 # Disk: about 3 GB for the kept checkpoints; the frames are streamed to the analyses.
 set -euo pipefail
