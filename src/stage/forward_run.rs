@@ -160,7 +160,7 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
         prune_before: window / c * c,
         keep_segments: store.keep_segments,
     };
-    let mut sink = Sink::spawn(dir.path.clone(), RunDir::meta_json(meta), policy);
+    let mut sink = Sink::spawn(dir.path.clone(), RunDir::meta_json(meta), policy)?;
     let started = Instant::now();
     let (d, k) = (fwd.system.dim(), config.vectors);
     let checkpoint = |fwd: &Forward, sink: &mut Sink| -> Result<()> {

@@ -38,7 +38,7 @@ pub struct Sink {
 }
 
 impl Sink {
-    pub fn spawn(dir: PathBuf, run_json: String, policy: Policy) -> Sink {
+    pub fn spawn(dir: PathBuf, run_json: String, policy: Policy) -> Result<Sink> {
         let (tx, rx) = bounded::<Item>(8);
         let handle = std::thread::Builder::new()
             .name("clv-writer".into())
@@ -58,8 +58,8 @@ impl Sink {
                 }
                 Ok(())
             })
-            .expect("spawning the writer thread");
-        Sink { tx: Some(tx), handle: Some(handle) }
+            .map_err(|e| Error::Other(format!("cannot start the writer thread: {e}")))?;
+        Ok(Sink { tx: Some(tx), handle: Some(handle) })
     }
 
     /// Queue a message; if the writer has failed, its error is returned here.
