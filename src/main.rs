@@ -679,11 +679,10 @@ fn main() {
             print!("{}", clv::report::config_file::render(&args.preset, &c, &clv::store::run::StoreConfig::for_run(&c)));
         }),
     };
-    if std::env::var_os("CLV_REPORT_PEAK_RSS").is_some() {
-        if let Some(kb) = clv::bench::peak_rss_kb() {
+    if std::env::var_os("CLV_REPORT_PEAK_RSS").is_some()
+        && let Some(kb) = clv::bench::peak_rss_kb() {
             eprintln!("clv-peak-rss-kb: {kb}");
         }
-    }
     if let Err(e) = result {
         eprintln!("clv: error: {e}");
         std::process::exit(1);

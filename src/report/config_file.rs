@@ -23,7 +23,7 @@ pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
         let bad = |msg: String| Error::Other(format!("{}:{}: {msg}", path.display(), no + 1));
         let (key, value) = line.split_once('=').ok_or_else(|| bad(format!("expected `key = value`, found {line:?}")))?;
         let key = key.trim().replace('_', "-");
-        if !known.iter().any(|k| *k == key) {
+        if !known.contains(&key) {
             return Err(bad(format!("unknown setting {key:?}; valid settings: {}", known.join(", "))));
         }
         let value = value.trim();

@@ -59,13 +59,11 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             Ok(())
         });
         let damage = result.err().map(|e| e.to_string());
-        if damage.is_none() {
-            if let Some(s) = last_stats {
-                if newest.as_ref().is_none_or(|(step, _)| s.step > *step) {
+        if damage.is_none()
+            && let Some(s) = last_stats
+                && newest.as_ref().is_none_or(|(step, _)| s.step > *step) {
                     newest = Some((s.step, s));
                 }
-            }
-        }
         segments.push(SegmentReport {
             file: seg.path.file_name().unwrap_or_default().to_string_lossy().into(),
             first_step: seg.first,

@@ -60,7 +60,7 @@ impl SpectrumReport {
     pub fn table(&self) -> String {
         let mut s = String::new();
         let l = &self.exponents;
-        let full = self.config.vectors == self.config.system.dim() && self.config.system.dim() % 4 == 0;
+        let full = self.config.vectors == self.config.system.dim() && self.config.system.dim().is_multiple_of(4);
         let _ = writeln!(s, "{:>6}  {:>14}  {:>10}{}", "i", "lambda_i", "stderr", if full { "   lambda_i + lambda_(D+1-i)" } else { "" });
         for (i, (x, e)) in l.iter().zip(&self.stderr).enumerate() {
             let pair = if full && i < l.len() / 2 { format!("   {:>+12.3e}", x + l[l.len() - 1 - i]) } else { String::new() };

@@ -373,14 +373,13 @@ pub fn run(
             Some(p)
         }
         None => {
-            if let Some(f) = frames_path.as_ref().filter(|_| saving) {
-                if tmp_path(f).exists() {
+            if let Some(f) = frames_path.as_ref().filter(|_| saving)
+                && tmp_path(f).exists() {
                     return Err(Error::Other(format!(
                         "{} holds the frames of an interrupted backward sweep; continue it with --resume, or delete it to start over",
                         tmp_path(f).display()
                     )));
                 }
-            }
             None
         }
     };
@@ -491,11 +490,10 @@ pub fn run(
                 stats.last_frame_step = m;
             }
             stats.first_frame_step = m;
-            if let Some(file) = frame_file.as_mut() {
-                if stats.frames % opts.save_every == 0 {
+            if let Some(file) = frame_file.as_mut()
+                && stats.frames.is_multiple_of(opts.save_every) {
                     file.write(&frame)?;
                 }
-            }
             stats.frames += 1;
             if consumer(frame)? == Flow::Stop {
                 stopped = true;
@@ -550,7 +548,7 @@ fn initial_c(k: usize, init: CInit, seed: u64) -> Mat<f64> {
     match init {
         CInit::Identity => Mat::identity(k, k),
         CInit::Random => {
-            let mut rng = Rng::new(seed ^ 0x6769_6e65_6c6c_69);
+            let mut rng = Rng::new(seed ^ 0x0067_696e_656c_6c69);
             let mut c = Mat::zeros(k, k);
             for j in 0..k {
                 for i in 0..=j {

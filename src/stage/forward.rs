@@ -42,7 +42,7 @@ impl Accumulator {
             *c += l;
         }
         self.steps += 1;
-        if self.steps % self.block_len == 0 {
+        if self.steps.is_multiple_of(self.block_len) {
             let k = self.current.len();
             self.blocks.push(std::mem::replace(&mut self.current, vec![0.0; k]));
         }

@@ -27,11 +27,10 @@ impl Output {
 
 /// Account for `len` bytes about to be written; ENOSPC once the injected budget is spent.
 pub fn charge(len: usize) -> io::Result<()> {
-    if let Some(limit) = budget() {
-        if WRITTEN.fetch_add(len as u64, Ordering::Relaxed) + len as u64 > limit {
+    if let Some(limit) = budget()
+        && WRITTEN.fetch_add(len as u64, Ordering::Relaxed) + len as u64 > limit {
             return Err(io::Error::from_raw_os_error(28)); // ENOSPC
         }
-    }
     Ok(())
 }
 

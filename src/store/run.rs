@@ -83,7 +83,7 @@ impl StoreConfig {
 
     /// Steps at which checkpoints are written: 0, C, 2C, ... and always the last step.
     pub fn is_checkpoint(&self, step: u64, total: u64) -> bool {
-        step % self.checkpoint_every == 0 || step == total
+        step.is_multiple_of(self.checkpoint_every) || step == total
     }
 
     /// Bytes a checkpoint (with its R and stats) takes before compression.
