@@ -383,11 +383,11 @@ pub fn run(
             None
         }
     };
-    if let Some(p) = prior.as_ref().filter(|p| p.done) {
-        let report: BackwardReport = serde_json::from_str(&std::fs::read_to_string(report_path(&dir)).map_err(|e| Error::io(report_path(&dir), e))?)
-            .map_err(|e| Error::corrupt(report_path(&dir), e.to_string()))?;
-        let _ = p;
-        return Ok(report);
+    if prior.as_ref().is_some_and(|p| p.done) {
+        // The sweep finished earlier: its report is the answer.
+        let path = report_path(&dir);
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        return serde_json::from_str(&text).map_err(|e| Error::corrupt(&path, e.to_string()));
     }
 
     let mut frame_file = match (&frames_path, saving, &prior) {

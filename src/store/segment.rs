@@ -6,7 +6,7 @@
 //! checkpoint), and the directory is fsynced. A finished segment is never rewritten; a
 //! `.tmp` file is by construction an interrupted one.
 
-use super::schema::{Schema, RUN_SCHEMAS};
+use super::schema::Schema;
 use crate::error::{Error, Result};
 use mcap::records::{MessageHeader, Metadata, Record};
 use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
@@ -223,9 +223,4 @@ fn read_stream_limited(name: &Path, mut input: impl Read, mode: ReadMode, max_re
         return Err(Error::corrupt(name, "no clv.run metadata record: not a clv segment"));
     }
     Ok(report)
-}
-
-/// Re-export for callers that only pass the standard set.
-pub fn run_schemas() -> &'static [&'static Schema] {
-    &RUN_SCHEMAS
 }
