@@ -30,14 +30,20 @@ pub fn par(threads: usize) -> Par {
     if threads <= 1 { Par::Seq } else { Par::rayon(threads) }
 }
 
-/// The QR workspace for a D x k block on `threads` threads. Threads speed up the formation
-/// of Q (gemm-like), but slow faer's blocked factorisation down below D of about 800
-/// (measured: 5x at D = 200, 2.6x at D = 400, break-even at 792; on two threads at D = 792
-/// sequential factorisation + threaded Q took 33 ms against 43 ms for both threaded), so the
-/// factorisation is threaded only for larger blocks.
+/// The QR workspace for a D x k block on `threads` threads, tuned by measurement at
+/// D = k = 792 (examples/qr_blocks.rs, 2-core Zen 3):
+/// - threads speed up the formation of Q (gemm-like) but slow faer's blocked factorisation
+///   down below D of about 800 (5x at D = 200, 2.6x at D = 400, break-even at 792), so the
+///   factorisation is threaded only for larger blocks;
+/// - Householder blocks of 16 instead of faer's default 48: 34.4 against 39.2 ms on one
+///   thread, 30.3 against 34 ms with Q formed on two.
 pub fn qr_for(d: usize, k: usize, threads: usize) -> Qr {
     let factor = if d * k >= 1200 * 1200 { par(threads) } else { Par::Seq };
-    Qr::with_par(d, k, factor, par(threads))
+    if d.min(k) >= 512 {
+        Qr::with_block(d, k, 16, factor, par(threads))
+    } else {
+        Qr::with_par(d, k, factor, par(threads))
+    }
 }
 
 impl Qr {
@@ -47,8 +53,13 @@ impl Qr {
 
     /// A workspace with separate parallelism for the factorisation and for forming Q.
     pub fn with_par(d: usize, k: usize, par_factor: Par, par_q: Par) -> Self {
+        Self::with_block(d, k, factor::recommended_block_size::<f64>(d, k), par_factor, par_q)
+    }
+
+    /// A workspace with a chosen Householder block size (for tuning experiments).
+    pub fn with_block(d: usize, k: usize, bs: usize, par_factor: Par, par_q: Par) -> Self {
         let par = par_factor;
-        let bs = factor::recommended_block_size::<f64>(d, k);
+        let bs = bs.clamp(1, k.min(d).max(1));
         let req = StackReq::any_of(&[
             factor::qr_in_place_scratch::<f64>(d, k, bs, par, Default::default()),
             householder::apply_block_householder_on_the_left_in_place_scratch::<f64>(d, bs, k),
@@ -251,11 +262,12 @@ mod tests {
     /// positive diagonal; for several shapes around the block-size boundaries.
     #[test]
     fn qr_reconstructs_with_positive_diagonal() {
-        for &(d, k) in &[(2, 2), (2, 1), (7, 3), (40, 40), (100, 37), (130, 129)] {
+        for &(d, k, bs) in &[(2, 2, 0), (2, 1, 0), (7, 3, 0), (40, 40, 0), (100, 37, 0), (130, 129, 0), (130, 129, 16), (600, 520, 16)] {
             let a = random_block(d, k, (d * 1000 + k) as u64);
             let mut g = a.clone();
             let mut r = Mat::zeros(k, k);
-            Qr::new(d, k, Par::Seq).factor(&mut g, &mut r);
+            let mut qr = if bs == 0 { Qr::new(d, k, Par::Seq) } else { Qr::with_block(d, k, bs, Par::Seq, Par::rayon(2)) };
+            qr.factor(&mut g, &mut r);
             let mut worst: f64 = 0.0;
             for i in 0..d {
                 for j in 0..k {

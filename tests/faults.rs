@@ -221,6 +221,15 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
         let err = stderr(&out);
         assert!(!out.status.success() && err.contains("is a file") && err.contains("run directory"), "{cmd:?}: {err}");
     }
+    // A run made by a build with other numerics cannot be continued bit for bit: refused.
+    let original = std::fs::read_to_string(dir.join("run.json")).unwrap();
+    std::fs::write(dir.join("run.json"), original.replace("clv-numerics/", "clv-numerics-old/")).unwrap();
+    for cmd in [vec!["forward", "--resume", dir.to_str().unwrap()], vec!["backward", dir.to_str().unwrap()]] {
+        let out = clv(&cmd);
+        let err = stderr(&out);
+        assert!(!out.status.success() && err.contains("another build") && err.contains("bit for bit"), "{cmd:?}: {err}");
+    }
+    std::fs::write(dir.join("run.json"), &original).unwrap();
     let json = std::fs::read_to_string(dir.join("run.json")).unwrap().replace("clv-run/1", "clv-run/99");
     std::fs::write(dir.join("run.json"), json).unwrap();
     let out = clv(&["forward", "--resume", dir.to_str().unwrap()]);

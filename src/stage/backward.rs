@@ -325,6 +325,7 @@ pub fn run(
     let started = Instant::now();
     let (dir, meta) = RunDir::open(path)?;
     let _lock = dir.lock("backward pass")?;
+    meta.build.check_can_continue(path)?;
     let (config, store) = (&meta.config, &meta.store);
     let total = config.relax_steps + config.steps;
     let gs: crate::report::SpectrumSummary = crate::report::SpectrumSummary::read(&dir.spectrum_path()).map_err(|_| {

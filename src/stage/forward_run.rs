@@ -71,6 +71,7 @@ struct LastCheckpoint {
 pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
     let (dir, meta) = RunDir::open(path)?;
     let _lock = dir.lock("forward pass")?;
+    meta.build.check_can_continue(path)?;
     for partial in dir.partial_segments()? {
         let mut checkpoints = 0u64;
         let mut last = None;

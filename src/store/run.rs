@@ -122,10 +122,17 @@ pub fn human(bytes: u64) -> String {
     }
 }
 
+/// Identifies the floating-point path of the dynamics and the QR step; changed whenever an
+/// edit changes the bits a run produces (block sizes, operation order).
+pub const NUMERICS: &str = "clv-numerics/2 (QR Householder block 16 for D >= 512; tangent replay in 32-column blocks)";
+
 /// Facts about the build that determine the bits of a run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BuildInfo {
     pub clv_version: String,
+    /// See [`NUMERICS`].
+    #[serde(default)]
+    pub numerics: String,
     pub arch: String,
     /// CPU features faer may dispatch to; a run continued on a machine with others may
     /// differ in the last bits.
@@ -147,7 +154,26 @@ impl BuildInfo {
                 }
             }
         }
-        BuildInfo { clv_version: env!("CARGO_PKG_VERSION").into(), arch: std::env::consts::ARCH.into(), cpu_features }
+        BuildInfo { clv_version: env!("CARGO_PKG_VERSION").into(), numerics: NUMERICS.into(), arch: std::env::consts::ARCH.into(), cpu_features }
+    }
+
+    /// Refuse to continue a run whose bits this build and machine cannot reproduce: the
+    /// continuation would not match the stored part, and the backward stage's bitwise check
+    /// would reject the mixed run later.
+    pub fn check_can_continue(&self, run: &Path) -> Result<()> {
+        let here = BuildInfo::current();
+        let what = if self.numerics != here.numerics {
+            format!("its numerics are {:?}, this build's are {:?}", self.numerics, here.numerics)
+        } else if self.arch != here.arch || self.cpu_features != here.cpu_features {
+            format!("it ran on {} with {:?}, this machine is {} with {:?}", self.arch, self.cpu_features, here.arch, here.cpu_features)
+        } else {
+            return Ok(());
+        };
+        Err(Error::Other(format!(
+            "{}: the run was made by another build or on another kind of CPU ({what}); continuing it here would not reproduce its numbers bit for bit. \
+             Continue it with the build and kind of machine that started it, or start a new run",
+            run.display()
+        )))
     }
 }
 
