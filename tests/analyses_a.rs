@@ -5,25 +5,16 @@
 //! One run serves every test: N = 8 disks in a square box, 4000 steps, the last 600 as CLV
 //! window (601 frames), backward with GS vectors, then `clv analyze`.
 
+mod common;
+use common::{clv, ok};
 use clv::stage::analyze::kernels::localization::entropy;
 use clv::stage::analyze::kernels::projections::eta_q_p;
 use clv::stage::frame::Frame;
-use clv::store::frames::{read_frames, Flow};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use std::sync::OnceLock;
 
 const N: usize = 8;
 const D: usize = 4 * N;
-
-fn clv(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_clv")).args(args).output().unwrap()
-}
-
-fn ok(out: Output) -> Output {
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    out
-}
 
 /// The report directory of the shared run (made once).
 fn report() -> &'static Path {
@@ -80,18 +71,7 @@ fn frames() -> (f64, f64) {
 /// The frames of the run, in time order.
 fn all_frames() -> &'static [Frame] {
     static FRAMES: OnceLock<Vec<Frame>> = OnceLock::new();
-    FRAMES.get_or_init(|| {
-        let path = report().parent().unwrap().join("run").join("frames.mcap");
-        let mut all = Vec::new();
-        let (_, damage) = read_frames(&path, |f| {
-            all.push(f);
-            Ok(Flow::Continue)
-        })
-        .unwrap();
-        assert!(damage.is_none(), "{damage:?}");
-        all.sort_by_key(|f| f.step);
-        all
-    })
+    FRAMES.get_or_init(|| common::frames(&report().parent().unwrap().join("run").join("frames.mcap")))
 }
 
 /// Standard error of the mean of a correlated time series, from the spread of the means of

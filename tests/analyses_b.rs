@@ -1,25 +1,14 @@
 //! The mode, transversality and Henon analyses (paper Table IV, Figs. 1, 10-12, 15-17) on
 //! small real runs: forward, backward --with-gs, analyze.
 
+mod common;
+use common::{clv, ok};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use std::time::Instant;
 
-fn clv(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_clv")).args(args).output().unwrap()
-}
-
-fn ok(out: Output) -> Output {
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    out
-}
-
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("analyses_b").join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("analyses_b", name)
 }
 
 /// forward, backward --with-gs, analyze; returns the report directory.
