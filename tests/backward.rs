@@ -166,37 +166,21 @@ fn disk_clvs_n16_are_covariant_and_match_gs() {
 
 #[test]
 fn altered_checkpoint_stops_the_backward_stage_naming_the_step() {
-    use clv::store::records::Checkpoint;
-    use clv::store::schema::{CHECKPOINT, RUN_SCHEMAS};
-    use clv::store::segment::{read_segment, SegmentWriter};
+    use clv::store::schema::CHECKPOINT;
+    use clv::store::segment::{read_segment, ReadMode};
     let dir = forward("altered", &HENON);
-    let run = clv::store::RunDir { path: dir.clone() };
-    let seg = run.segments().unwrap().pop().unwrap();
-    // Rewrite the newest segment with one bit of one checkpoint's phase point changed.
-    let mut messages = Vec::new();
-    let report = read_segment(&seg.path, clv::store::segment::ReadMode::Strict, |m| {
-        if m.topic != clv::store::segment::RUN_METADATA {
-            messages.push((m.topic.to_string(), m.step, m.data.to_vec()));
+    let seg = (clv::store::RunDir { path: dir.clone() }).segments().unwrap().pop().unwrap();
+    // Flip one bit of the phase point of the newest segment's second checkpoint.
+    let mut steps = Vec::new();
+    read_segment(&seg.path, ReadMode::Strict, |m| {
+        if m.topic == CHECKPOINT.topic {
+            steps.push(m.step);
         }
         Ok(())
     })
     .unwrap();
-    let target = messages.iter().filter(|m| m.0 == CHECKPOINT.topic).map(|m| m.1).nth(1).unwrap();
-    let altered = dir.join("altered");
-    std::fs::create_dir_all(&altered).unwrap();
-    let mut w = SegmentWriter::create(&altered, seg.first, report.run_json.as_deref().unwrap(), &RUN_SCHEMAS).unwrap();
-    for (topic, step, data) in &messages {
-        let data = if topic == CHECKPOINT.topic && *step == target {
-            let mut cp = Checkpoint::decode(data).unwrap();
-            cp.state.system.phase[0] = f64::from_bits(cp.state.system.phase[0].to_bits() ^ 1);
-            cp.encode()
-        } else {
-            data.clone()
-        };
-        w.write(topic, *step, &data).unwrap();
-    }
-    let written = w.finish().unwrap();
-    std::fs::rename(written, &seg.path).unwrap();
+    let target = steps[1];
+    common::alter_checkpoint(&dir, target, |cp| cp.state.system.phase[0] = f64::from_bits(cp.state.system.phase[0].to_bits() ^ 1));
     let out = clv(&["backward", dir.to_str().unwrap(), "--quiet"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "an altered checkpoint must stop the backward stage");
