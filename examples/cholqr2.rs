@@ -1,7 +1,7 @@
 //! Experiment (not part of the tool): CholeskyQR2 against the Householder QR the forward
 //! stage uses, at D = 792 on a realistic tangent block, 1 and 2 threads.
 use clv::config::{RunConfig, SystemConfig};
-use clv::linalg::qr_for;
+use clv::linalg::Qr;
 use clv::stage::forward::Forward;
 use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::solve_lower_triangular_in_place;
@@ -32,7 +32,7 @@ fn main() {
         let par = if threads == 1 { Par::Seq } else { Par::rayon(threads) };
         let (mut hh, mut cq) = (vec![], vec![]);
         let mut r = Mat::zeros(k, k);
-        let mut qr = qr_for(d, k, threads);
+        let mut qr = Qr::new(d, k, threads);
         for _ in 0..5 {
             let mut g = t.clone();
             let s = std::time::Instant::now();

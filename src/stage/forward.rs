@@ -6,7 +6,7 @@
 
 use crate::config::RunConfig;
 use crate::error::{Error, Result};
-use crate::linalg::{qr_for, Qr};
+use crate::linalg::Qr;
 use crate::system::{DynamicalSystem, Snapshot, Tangent};
 use faer::Mat;
 use serde::{Deserialize, Serialize};
@@ -111,7 +111,7 @@ impl Forward {
             step: 0,
             acc: Accumulator::new(k, block_len),
             relax_steps: config.relax_steps,
-            qr: qr_for(d, k, config.threads),
+            qr: Qr::new(d, k, config.threads),
         })
     }
 

@@ -124,7 +124,7 @@ pub fn human(bytes: u64) -> String {
 
 /// Identifies the floating-point path of the dynamics and the QR step; changed whenever an
 /// edit changes the bits a run produces (block sizes, operation order).
-pub const NUMERICS: &str = "clv-numerics/2 (QR Householder block 16 for D >= 512; tangent replay in 32-column blocks)";
+pub const NUMERICS: &str = "clv-numerics/3 (QR: blocked Householder in 32-column panels, 64-column chunks, any thread count; tangent replay in 32-column blocks)";
 
 /// Facts about the build that determine the bits of a run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
