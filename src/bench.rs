@@ -78,12 +78,14 @@ pub struct BenchReport {
     /// 8/3 D k^2 flops (D = k: 8/3 D^3) at the measured gemm rate.
     pub floor_ms: f64,
     pub qr_ms: Stat,
-    /// Wall time per step of a stored forward run (everything, on all threads).
+    /// Wall time per step of a stored forward run (everything, on all threads), in the
+    /// steady state: the difference of runs of S and 2S steps, over S.
     pub forward_step_ms: Stat,
     pub md_tangent_ms: Stat,
     /// Encoding checkpoint, R and statistics, amortised per step (on the simulation thread).
     pub store_ms: Stat,
-    /// Wall time per step of the backward stage (recomputation overlapped with the sweep).
+    /// Wall time per step of the backward stage in the steady state (after the first segment,
+    /// recomputation overlapping the sweep), frames consumed in-process.
     pub backward_step_ms: Stat,
     pub backward_solve_ms: Stat,
     pub backward_vgc_ms: Stat,
@@ -166,7 +168,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     let config = disk_config(n, k, threads, 3, o.steps)?;
     let mut fwd = relaxed_forward(&config)?;
     let (mut md, mut qr) = (Vec::new(), Vec::new());
-    for _ in 0..reps.max(5) {
+    for _ in 0..reps.max(20) {
         let (a, q) = fwd.step_timed()?;
         md.push(ms(a));
         qr.push(ms(q));
@@ -209,34 +211,45 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     let tmp = std::env::temp_dir().join(format!("clv-bench-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     let mut fsteps = Vec::new();
+    // Runs of `steps` and 2 `steps` steps: their difference is the steady-state cost of a
+    // step (checkpoints, fsyncs and all), without the start-up that a long run amortises.
+    let steps = o.steps.max(100);
     for rep in 0..reps.min(3) {
-        let dir = tmp.join(format!("fwd{rep}"));
-        let steps = o.steps.max(100);
-        let cfg = disk_config(n, k, threads, 0, steps)?;
-        let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: StoreConfig::for_run(&cfg), build: BuildInfo::current() };
-        let t = Instant::now();
-        forward_run::create(&dir, &meta, &mut Feedback::default())?;
-        fsteps.push(ms(t.elapsed()) / steps as f64);
+        let mut wall = [0.0; 2];
+        for (i, len) in [steps, 2 * steps].into_iter().enumerate() {
+            let dir = tmp.join(format!("fwd{rep}-{len}"));
+            let cfg = disk_config(n, k, threads, 0, len)?;
+            let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: StoreConfig::for_run(&cfg), build: BuildInfo::current() };
+            let t = Instant::now();
+            forward_run::create(&dir, &meta, &mut Feedback::default())?;
+            wall[i] = ms(t.elapsed());
+            let _ = std::fs::remove_dir_all(&dir);
+        }
+        fsteps.push((wall[1] - wall[0]) / steps as f64);
     }
     let forward_step_ms = Stat::of(fsteps);
 
     say("backward stage (recomputation overlapped with the sweep)");
     let mut bsteps = Vec::new();
-    for rep in 0..reps.min(3) {
+    for rep in 0..reps.min(2) {
+        // Store defaults (segments of 100 steps), four segments; the time per step is taken
+        // after the first segment, once recomputation and sweep overlap as in a long run.
         let dir = tmp.join(format!("bwd{rep}"));
-        let steps = 120;
-        let cfg = disk_config(n, k, threads, 0, steps)?;
+        let cfg = disk_config(n, k, threads, 0, 330)?;
         let mut st = StoreConfig::for_run(&cfg);
-        st.checkpoint_every = 10; // ten segments: the recompute/sweep pipeline fills
-        st.clv_steps = 80;
-        st.transient = 20;
+        st.clv_steps = 200;
+        st.transient = 100;
         let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: st.clone(), build: BuildInfo::current() };
         forward_run::create(&dir, &meta, &mut Feedback::default())?;
         let mut opts = BackwardOptions::for_run(&meta);
         opts.save_every = 0;
-        let t = Instant::now();
-        backward::run(&dir, &opts, false, u64::MAX, &mut |_| Ok(Flow::Continue), &mut |_, _| {})?;
-        bsteps.push(ms(t.elapsed()) / (st.clv_steps + st.transient) as f64);
+        let mut marks: Vec<(Instant, u64)> = Vec::new();
+        backward::run(&dir, &opts, false, u64::MAX, &mut |_| Ok(Flow::Continue), &mut |steps, _| marks.push((Instant::now(), steps)))?;
+        if let (Some(first), Some(last)) = (marks.first(), marks.last())
+            && last.1 > first.1 {
+                bsteps.push(ms(last.0 - first.0) / (last.1 - first.1) as f64);
+            }
+        let _ = std::fs::remove_dir_all(&dir);
     }
     let backward_step_ms = Stat::of(bsteps);
 

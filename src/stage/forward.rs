@@ -100,7 +100,8 @@ pub struct Forward {
 
 impl Forward {
     pub fn new(config: &RunConfig) -> Result<Self> {
-        let system = config.build_system()?;
+        let mut system = config.build_system()?;
+        system.set_threads(config.threads);
         let (d, k) = (system.dim(), config.vectors);
         let g = Tangent::identity(system.as_ref(), k);
         let block_len = config.steps.div_ceil(config.blocks as u64);

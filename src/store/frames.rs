@@ -24,9 +24,11 @@ pub enum Flow {
     Stop,
 }
 
+/// Files are zstd-compressed; a stream (a pipe to the next stage) is not: both ends would
+/// pay for compression that saves nothing in memory.
 fn options(seekable: bool) -> WriteOptions {
     WriteOptions::new()
-        .compression(Some(mcap::Compression::Zstd))
+        .compression(seekable.then_some(mcap::Compression::Zstd))
         .compression_level(1)
         .chunk_size(Some(8 << 20))
         .disable_seeking(!seekable)

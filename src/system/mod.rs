@@ -50,6 +50,10 @@ pub trait DynamicalSystem: Send {
     /// Advance Gamma and the tangent block by one tau: Gbar_n = J_{n-1} G_{n-1}.
     fn advance(&mut self, tangent: &mut Tangent) -> Result<()>;
 
+    /// Threads that [`DynamicalSystem::advance`] may use for the tangent vectors; the result
+    /// must not depend on the number.
+    fn set_threads(&mut self, _threads: usize) {}
+
     /// The exact state at the current step boundary.
     fn snapshot(&self) -> Snapshot;
 

@@ -10,14 +10,19 @@ use std::ops::Range;
 /// Tangent free flight over dt: dq += dp dt (m = 1), for the vectors (columns) in `cols` of
 /// one particle's rows (row stride k).
 pub fn fly(rows: &mut [f64], k: usize, cols: Range<usize>, dt: f64) {
+    let (q, p) = rows.split_at_mut(2 * k);
+    let (qx, qy) = q.split_at_mut(k);
+    fly_rows([&mut qx[cols.clone()], &mut qy[cols.clone()]], [&p[cols.clone()], &p[k..][cols]], dt);
+}
+
+/// [`fly`] on one particle's rows given one by one: dq_x += dp_x dt, dq_y += dp_y dt.
+pub fn fly_rows(dq: [&mut [f64]; 2], dp: [&[f64]; 2], dt: f64) {
     if dt == 0.0 {
         return;
     }
-    let (q, p) = rows.split_at_mut(2 * k);
-    for r in 0..2 {
-        let (dq, dp) = (&mut q[r * k..][cols.clone()], &p[r * k..][cols.clone()]);
-        dispatch!(axpy(dq, dp, dt));
-    }
+    let [dqx, dqy] = dq;
+    dispatch!(axpy(dqx, dp[0], dt));
+    dispatch!(axpy(dqy, dp[1], dt));
 }
 
 /// Linearised elastic collision of disks i and j at contact (Dellago, Posch & Hoover,
@@ -51,6 +56,12 @@ pub fn collide(ri: &mut [f64], rj: &mut [f64], k: usize, cols: Range<usize>, n: 
         &mut pxj[c.clone()],
         &mut pyj[c],
     ];
+    collide_rows(rows, n, v, vn);
+}
+
+/// [`collide`] on the rows given one by one: [dq_x, dq_y, dp_x, dp_y] of i, then of j,
+/// all of the same length.
+pub fn collide_rows(rows: [&mut [f64]; 8], n: [f64; 2], v: [f64; 2], vn: f64) {
     dispatch!(collide_kernel(rows, n, v, vn));
 }
 

@@ -19,6 +19,7 @@ use crate::error::{Error, Result};
 use crate::system::Tangent;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
+use std::ops::Range;
 
 #[derive(Clone, Copy, Debug)]
 enum Kind {
@@ -83,9 +84,29 @@ struct TangentCollision {
 /// instead of the whole block streaming through memory once per collision.
 const COLUMN_BLOCK: usize = 32;
 
+/// The tangent block shared by the replay workers, each of which owns a block of columns.
+struct SharedBlock {
+    ptr: *mut f64,
+    len: usize,
+    k: usize,
+}
+
+unsafe impl Sync for SharedBlock {}
+
+impl SharedBlock {
+    /// Columns `cols` of row `row`. Safety: no other live slice overlaps it.
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn row(&self, row: usize, cols: &Range<usize>) -> &mut [f64] {
+        assert!(cols.start <= cols.end && cols.end <= self.k && row * self.k + cols.end <= self.len);
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(row * self.k + cols.start), cols.len()) }
+    }
+}
+
 /// Scratch space reused from interval to interval (no allocation per step).
 #[derive(Clone, Debug, Default)]
 pub struct Engine {
+    /// Threads for the replay of the tangent block (0 or 1: the calling thread only).
+    pub threads: usize,
     /// The interval's collisions, replayed on the tangent block column block by block.
     log: Vec<TangentCollision>,
     nc: [usize; 2],
@@ -202,31 +223,49 @@ impl Engine {
     }
 
     /// Apply the interval's collisions and the final free flights to the tangent block,
-    /// one block of columns at a time.
+    /// one block of columns at a time. The column blocks are independent, so `threads`
+    /// workers each take a contiguous run of them (runs rather than alternate blocks, so
+    /// that two workers never share the cache lines at a block boundary for long). The
+    /// operations per column are the same, so the result does not depend on the number of
+    /// threads.
     fn replay(&self, tangent: &mut Tangent, tau: f64) {
         let k = tangent.count();
-        let n = self.t_tan.len();
+        let blocks = k.div_ceil(COLUMN_BLOCK);
         let rows = tangent.rows_mut();
-        for c0 in (0..k).step_by(COLUMN_BLOCK) {
-            let cols = c0..(c0 + COLUMN_BLOCK).min(k);
-            for e in &self.log {
-                let (i, j) = (e.i as usize, e.j as usize);
-                let (lo, hi) = (i.min(j), i.max(j));
-                let (a, b) = rows.split_at_mut(4 * hi * k);
-                let rlo = &mut a[4 * lo * k..4 * (lo + 1) * k];
-                let rhi = &mut b[..4 * k];
-                let (dt_lo, dt_hi) = if i < j { (e.dt_i, e.dt_j) } else { (e.dt_j, e.dt_i) };
-                collision::fly(rlo, k, cols.clone(), dt_lo);
-                collision::fly(rhi, k, cols.clone(), dt_hi);
-                if i < j {
-                    collision::collide(rlo, rhi, k, cols.clone(), e.n, e.v, e.vn);
-                } else {
-                    collision::collide(rhi, rlo, k, cols.clone(), e.n, e.v, e.vn);
+        let g = SharedBlock { ptr: rows.as_mut_ptr(), len: rows.len(), k };
+        let workers = self.threads.clamp(1, blocks.max(1));
+        let work = |w: usize| {
+            for b in blocks * w / workers..blocks * (w + 1) / workers {
+                // Safety: block b belongs to worker w alone.
+                unsafe { self.replay_block(&g, b * COLUMN_BLOCK..((b + 1) * COLUMN_BLOCK).min(k), tau) };
+            }
+        };
+        if workers == 1 {
+            work(0);
+        } else {
+            rayon::scope(|s| {
+                for w in 1..workers {
+                    s.spawn(move |_| work(w));
                 }
-            }
-            for i in 0..n {
-                collision::fly(&mut rows[4 * i * k..4 * (i + 1) * k], k, cols.clone(), tau - self.t_tan[i]);
-            }
+                work(0);
+            });
+        }
+    }
+
+    /// [`Engine::replay`] on the columns `cols`. Safety: no other thread touches them.
+    unsafe fn replay_block(&self, g: &SharedBlock, cols: Range<usize>, tau: f64) {
+        // Safety (all rows below): the rows of disks i != j are distinct.
+        let disk = |i: usize| unsafe { [0, 1, 2, 3].map(|r| g.row(4 * i + r, &cols)) };
+        for e in &self.log {
+            let [qxi, qyi, pxi, pyi] = disk(e.i as usize);
+            let [qxj, qyj, pxj, pyj] = disk(e.j as usize);
+            collision::fly_rows([&mut *qxi, &mut *qyi], [pxi, pyi], e.dt_i);
+            collision::fly_rows([&mut *qxj, &mut *qyj], [pxj, pyj], e.dt_j);
+            collision::collide_rows([qxi, qyi, pxi, pyi, qxj, qyj, pxj, pyj], e.n, e.v, e.vn);
+        }
+        for (i, t) in self.t_tan.iter().enumerate() {
+            let [qx, qy, px, py] = disk(i);
+            collision::fly_rows([qx, qy], [px, py], tau - t);
         }
     }
 

@@ -185,6 +185,10 @@ impl DynamicalSystem for HardDisks {
         Ok(())
     }
 
+    fn set_threads(&mut self, threads: usize) {
+        self.engine.threads = threads;
+    }
+
     fn snapshot(&self) -> Snapshot {
         let n = self.pos.len();
         let mut phase = vec![0.0; 4 * n];
