@@ -139,6 +139,22 @@ fn child_peak_rss_mb(exe: &Path, args: &[String]) -> Result<f64> {
 }
 
 /// A relaxed forward pass of the benchmark system (its tangent block is realistic).
+/// (step, wall seconds) of every checkpoint's statistics in a run directory.
+fn checkpoint_walls(dir: &Path) -> Result<Vec<(u64, f64)>> {
+    let (run, _) = crate::store::run::RunDir::open(dir)?;
+    let mut walls = Vec::new();
+    for seg in run.segments()? {
+        crate::store::segment::read_segment(&seg.path, crate::store::segment::ReadMode::Strict, |m| {
+            if m.topic == crate::store::schema::STATS.topic {
+                let s = Stats::decode(m.data).map_err(|e| Error::corrupt(&seg.path, e))?;
+                walls.push((s.step, s.wall_seconds));
+            }
+            Ok(())
+        })?;
+    }
+    Ok(walls)
+}
+
 fn relaxed_forward(config: &RunConfig) -> Result<Forward> {
     let mut f = Forward::new(config)?;
     for _ in 0..config.relax_steps {
@@ -211,33 +227,36 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     let tmp = std::env::temp_dir().join(format!("clv-bench-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     let mut fsteps = Vec::new();
-    // Runs of `steps` and 2 `steps` steps: their difference is the steady-state cost of a
-    // step (checkpoints, fsyncs and all), without the start-up that a long run amortises.
-    let steps = o.steps.max(100);
+    // One run of 3 checkpoint intervals; the wall times its statistics record at the
+    // checkpoints give the steady-state cost of a step (checkpoints, fsyncs and all) after
+    // the first interval, without the start-up that a long run amortises.
+    let steps = 3 * o.steps.max(100);
     for rep in 0..reps.min(3) {
-        let mut wall = [0.0; 2];
-        for (i, len) in [steps, 2 * steps].into_iter().enumerate() {
-            let dir = tmp.join(format!("fwd{rep}-{len}"));
-            let cfg = disk_config(n, k, threads, 0, len)?;
-            let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: StoreConfig::for_run(&cfg), build: BuildInfo::current() };
-            let t = Instant::now();
-            forward_run::create(&dir, &meta, &mut Feedback::default())?;
-            wall[i] = ms(t.elapsed());
-            let _ = std::fs::remove_dir_all(&dir);
+        let dir = tmp.join(format!("fwd{rep}"));
+        let cfg = disk_config(n, k, threads, 0, steps)?;
+        let store = StoreConfig::for_run(&cfg);
+        let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: store.clone(), build: BuildInfo::current() };
+        forward_run::create(&dir, &meta, &mut Feedback::default())?;
+        let walls = checkpoint_walls(&dir)?;
+        let at = |step: u64| walls.iter().find(|w| w.0 == step).map(|w| w.1);
+        let (from, to) = (store.checkpoint_every, steps);
+        if let (Some(a), Some(b)) = (at(from), at(to)) {
+            fsteps.push((b - a) * 1e3 / (to - from) as f64);
         }
-        fsteps.push((wall[1] - wall[0]) / steps as f64);
+        let _ = std::fs::remove_dir_all(&dir);
     }
     let forward_step_ms = Stat::of(fsteps);
 
     say("backward stage (recomputation overlapped with the sweep)");
     let mut bsteps = Vec::new();
     for rep in 0..reps.min(2) {
-        // Store defaults (segments of 100 steps), four segments; the time per step is taken
-        // after the first segment, once recomputation and sweep overlap as in a long run.
+        // Store defaults (segments of 100 steps), five segments; the time per step is taken
+        // over the last three, once recomputation and sweep overlap and the two segment
+        // buffers have been touched, as in a long run.
         let dir = tmp.join(format!("bwd{rep}"));
-        let cfg = disk_config(n, k, threads, 0, 330)?;
+        let cfg = disk_config(n, k, threads, 0, 430)?;
         let mut st = StoreConfig::for_run(&cfg);
-        st.clv_steps = 200;
+        st.clv_steps = 300;
         st.transient = 100;
         let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: st.clone(), build: BuildInfo::current() };
         forward_run::create(&dir, &meta, &mut Feedback::default())?;
@@ -245,7 +264,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         opts.save_every = 0;
         let mut marks: Vec<(Instant, u64)> = Vec::new();
         backward::run(&dir, &opts, false, u64::MAX, &mut |_| Ok(Flow::Continue), &mut |steps, _| marks.push((Instant::now(), steps)))?;
-        if let (Some(first), Some(last)) = (marks.first(), marks.last())
+        if let (Some(first), Some(last)) = (marks.get(1), marks.last())
             && last.1 > first.1 {
                 bsteps.push(ms(last.0 - first.0) / (last.1 - first.1) as f64);
             }
