@@ -3,16 +3,17 @@
 # Disk Systems", end to end: 198 disks, density 0.7, Ly/Lx = 2/11, tau = 0.6, 1e4 relaxation
 # steps, 2.5e5 forward steps, CLVs for the last 2.5e4 steps (as in the paper).
 #
-#   scripts/reproduce_paper.sh [OUT_DIR] [THREADS]      (defaults: paper-out, 1; at D = 792 two threads are not faster)
+#   scripts/reproduce_paper.sh [OUT_DIR] [THREADS]      (defaults: paper-out, 2)
 #
-# How long: `clv bench` on this machine projects the run (see README, Performance): about
-# 2.7 hours forward + 0.5 hours backward on a 2-core machine of the CI kind (3.2 h).
+# How long: `clv bench --threads 2` projects the forward and backward stages (see README,
+# Performance) at about 1.5-1.7 h + 0.4 h on a 2-core machine of the CI kind; the analyses
+# run beside the backward stage. No complete run has been timed yet.
 # The run is resumable: start the script again after a crash or a kill and it continues.
 # Disk: about 3 GB for the kept checkpoints; the frames are streamed to the analyses.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-paper-out}
-THREADS=${2:-1}
+THREADS=${2:-2}
 cargo build --release --quiet
 CLV=target/release/clv
 if [ -f "$OUT/run/run.json" ]; then

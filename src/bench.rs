@@ -300,12 +300,14 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
 
     let (mut forward_peak_rss, mut backward_peak_rss) = (Vec::new(), Vec::new());
     if let Some(exe) = &o.exe {
+        // Checkpoints every 5 steps in segments of 2: both run lengths write, rotate and
+        // prune segments, so the comparison is of steady states.
         say("peak memory (child processes, 10x longer runs)");
         let base = 20u64;
         for scale in [1, 10] {
             let dir = tmp.join(format!("rss-f{scale}"));
             let steps = base * scale;
-            let args: Vec<String> = ["forward", "--quiet", "--n", &n.to_string(), "--vectors", &k.to_string(), "--threads", &threads.to_string(), "--relax-steps", "0", "--steps", &steps.to_string(), "--checkpoint-every", "10", "--clv-steps", "10", "--transient", "5", "--out", dir.to_str().unwrap_or_default()]
+            let args: Vec<String> = ["forward", "--quiet", "--n", &n.to_string(), "--vectors", &k.to_string(), "--threads", &threads.to_string(), "--relax-steps", "0", "--steps", &steps.to_string(), "--checkpoint-every", "5", "--segment-checkpoints", "2", "--clv-steps", "10", "--transient", "5", "--out", dir.to_str().unwrap_or_default()]
                 .iter().map(|s| s.to_string()).collect();
             forward_peak_rss.push(Rss { steps, peak_mb: child_peak_rss_mb(exe, &args)? });
         }

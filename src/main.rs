@@ -124,7 +124,8 @@ struct ForwardArgs {
     /// Seed of the initial state (positions on the start lattice, velocities).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Threads for the linear algebra (recorded: results differ in the last bits).
+    /// Threads for the QR step and the tangent updates (2 halves a step at D = 792; the
+    /// numbers do not depend on it).
     #[arg(long, default_value_t = 1)]
     threads: usize,
     /// Blocks for the standard error.
