@@ -20,7 +20,7 @@ CLV=target/release/clv
 if [ -f "$OUT/run/run.json" ]; then
   $CLV forward --resume "$OUT/run"
 else
-  $CLV forward --n 198 --density 0.7 --aspect 2/11 --tau 0.6 --relax-steps 10000 --steps 250000 \
+  $CLV forward --n 198 --density 0.7 --aspect 2/11 --tau 0.6 --relax-steps 10000 --steps 240000 \
     --clv-steps 25000 --threads "$THREADS" --out "$OUT/run"
 fi
 $CLV inspect "$OUT/run"

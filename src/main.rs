@@ -656,7 +656,25 @@ fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
     Ok(argv)
 }
 
+/// One malloc arena for the whole process (glibc). With one arena per thread, the writer
+/// thread's chunk buffers and the simulation's 5-8 MB checkpoint buffers fragment two heaps,
+/// and resident memory crept up with run length: +8.6 % between 20 and 600 steps at D = 792,
+/// +1.1 % with one arena (`clv bench`). The forward step allocates nothing and the others
+/// little, so sharing the arena cost no measurable time (forward step 21.0 against 20.9 ms).
+fn one_malloc_arena() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        unsafe extern "C" {
+            fn mallopt(param: i32, value: i32) -> i32;
+        }
+        const M_ARENA_MAX: i32 = -8;
+        // SAFETY: glibc's mallopt, called before any other thread exists.
+        unsafe { mallopt(M_ARENA_MAX, 1) };
+    }
+}
+
 fn main() {
+    one_malloc_arena();
     let argv = match expand_config(std::env::args().collect()) {
         Ok(a) => a,
         Err(e) => {

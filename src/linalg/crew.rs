@@ -48,13 +48,15 @@ impl Crew {
         self.senders.len() + 1
     }
 
-    /// Run `work(worker)` on every worker at once and return when all are done. A panic in
-    /// any worker is re-raised here, after all have stopped.
-    pub fn run(&self, work: &(dyn Fn(usize) + Sync)) {
+    /// Run `work(worker)` at once on the first `workers` workers (at least the calling
+    /// thread; the others keep sleeping, so a caller can give cores back while something
+    /// else needs them) and return when all are done. A panic in any worker is re-raised
+    /// here, after all have stopped.
+    pub fn run_on(&self, workers: usize, work: &(dyn Fn(usize) + Sync)) {
         // Safety: the lifetime is erased only until every helper has reported back below.
         let ptr: *const Work = unsafe { std::mem::transmute::<*const (dyn Fn(usize) + Sync + '_), *const Work>(work) };
         let mut sent = 0;
-        for s in &self.senders {
+        for s in self.senders.iter().take(workers.saturating_sub(1)) {
             if s.send(Task(ptr)).is_ok() {
                 sent += 1;
             }
@@ -95,7 +97,7 @@ mod tests {
         for _ in 0..50 {
             let started = AtomicUsize::new(0);
             let seen = AtomicUsize::new(0);
-            crew.run(&|id| {
+            crew.run_on(crew.workers(), &|id| {
                 seen.fetch_or(1 << id, Ordering::Relaxed);
                 started.fetch_add(1, Ordering::SeqCst);
                 while started.load(Ordering::SeqCst) < 3 {
@@ -106,12 +108,25 @@ mod tests {
         }
     }
 
+    /// run_on(n) runs workers 0..n and no other.
+    #[test]
+    fn run_on_uses_the_first_workers_only() {
+        let crew = Crew::new(3).unwrap();
+        for n in [1, 2, 3, 5] {
+            let seen = AtomicUsize::new(0);
+            crew.run_on(n, &|id| {
+                seen.fetch_or(1 << id, Ordering::Relaxed);
+            });
+            assert_eq!(seen.load(Ordering::Relaxed), (1 << n.min(3)) - 1, "run_on({n})");
+        }
+    }
+
     #[test]
     fn a_panicking_worker_is_reported_after_all_stop() {
         let crew = Crew::new(2).unwrap();
         let finished = AtomicUsize::new(0);
         let r = catch_unwind(AssertUnwindSafe(|| {
-            crew.run(&|id| {
+            crew.run_on(crew.workers(), &|id| {
                 if id == 1 {
                     panic!("worker 1 fails");
                 }
@@ -121,7 +136,7 @@ mod tests {
         assert!(r.is_err());
         assert_eq!(finished.load(Ordering::SeqCst), 1);
         // The crew is still usable.
-        crew.run(&|_| {
+        crew.run_on(crew.workers(), &|_| {
             finished.fetch_add(1, Ordering::SeqCst);
         });
         assert_eq!(finished.load(Ordering::SeqCst), 3);

@@ -42,6 +42,8 @@ pub struct Qr {
     t: Mat<f64>,
     nb: usize,
     crew: Crew,
+    /// Workers used by the next factorisation (at most the crew's size).
+    active: usize,
     scratch: Vec<Mutex<Scratch>>,
 }
 
@@ -77,7 +79,14 @@ impl Qr {
         // Without helper threads (none could be started) the crew is the calling thread.
         let crew = Crew::new(workers).or_else(|_| Crew::new(1)).expect("a crew of one starts no thread");
         let scratch = (0..crew.workers()).map(|_| Mutex::new(Scratch { mem: MemBuffer::new(req), q: Mat::zeros(d, CHUNK.min(k)), sign: vec![1.0; k] })).collect();
-        Qr { a: Mat::zeros(d, k), t: Mat::zeros(nb, k), nb, crew, scratch }
+        let active = crew.workers();
+        Qr { a: Mat::zeros(d, k), t: Mat::zeros(nb, k), nb, crew, active, scratch }
+    }
+
+    /// Use at most `threads` of the crew from the next factorisation on (at least one, at
+    /// most the number the workspace was made for). The result does not depend on it.
+    pub fn set_threads(&mut self, threads: usize) {
+        self.active = threads.clamp(1, self.crew.workers());
     }
 
     /// Factor the block in place (Gbar_n = G_n R_n): on return `g` holds G_n and `r` the
@@ -95,7 +104,7 @@ impl Qr {
         let nb = self.nb;
         let panels: Vec<Range<usize>> = (0..k.div_ceil(nb)).map(|p| p * nb..((p + 1) * nb).min(k)).collect();
         let np = panels.len();
-        let workers = self.crew.workers();
+        let workers = self.active;
         // The trailing columns are updated in chunks of whole panels, about CHUNK wide; the
         // worker that updates a chunk also factors its panels.
         let per_chunk = (CHUNK / nb).max(1);
@@ -116,7 +125,7 @@ impl Qr {
         let q_next = AtomicUsize::new(0);
         let scratch = &self.scratch;
 
-        self.crew.run(&|me| {
+        self.crew.run_on(workers, &|me| {
             let _stop_others = StopOnPanic(&stop);
             let mut guard = scratch[me].lock().unwrap_or_else(|e| e.into_inner());
             let Scratch { mem, q, sign } = &mut *guard;
@@ -451,13 +460,15 @@ mod tests {
             assert!(g.rows() == g1.rows(), "G on {threads} threads differs from 1 thread");
             assert!(r == r1, "R on {threads} threads differs from 1 thread");
         }
-        // And the same workspace used again gives the same numbers.
-        let mut qr = Qr::new(600, 520, 2);
+        // And the same workspace used again, with the threads it may use changed between
+        // calls (as the backward stage does), gives the same numbers.
+        let mut qr = Qr::new(600, 520, 3);
         let mut r = Mat::zeros(520, 520);
-        for _ in 0..3 {
+        for threads in [3, 1, 2, 0, 9] {
+            qr.set_threads(threads);
             let mut g = a.clone();
             qr.factor(&mut g, &mut r);
-            assert!(g.rows() == g1.rows() && r == r1);
+            assert!(g.rows() == g1.rows() && r == r1, "reused workspace on set_threads({threads})");
         }
     }
 

@@ -96,7 +96,7 @@ mod tests {
             .collect();
         let args = expand(&path, &known).unwrap();
         let joined = args.join(" ");
-        assert!(joined.contains("--n 198") && joined.contains("--steps 250000") && joined.contains("--system disks"), "{joined}");
+        assert!(joined.contains("--n 198") && joined.contains("--steps 240000") && joined.contains("--system disks"), "{joined}");
         std::fs::write(&path, "[run]\nsteps = 10 # comment\nbogus = 3\n").unwrap();
         let err = expand(&path, &known).unwrap_err().to_string();
         assert!(err.contains("paper.toml:3") && err.contains("bogus") && err.contains("steps"), "{err}");

@@ -10,7 +10,9 @@
 //!   checkpoint must equal the stored one bit for bit: a run can never be silently replayed
 //!   with other numbers (another build, another CPU, an altered file).
 //! - Segments are recomputed on a second thread while the sweep consumes the previous one,
-//!   so two segments are in memory at most; past the `--memory` budget the Gram-Schmidt
+//!   and the run's threads are shared between the two ([`Cores`]): the recomputation is the
+//!   larger part (a QR per step against two triangular products), so it takes every thread
+//!   the sweep is not using. Two segments are in memory at most; past the `--memory` budget the Gram-Schmidt
 //!   bases of a segment live in an unlinked scratch file (memmap2) instead.
 //! - After each segment the frame file is synced and a progress record (C at the segment's
 //!   older end, the accumulated exponents, frames written) is saved: `--resume` continues
@@ -270,9 +272,46 @@ fn describe_mismatch(want: &ForwardState, got: &ForwardState) -> String {
     }
 }
 
+/// Threads the sweep (R^-1 C, V = G C) of a run on `threads` threads uses: see [`Cores`].
+pub fn sweep_threads(threads: usize) -> usize {
+    (threads / 3).max(1)
+}
+
+/// How the run's threads are shared between the recomputation and the sweep. The sweep
+/// (R^-1 C and V = G C, 4/3 D^3 flops a step) gets a third of them, at least one; the
+/// recomputation (8/3 D^3) the rest while the sweep works, and all of them while the sweep
+/// waits for its next segment. Spinning QR workers must not share a core with the sweep,
+/// so the two never ask for more threads together than the run has (at least two).
+struct Cores {
+    threads: usize,
+    sweeping: std::sync::atomic::AtomicBool,
+}
+
+impl Cores {
+    fn new(threads: usize) -> Self {
+        Cores { threads: threads.max(1), sweeping: false.into() }
+    }
+
+    fn sweep_threads(&self) -> usize {
+        sweep_threads(self.threads)
+    }
+
+    fn recompute_threads(&self) -> usize {
+        if self.sweeping.load(std::sync::atomic::Ordering::Relaxed) {
+            (self.threads - self.sweep_threads()).max(1)
+        } else {
+            self.threads
+        }
+    }
+
+    fn set_sweeping(&self, sweeping: bool) {
+        self.sweeping.store(sweeping, std::sync::atomic::Ordering::Relaxed);
+    }
+}
+
 /// Recompute segment [s0, s1] into `seg` from the older checkpoint and verify it against
 /// the newer one.
-fn recompute(config: &RunConfig, store_r_all: bool, cps: &mut Checkpoints, s0: u64, s1: u64, seg: &mut Segment) -> Result<()> {
+fn recompute(config: &RunConfig, store_r_all: bool, cores: &Cores, cps: &mut Checkpoints, s0: u64, s1: u64, seg: &mut Segment) -> Result<()> {
     let start = cps.get(s0)?;
     let want = cps.get(s1)?;
     let mut fwd = Forward::resume(config, &start)?;
@@ -284,6 +323,7 @@ fn recompute(config: &RunConfig, store_r_all: bool, cps: &mut Checkpoints, s0: u
     g[..dk].copy_from_slice(&start.g);
     seg.phase[..d].copy_from_slice(&start.system.phase);
     for n in s0 + 1..=s1 {
+        fwd.set_threads(cores.recompute_threads());
         fwd.step()?;
         let i = (n - s0) as usize;
         fwd.g.write_paper_columns(fwd.system.as_ref(), &mut g[i * dk..(i + 1) * dk]);
@@ -410,13 +450,15 @@ pub fn run(
     let segment_bytes = 8 * (c_every + 1) * (d * k) as u64;
     let out_of_core = (3 * segment_bytes > memory_bytes).then(|| dir.path.clone());
     let store_r_all = store.store_r == StoreR::All;
-    let par = par(config.threads);
+    let cores = Arc::new(Cores::new(config.threads));
+    let par = par(cores.sweep_threads());
 
     let (tx, rx) = crossbeam_channel::bounded::<Result<Segment>>(0);
     let (free_tx, free_rx) = crossbeam_channel::bounded::<Segment>(2);
     let producer_config = config.clone();
     let segments = dir.segments()?;
     let producer_todo = todo.clone();
+    let producer_cores = cores.clone();
     let producer = std::thread::Builder::new()
         .name("clv-recompute".into())
         .spawn(move || {
@@ -431,7 +473,7 @@ pub fn run(
                     }
                     Err(_) => free_rx.recv().map_err(|_| Error::Other("the sweep stopped".into())),
                 };
-                let seg = buffer.and_then(|mut b| recompute(&producer_config, store_r_all, &mut cps, s0, s1, &mut b).map(|_| b));
+                let seg = buffer.and_then(|mut b| recompute(&producer_config, store_r_all, &producer_cores, &mut cps, s0, s1, &mut b).map(|_| b));
                 let failed = seg.is_err();
                 if tx.send(seg).is_err() || failed {
                     break;
@@ -452,6 +494,7 @@ pub fn run(
                 break;
             }
         };
+        cores.set_sweeping(true);
         stats.segments += 1;
         stats.recomputed_steps += seg.s1 - seg.s0;
         for n in (seg.s0 + 1..=seg.s1).rev() {
@@ -504,6 +547,7 @@ pub fn run(
         if stopped {
             break;
         }
+        cores.set_sweeping(false);
         on_progress(stats.recomputed_steps, stats.frames);
         if let Some(file) = frame_file.as_mut() {
             file.sync()?;

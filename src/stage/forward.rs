@@ -95,6 +95,8 @@ pub struct Forward {
     pub step: u64,
     pub acc: Accumulator,
     relax_steps: u64,
+    /// The run's thread setting: the most [`Forward::set_threads`] may use.
+    threads: usize,
     qr: Qr,
 }
 
@@ -112,8 +114,17 @@ impl Forward {
             step: 0,
             acc: Accumulator::new(k, block_len),
             relax_steps: config.relax_steps,
+            threads: config.threads.max(1),
             qr: Qr::new(d, k, config.threads),
         })
+    }
+
+    /// Use at most `threads` threads from the next step on (tangent updates and QR); the
+    /// numbers do not depend on it. `threads` above the run's setting are not used.
+    pub fn set_threads(&mut self, threads: usize) {
+        let threads = threads.clamp(1, self.threads);
+        self.system.set_threads(threads);
+        self.qr.set_threads(threads);
     }
 
     /// One step: propagate over tau, re-orthonormalise, accumulate ln R_ii once relaxed.

@@ -40,7 +40,9 @@ impl StoreConfig {
     /// The defaults for a run: checkpoints every 100 steps, 10 per segment, the CLV window
     /// the last tenth of the accumulated steps (as in the paper), a transient of half that.
     pub fn for_run(config: &RunConfig) -> Self {
-        let clv_steps = (config.steps / 10).max(1);
+        // The paper's window: the last tenth of the run (2.5e4 of 2.5e5 steps), with half as
+        // many backward steps again for C to converge, inside the accumulated steps.
+        let clv_steps = ((config.relax_steps + config.steps) / 10).min(config.steps * 2 / 3).max(1);
         StoreConfig {
             checkpoint_every: 100,
             segment_checkpoints: 10,
