@@ -260,6 +260,16 @@ fn frames_flow_through_real_pipes_and_a_closed_pipe_ends_cleanly() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("closed the stream"), "{err}");
+    // A reader that closes before reading anything (a consumer that failed to start), with
+    // frames larger than the stream's 1 MB write buffer, so that the write fails inside a
+    // chunk (which leaves the MCAP writer unable to finish).
+    let big = forward("pipe-big", &["--n", "100", "--relax-steps", "10", "--steps", "100", "--clv-steps", "20", "--transient", "20", "--checkpoint-every", "20"]);
+    let mut producer = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", big.to_str().unwrap(), "--out", "-"]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    drop(producer.stdout.take());
+    let out = producer.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("closed the stream") && !err.contains("error"), "{err}");
 }
 
 fn read_frames_from(input: impl std::io::Read, into: &mut Vec<Frame>) {

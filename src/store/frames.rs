@@ -157,6 +157,8 @@ impl FrameFile {
 /// The frame stream on standard output.
 pub struct FrameStdout {
     out: McapOut<NoSeek<BufWriter<std::io::Stdout>>>,
+    /// The reader closed the pipe: nothing more can be written, and that is not an error.
+    closed: bool,
 }
 
 fn is_broken_pipe(e: &mcap::McapError) -> bool {
@@ -167,7 +169,7 @@ impl FrameStdout {
     pub fn new(metadata: &BTreeMap<String, String>) -> Result<Self> {
         let out = McapOut::new(NoSeek::new(BufWriter::with_capacity(1 << 20, std::io::stdout())), false, metadata)
             .map_err(|e| mcap_err(Path::new("<stdout>"), e))?;
-        Ok(FrameStdout { out })
+        Ok(FrameStdout { out, closed: false })
     }
 
     /// Write a frame and flush it (its own chunk), so the reader sees it at once; a closed
@@ -175,12 +177,18 @@ impl FrameStdout {
     pub fn write(&mut self, frame: &Frame) -> Result<Flow> {
         match self.out.write(frame.step, &frame.encode()).and_then(|_| self.out.writer.flush()) {
             Ok(()) => Ok(Flow::Continue),
-            Err(e) if is_broken_pipe(&e) => Ok(Flow::Stop),
+            Err(e) if is_broken_pipe(&e) => {
+                self.closed = true;
+                Ok(Flow::Stop)
+            }
             Err(e) => Err(mcap_err(Path::new("<stdout>"), e)),
         }
     }
 
     pub fn finish(mut self) -> Result<()> {
+        if self.closed {
+            return Ok(());
+        }
         match self.out.writer.finish() {
             Ok(_) => Ok(()),
             Err(e) if is_broken_pipe(&e) => Ok(()),
