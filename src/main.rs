@@ -235,6 +235,9 @@ struct AnalyzeArgs {
     /// Run only these analyses (comma-separated names, e.g. spectrum,localization).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
+    /// No progress bar or closing summary.
+    #[arg(long)]
+    quiet: bool,
 }
 
 #[derive(Args)]
@@ -498,9 +501,27 @@ fn bench(args: &BenchArgs) -> Result<()> {
 }
 
 fn analyze(args: &AnalyzeArgs) -> Result<()> {
-    let (produced, frames) = clv::stage::analyze::analyze_source(&args.source, &args.out, args.every, args.j.clone(), args.deltas.clone(), &args.only)?;
-    let figures: usize = produced.iter().map(|p| p.figures.len()).sum();
-    eprintln!("clv analyze: {frames} frames, {} analyses, {figures} figures; open {}", produced.len(), args.out.join("index.html").display());
+    // The number of frames is not known ahead (a stream on stdin): count and rate only.
+    let bar = (!args.quiet).then(|| {
+        let bar = ProgressBar::new_spinner();
+        bar.set_style(ProgressStyle::with_template("{msg} [{elapsed_precise}] {pos} frames, {per_sec}").expect("static template"));
+        bar.set_message("analyze");
+        bar
+    });
+    let mut on_frame = |frames: u64| {
+        if let Some(bar) = &bar {
+            bar.set_position(frames);
+        }
+    };
+    let result = clv::stage::analyze::analyze_source(&args.source, &args.out, args.every, args.j.clone(), args.deltas.clone(), &args.only, &mut on_frame);
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let (produced, frames) = result?;
+    if !args.quiet {
+        let figures: usize = produced.iter().map(|p| p.figures.len()).sum();
+        eprintln!("clv analyze: {frames} frames, {} analyses, {figures} figures; open {}", produced.len(), args.out.join("index.html").display());
+    }
     Ok(())
 }
 

@@ -363,8 +363,17 @@ impl Mean {
 }
 
 /// Run every applicable analysis over the frames of `source` (a file, or "-" for standard
-/// input) into `out`. Returns what was produced and the number of frames read.
-pub fn analyze_source(source: &Path, out: &Path, every: Option<u64>, j: Option<Vec<usize>>, deltas: Option<Vec<u64>>, only: &[String]) -> Result<(Vec<Produced>, u64)> {
+/// input) into `out`, calling `on_frame` with the count of frames read so far. Returns what
+/// was produced and the number of frames read.
+pub fn analyze_source(
+    source: &Path,
+    out: &Path,
+    every: Option<u64>,
+    j: Option<Vec<usize>>,
+    deltas: Option<Vec<u64>>,
+    only: &[String],
+    on_frame: &mut dyn FnMut(u64),
+) -> Result<(Vec<Produced>, u64)> {
     let info = std::cell::RefCell::new(StreamInfo::default());
     let mut analyzer: Option<Analyzer> = None;
     let name = if source == Path::new("-") { "<stdin>".to_string() } else { source.display().to_string() };
@@ -380,7 +389,10 @@ pub fn analyze_source(source: &Path, out: &Path, every: Option<u64>, j: Option<V
                 let analyses = select(&ctx, only)?;
                 analyzer = Some(Analyzer::start(ctx, analyses, out)?);
             }
-            analyzer.as_mut().expect("started").feed(Arc::new(frame))
+            let analyzer = analyzer.as_mut().expect("started");
+            let flow = analyzer.feed(Arc::new(frame))?;
+            on_frame(analyzer.frames);
+            Ok(flow)
         },
     )?;
     let Some(analyzer) = analyzer else {
