@@ -12,8 +12,8 @@
 //! - Segments are recomputed on a second thread while the sweep consumes the previous one,
 //!   and the run's threads are shared between the two ([`Cores`]): the recomputation is the
 //!   larger part (a QR per step against two triangular products), so it takes every thread
-//!   the sweep is not using. Two segments are in memory at most; past the `--memory` budget the Gram-Schmidt
-//!   bases of a segment live in an unlinked scratch file (memmap2) instead.
+//!   the sweep is not using. Two segments are in memory at most; past the `--memory`
+//!   budget the Gram-Schmidt bases of a segment live in an unlinked scratch file (memmap2).
 //! - After each segment the frame file is synced and a progress record (C at the segment's
 //!   older end, the accumulated exponents, frames written) is saved: `--resume` continues
 //!   bit for bit from there.
@@ -281,7 +281,8 @@ pub fn sweep_threads(threads: usize) -> usize {
 /// (R^-1 C and V = G C, 4/3 D^3 flops a step) gets a third of them, at least one; the
 /// recomputation (8/3 D^3) the rest while the sweep works, and all of them while the sweep
 /// waits for its next segment. Spinning QR workers must not share a core with the sweep,
-/// so the two never ask for more threads together than the run has (at least two).
+/// so together the two use no more threads than the run has (two when it has one: the
+/// recomputation beside the sweep).
 struct Cores {
     threads: usize,
     sweeping: std::sync::atomic::AtomicBool,
