@@ -1,14 +1,12 @@
 #!/usr/bin/env bash
 # Reproduce every figure and table of Bosetti & Posch, "Covariant Lyapunov Vectors for Rigid
-# Disk Systems", end to end: 198 disks, density 0.7, Ly/Lx = 2/11, tau = 0.6, 1e4 relaxation
-# steps, 2.5e5 forward steps, CLVs for the last 2.5e4 steps (as in the paper).
+# Disk Systems", end to end: 198 disks, density 0.7, Ly/Lx = 2/11, tau = 0.6, 2.5e5 forward
+# steps in all (t_0 = 1e4 of relaxation, then 2.4e5), CLVs for the last 2.5e4 (section 5).
 #
 #   scripts/reproduce_paper.sh [OUT_DIR] [THREADS]      (defaults: paper-out, 2)
 #
-# How long, on a 2-core machine of the CI kind: this pipeline at 1/50 of the length (5200
-# forward steps, 750 backward steps, 501 frames into all analyses) took 104 s + 73 s
-# (measured 2026-11-22). Scaled up linearly that is 1.4 h forward + 1.0 h backward and
-# analyses; no complete run has been timed yet.
+# How long, on a 2-core machine of the CI kind (measured 2026-11-23, two threads): forward
+# 1.41 h, backward piped into every analysis 20 min; 1.74 h in all.
 # The run is resumable: start the script again after a crash or a kill and it continues.
 # Disk: about 3 GB for the kept checkpoints; the frames are streamed to the analyses.
 set -euo pipefail
