@@ -72,6 +72,9 @@ pub struct RunConfig {
 
 impl RunConfig {
     pub fn validate(&self) -> Result<()> {
+        if matches!(self.system, SystemConfig::Disks { n: 0, .. }) {
+            return Err(Error::param("n", "must be at least 1 disk"));
+        }
         let d = self.system.dim();
         if self.vectors == 0 || self.vectors > d {
             return Err(Error::param("vectors", format!("must be between 1 and D = {d}, got {}", self.vectors)));
@@ -161,5 +164,8 @@ mod tests {
         // Paper section 5 (and PHYSICS.md): Lx = 39.442544, Ly = 7.171372.
         assert!((lx - 39.442544).abs() < 1e-6 && (ly - 7.171372).abs() < 1e-6);
         assert!(RunConfig::preset("nope").unwrap_err().to_string().contains("default, paper, henon"));
+        let mut none = RunConfig::preset("default").unwrap();
+        none.system = SystemConfig::disks(0, 0.7, 1.0).unwrap();
+        assert!(none.validate().unwrap_err().to_string().contains("--n"), "zero disks are refused, naming --n");
     }
 }

@@ -129,7 +129,7 @@ fn lattice(n: usize, lx: f64, ly: f64, rng: &mut Rng) -> Result<Vec<[f64; 2]>> {
             }
         }
     }
-    let (spacing, nx, ny, staggered) = best.expect("n >= 1");
+    let (spacing, nx, ny, staggered) = best.ok_or_else(|| Error::param("n", "must be at least 1 disk"))?;
     if spacing < 1.0 + 1e-9 {
         return Err(Error::param("density", format!(
             "cannot place {n} disks without overlap in a {lx:.4} x {ly:.4} box (the best start lattice, {nx} x {ny}, has a closest pair at {spacing:.4} < 1); \
