@@ -2,12 +2,15 @@
 //!
 //! 1. The degenerate steps of the forward Gram-Schmidt spectrum next to the null space are
 //!    found from the GS exponents and their standard errors carried by the frame stream
-//!    (neighbours equal within [`STEP_TOL`] combined standard errors; two-fold steps are
-//!    T candidates, four-fold steps LP candidates; paper Fig. 8). The four exponents of an LP
-//!    mode of a finite system are not exactly equal, so with small standard errors the test
-//!    may split an LP quadruplet into a pair and singletons: a two-fold step whose vectors
-//!    classify as L, P or LP at the first frame is widened to the four-fold block around it
-//!    that the LP(n_x, 0) basis explains best ([`resolve_steps`]; marked in the table).
+//!    ([`km::mode_steps`]; two-fold steps are T candidates, four-fold steps LP candidates;
+//!    paper Fig. 8): neighbours equal within [`STEP_TOL`] combined standard errors, or, in
+//!    the mode region bordering the null space, groups set apart from their neighbours by
+//!    gaps ten times their own spread. The four exponents of an LP mode of a finite system
+//!    are not exactly equal: in the paper's run they differ by ten standard errors, which
+//!    the separation finds. Where neither test sees the whole quadruplet, a two-fold step
+//!    whose vectors classify as L, P or LP at the first frame is widened to the four-fold
+//!    block around it that the LP(n_x, 0) basis explains best ([`resolve_steps`]). The
+//!    table says which of the three found each step.
 //! 2. Every step is classified in every (sampled) frame by projecting the position part of
 //!    its GS vectors (the paper classifies with GS vectors; CLVs when the frames carry no GS
 //!    vectors) onto the orthonormalised Table IV bases T, L, P, LP (n_x, 0),
@@ -197,8 +200,9 @@ pub struct ModeRow {
     pub last: usize,
     /// 2 or 4.
     pub degeneracy: usize,
-    /// "degenerate" (equal exponents within the tolerance) or "widened" (a two-fold step
-    /// classified L/P/LP, widened to four by [`resolve_steps`]).
+    /// "degenerate" (equal exponents within the tolerance), "separated" (set apart from
+    /// its neighbours, [`km::SEPARATION`]) or "widened" (a two-fold step classified L/P/LP,
+    /// widened to four by [`resolve_steps`]).
     pub detection: String,
     /// Mean forward GS exponent of the step.
     pub lambda: f64,
@@ -304,7 +308,11 @@ impl Analysis for Modes {
                 first: acc.step.start + 1,
                 last: acc.step.start + acc.step.len,
                 degeneracy: acc.step.len,
-                detection: if acc.widened { "widened".into() } else { "degenerate".into() },
+                detection: match (acc.widened, ctx.gs.as_ref()) {
+                    (true, _) => "widened".into(),
+                    (false, Some(g)) if !km::within_errors(&g.exponents, &g.stderr, STEP_TOL, &acc.step) => "separated".into(),
+                    _ => "degenerate".into(),
+                },
                 lambda,
                 kind: kind.map_or("-".into(), |k| format!("{k:?}")),
                 n_x,
@@ -346,6 +354,7 @@ impl Analysis for Modes {
             "source": source,
             "frames": frames,
             "step_tolerance": STEP_TOL,
+            "separation": km::SEPARATION,
             "window": step_window(d),
             "max_n": MAX_N,
             "note": why,
@@ -406,17 +415,19 @@ impl Analysis for Modes {
 
         let found: Vec<String> = rows
             .iter()
-            .map(|r| format!("{} at i = {}..{} ({}-fold{}, λ = {:.4}, fraction {:.2}, {:.0}% of frames agree)", r.name, r.first, r.last, r.degeneracy, if r.detection == "widened" { ", widened" } else { "" }, r.lambda, r.fraction_gs.or(r.fraction_clv).unwrap_or(f64::NAN), 100.0 * r.agreement))
+            .map(|r| format!("{} at i = {}..{} ({}-fold{}, λ = {:.4}, fraction {:.2}, {:.0}% of frames agree)", r.name, r.first, r.last, r.degeneracy, if r.detection == "degenerate" { String::new() } else { format!(", {}", r.detection) }, r.lambda, r.fraction_gs.or(r.fraction_clv).unwrap_or(f64::NAN), 100.0 * r.agreement))
             .collect();
         let caption = match (&why, found.is_empty()) {
             (Some(why), _) => format!("No mode table: {why}."),
             (None, true) => format!(
-                "No 2- or 4-fold degenerate steps (neighbours equal within {STEP_TOL} combined standard errors) within {} indices of the null space in the forward GS spectrum: this system shows no Lyapunov modes at this precision. The table is empty.",
+                "No 2- or 4-fold degenerate steps (neighbours equal within {STEP_TOL} combined standard errors, or set apart by gaps {:.0} times their spread) within {} indices of the null space in the forward GS spectrum: this system shows no Lyapunov modes at this precision. The table is empty.",
+                1.0 / km::SEPARATION,
                 step_window(d)
             ),
             (None, false) => format!(
-                "Degenerate steps of the forward GS spectrum within {} indices of the null space (neighbours equal within {STEP_TOL} combined standard errors; a pair classified L/P/LP is widened to the four-fold block the LP basis explains best), classified in each of {frames} frames by projecting the position perturbations of their {source} onto the orthonormalised Table IV bases T, L, P, LP (n_x, 0), k = 2π n_x/L_x, n_x ≤ {MAX_N}; majority class, mean fraction of the group in its span. Found: {}.",
+                "Degenerate steps of the forward GS spectrum within {} indices of the null space (neighbours equal within {STEP_TOL} combined standard errors, or, next to the null space, set apart by gaps {:.0} times their spread; a pair classified L/P/LP is widened to the four-fold block the LP basis explains best), classified in each of {frames} frames by projecting the position perturbations of their {source} onto the orthonormalised Table IV bases T, L, P, LP (n_x, 0), k = 2π n_x/L_x, n_x ≤ {MAX_N}; majority class, mean fraction of the group in its span. Found: {}.",
                 step_window(d),
+                1.0 / km::SEPARATION,
                 found.join("; ")
             ),
         };
@@ -774,6 +785,34 @@ mod tests {
         t.finish(&tout, 1).unwrap();
         let header = std::fs::read_to_string(tout.join("transversality.csv")).unwrap();
         assert!(header.starts_with(&format!("step,psi_unstable_stable,phi_{}_{}\n", at + 1, at + 4)), "{header}");
+    }
+
+    /// A quadruplet split by many standard errors but set apart from its neighbours (as in
+    /// the paper's run) is found whole, and the table says how.
+    #[test]
+    fn separated_lp_quadruplet_is_found_whole() {
+        let d = 4 * N;
+        let mut rng = Rng::new(5);
+        let mut spec = spectrum(N, 4);
+        let at = 2 * N - 7;
+        for (j, x) in [0.1003, 0.1001, 0.0999, 0.0997].into_iter().enumerate() {
+            spec.exponents[at + j] = x;
+            spec.exponents[d - 1 - at - j] = -x;
+        }
+        spec.stderr.iter_mut().for_each(|e| *e = 1e-5);
+        let ctx = context("disks", N, d, LX, LY, Some(spec), true);
+        let phase = phase(N, LX, LY, &mut rng);
+        let pat = km::mode_patterns(ModeKind::LP, 1, &phase, LX);
+        let h = 2 * N;
+        let cols: Vec<Vec<f64>> = (0..4).map(|j| tangent(&pat[j * h..(j + 1) * h], 0.5).0).collect();
+        let mut g = random_set(d, &mut rng);
+        plant(&mut g, d, at, &cols);
+        let (out, produced) = run(&ctx, &[frame(3, phase, g.clone(), Some(g))], "separated");
+        let rows = read_csv(&out.join("modes.csv"));
+        let lp = rows.iter().find(|r| r["side"] == "+").unwrap();
+        assert_eq!((lp["first"].as_str(), lp["last"].as_str()), ((at + 1).to_string().as_str(), (at + 4).to_string().as_str()));
+        assert_eq!((lp["detection"].as_str(), lp["name"].as_str(), lp["consistent"].as_str()), ("separated", "LP(1,0)", "true"));
+        assert!(produced[0].caption.contains("LP(1,0) at i = 54..57 (4-fold, separated"), "{}", produced[0].caption);
     }
 
     #[test]
