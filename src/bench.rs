@@ -138,7 +138,6 @@ fn child_peak_rss_mb(exe: &Path, args: &[String]) -> Result<f64> {
     Ok(kb / 1024.0)
 }
 
-/// A relaxed forward pass of the benchmark system (its tangent block is realistic).
 /// (step, wall seconds) of every checkpoint's statistics in a run directory.
 fn checkpoint_walls(dir: &Path) -> Result<Vec<(u64, f64)>> {
     let (run, _) = crate::store::run::RunDir::open(dir)?;
@@ -155,6 +154,7 @@ fn checkpoint_walls(dir: &Path) -> Result<Vec<(u64, f64)>> {
     Ok(walls)
 }
 
+/// A relaxed forward pass of the benchmark system (its tangent block is realistic).
 fn relaxed_forward(config: &RunConfig) -> Result<Forward> {
     let mut f = Forward::new(config)?;
     for _ in 0..config.relax_steps {

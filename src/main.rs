@@ -200,7 +200,6 @@ struct BackwardArgs {
     #[arg(long)]
     json: bool,
     /// No progress bars or notices.
-    /// No progress bars or notices.
     #[arg(long)]
     quiet: bool,
 }
