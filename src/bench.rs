@@ -207,14 +207,11 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     // On the threads the backward stage gives its sweep (the recomputation has the rest).
     let p = par(backward::sweep_threads(threads));
     let mut cm = Mat::<f64>::identity(k, k);
+    let mut norms = vec![0.0; k];
     let r = fwd.r.clone();
     let backward_solve_ms = Stat::of((0..reps).map(|_| {
         let t = Instant::now();
-        crate::linalg::solve_upper_tri_tri(r.as_ref(), cm.as_mut(), p);
-        for j in 0..k {
-            let norm = cm.col(j).norm_l2();
-            cm.col_mut(j).iter_mut().for_each(|x| *x /= norm);
-        }
+        crate::linalg::ginelli_step(r.as_ref(), cm.as_mut(), &mut norms, p);
         ms(t.elapsed())
     }).collect());
     let g = fwd.g.to_paper_columns(fwd.system.as_ref());

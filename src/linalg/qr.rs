@@ -127,6 +127,7 @@ impl Qr {
 
         self.crew.run_on(workers, &|me| {
             let _stop_others = StopOnPanic(&stop);
+            let _flush = super::FlushSubnormals::new();
             let mut guard = scratch[me].lock().unwrap_or_else(|e| e.into_inner());
             let Scratch { mem, q, sign } = &mut *guard;
             // Safety (for all views below): a worker writes only the panels it owns (p with

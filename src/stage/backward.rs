@@ -502,14 +502,9 @@ pub fn run(
             let kk = k * (k + 1) / 2;
             let i = (n - seg.s0) as usize;
             unpack_upper_into(&seg.r[(i - 1) * kk..i * kk], &mut r);
-            crate::linalg::solve_upper_tri_tri(r.as_ref(), c.as_mut(), par);
             let mut logs = vec![0.0; k];
-            for (j, log) in logs.iter_mut().enumerate() {
-                let col = c.col_mut(j);
-                let norm = col.norm_l2();
-                col.iter_mut().for_each(|x| *x /= norm);
-                *log = -norm.ln();
-            }
+            crate::linalg::ginelli_step(r.as_ref(), c.as_mut(), &mut logs, par);
+            logs.iter_mut().for_each(|l| *l = -l.ln());
             let m = n - 1;
             if m < window.first || m > window.last {
                 continue;
