@@ -93,10 +93,12 @@ pub fn pack_upper_into(r: faer::MatRef<'_, f64>, out: &mut [f64]) {
     assert_eq!(out.len(), k * (k + 1) / 2, "buffer must hold k (k + 1) / 2 values");
     let mut at = 0;
     for j in 0..k {
-        for i in 0..=j {
-            out[at] = r[(i, j)];
-            at += 1;
+        let col = r.col(j);
+        match col.try_as_col_major() {
+            Some(c) => out[at..at + j + 1].copy_from_slice(&c.as_slice()[..=j]),
+            None => out[at..at + j + 1].iter_mut().zip(col.iter()).for_each(|(o, x)| *o = *x),
         }
+        at += j + 1;
     }
 }
 
@@ -106,10 +108,9 @@ pub fn unpack_upper_into(packed: &[f64], r: &mut Mat<f64>) {
     assert_eq!(packed.len(), k * (k + 1) / 2, "packed length must be k (k + 1) / 2");
     let mut at = 0;
     for j in 0..k {
-        for i in 0..=j {
-            r[(i, j)] = packed[at];
-            at += 1;
-        }
+        let col = r.col_mut(j).try_as_col_major_mut().expect("an owned Mat is column-major");
+        col.as_slice_mut()[..=j].copy_from_slice(&packed[at..at + j + 1]);
+        at += j + 1;
     }
 }
 

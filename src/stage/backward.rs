@@ -484,7 +484,9 @@ pub fn run(
         .map_err(|e| Error::Other(format!("cannot start the recomputation thread: {e}")))?;
 
     let mut r = Mat::<f64>::zeros(k, k);
-    let mut v = vec![0.0; d * k];
+    // The last frame handed out: once every consumer has dropped it, its buffers take the
+    // next frame's V and G (no allocation, no copy of V per step).
+    let mut spare: Option<Arc<Frame>> = None;
     let mut stopped = false;
     let mut failure = None;
     for segment in rx.iter() {
@@ -511,6 +513,10 @@ pub fn run(
             }
             let at = ((m - seg.s0) as usize) * d * k;
             let g = &seg.g.slice()[at..at + d * k];
+            let (mut v, recycled_g) = match spare.take().map(Arc::try_unwrap) {
+                Some(Ok(old)) => (old.v, old.g),
+                _ => (vec![0.0; d * k], None),
+            };
             crate::linalg::mul_upper(MatMut::from_column_major_slice_mut(&mut v, d, k), MatRef::from_column_major_slice(g, d, k), c.as_ref(), par);
             let local: Vec<f64> = logs.iter().map(|l| l / tau).collect();
             // The CLV spectrum is the mean of the frames' local exponents (accumulated with
@@ -522,9 +528,14 @@ pub fn run(
                 d,
                 k,
                 phase: seg.phase[(m - seg.s0) as usize * d..(m - seg.s0 + 1) as usize * d].to_vec(),
-                v: v.clone(),
+                v,
                 local,
-                g: opts.with_gs.then(|| g.to_vec()),
+                g: opts.with_gs.then(|| {
+                    let mut buffer = recycled_g.unwrap_or_default();
+                    buffer.clear();
+                    buffer.extend_from_slice(g);
+                    buffer
+                }),
             });
             if stats.frames == 0 {
                 stats.last_frame_step = m;
@@ -535,6 +546,7 @@ pub fn run(
                     file.write(&frame)?;
                 }
             stats.frames += 1;
+            spare = Some(frame.clone());
             if consumer(frame)? == Flow::Stop {
                 stopped = true;
                 break;
