@@ -14,7 +14,7 @@
 //! The workers are a [`Crew`] of our own threads, because they wait on each other. The
 //! chunk grids do not depend on the number of threads, so neither do the bits of the result
 //! (tested). faer's blocked QR with its own threading took 26-37 ms at D = 792 on two cores,
-//! this driver 17-21 ms (examples/qr_blocks.rs). The sign fix (diag R > 0) makes G_n unique, so that ln R_ii
+//! this driver 14.5-15.4 ms with subnormals flushed (examples/qr_blocks.rs, qr_realistic.rs). The sign fix (diag R > 0) makes G_n unique, so that ln R_ii
 //! are the exponent increments and the Ginelli iteration C_{n-1} = R_n^{-1} C_n carries no
 //! sign noise.
 
