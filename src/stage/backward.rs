@@ -484,6 +484,7 @@ pub fn run(
         .map_err(|e| Error::Other(format!("cannot start the recomputation thread: {e}")))?;
 
     let mut r = Mat::<f64>::zeros(k, k);
+    let mut norms = vec![0.0; k];
     // The last frame handed out: once every consumer has dropped it, its buffers take the
     // next frame's V and G (no allocation, no copy of V per step).
     let mut spare: Option<Arc<Frame>> = None;
@@ -504,9 +505,7 @@ pub fn run(
             let kk = k * (k + 1) / 2;
             let i = (n - seg.s0) as usize;
             unpack_upper_into(&seg.r[(i - 1) * kk..i * kk], &mut r);
-            let mut logs = vec![0.0; k];
-            crate::linalg::ginelli_step(r.as_ref(), c.as_mut(), &mut logs, par);
-            logs.iter_mut().for_each(|l| *l = -l.ln());
+            crate::linalg::ginelli_step(r.as_ref(), c.as_mut(), &mut norms, par);
             let m = n - 1;
             if m < window.first || m > window.last {
                 continue;
@@ -518,7 +517,8 @@ pub fn run(
                 _ => (vec![0.0; d * k], None),
             };
             crate::linalg::mul_upper(MatMut::from_column_major_slice_mut(&mut v, d, k), MatRef::from_column_major_slice(g, d, k), c.as_ref(), par);
-            let local: Vec<f64> = logs.iter().map(|l| l / tau).collect();
+            // local CLV exponents, -ln |R_n^-1 c_j| / tau
+            let local: Vec<f64> = norms.iter().map(|n| -n.ln() / tau).collect();
             // The CLV spectrum is the mean of the frames' local exponents (accumulated with
             // tau = 1), exactly as an analysis of the frame stream computes it.
             acc.add_logs(local.iter().copied());
