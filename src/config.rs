@@ -116,7 +116,7 @@ pub const PRESETS: [&str; 3] = ["default", "paper", "henon"];
 
 impl RunConfig {
     /// A named preset: `default` (a small hard-disk system in the paper's geometry that still
-    /// shows Lyapunov modes, about a minute end to end), `paper` (the paper's 198-disk system,
+    /// shows Lyapunov modes, 10-15 s end to end after the build), `paper` (the paper's 198-disk system,
     /// t_0 + t_omega = 2.5e5 steps of tau = 0.6 in all, section 5) or `henon`.
     pub fn preset(name: &str) -> Result<Self> {
         let disks = |n, relax_steps, steps, threads| -> Result<Self> {
