@@ -40,30 +40,37 @@ fn kill_after(args: &[&str], delay_ms: u64) -> bool {
 /// the uninterrupted one bit for bit.
 #[test]
 fn sigkill_at_many_points_then_resume_is_bit_identical() {
+    let started = std::time::Instant::now();
     let (dir, want) = reference("kill-ref");
+    let forward_ms = started.elapsed().as_millis() as u64;
     let bwd_ref = dir.parent().unwrap().join("frames-ref.mcap");
+    let started = std::time::Instant::now();
     ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--out", bwd_ref.to_str().unwrap()]));
+    let backward_ms = started.elapsed().as_millis() as u64;
     let want_frames = frames(&bwd_ref);
     let mut rng = Rng::new(99);
+    // Kill points spread over the stage's own duration on this machine (5 % .. 90 %), so
+    // that they land before its end however fast the machine is.
+    let mut at = |ms: u64, share: f64| (ms as f64 * (0.05 + share * rng.uniform() * 0.85)) as u64;
     let mut kills = 0;
     for trial in 0..12 {
         let run = scratch("faults", &format!("kill-f{trial}")).join("run");
         let args = forward_args(&run);
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        kills += kill_after(&args, 30 + rng.below(500) as u64) as usize;
+        kills += kill_after(&args, at(forward_ms, 1.0)) as usize;
         // A second kill, this time of the resuming process.
         let r = run.to_str().unwrap();
-        kills += kill_after(&["forward", "--resume", r, "--quiet"], 20 + rng.below(300) as u64) as usize;
+        kills += kill_after(&["forward", "--resume", r, "--quiet"], at(forward_ms, 0.5)) as usize;
         ok(clv(&["forward", "--resume", r, "--quiet"]));
         assert!(contents(&run) == want, "forward trial {trial}: resumed run differs");
     }
     for trial in 0..8 {
         let out = dir.parent().unwrap().join(format!("frames-{trial}.mcap"));
         let o = out.to_str().unwrap();
-        if kill_after(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o], 20 + rng.below(300) as u64) {
+        if kill_after(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o], at(backward_ms, 1.0)) {
             kills += 1;
             // Kill the resuming process too, early (while it salvages the frames) or later.
-            kills += kill_after(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"], 5 + rng.below(250) as u64) as usize;
+            kills += kill_after(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"], at(backward_ms, 0.5)) as usize;
             if !out.exists() {
                 ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"]));
             }
