@@ -138,9 +138,10 @@ pub fn mode_steps(exponents: &[f64], errors: &[f64], tol: f64, window: usize) ->
     // every group keeps an outer neighbour on both sides
     let window = window.min(null_lo - 1);
     let gap = |i: usize| (exponents[i] - exponents[i + 1]).abs();
+    let runs = degenerate_steps(exponents, errors, tol);
     let is_step = |start: usize, len: usize, contiguous: bool| {
         let (inner, outer) = (start..start + len - 1, [start - 1, start + len - 1]);
-        let statistical = inner.clone().all(|i| joined(exponents, errors, tol, i)) && !outer.iter().any(|&i| joined(exponents, errors, tol, i));
+        let statistical = runs.iter().any(|r| r.start == start && r.len == len);
         let spread = inner.map(gap).fold(0.0, f64::max);
         let separated = contiguous && spread.is_finite() && outer.iter().all(|&i| spread < SEPARATION * gap(i));
         statistical || separated
