@@ -31,8 +31,6 @@ pub struct BenchOptions {
     pub threads: usize,
     /// Repetitions of each kernel measurement.
     pub reps: usize,
-    /// Steps of the stored forward run measured (at least 100: one checkpoint interval).
-    pub steps: u64,
     /// System sizes for the collision-rate measurement.
     pub collision_sizes: Vec<usize>,
     /// Measure peak RSS by running `exe` as child processes (None: skip).
@@ -79,7 +77,7 @@ pub struct BenchReport {
     pub floor_ms: f64,
     pub qr_ms: Stat,
     /// Wall time per step of a stored forward run (everything, on all threads), in the
-    /// steady state: the difference of runs of S and 2S steps, over S.
+    /// steady state: from its first checkpoint after the start to its last.
     pub forward_step_ms: Stat,
     pub md_tangent_ms: Stat,
     /// Encoding checkpoint, R and statistics, amortised per step (on the simulation thread).
@@ -91,6 +89,8 @@ pub struct BenchReport {
     pub backward_vgc_ms: Stat,
     pub forward_step_over_qr: f64,
     pub qr_over_floor: f64,
+    /// The median over pairs of runs (a forward run, then the backward stage over it) of
+    /// the ratio of their steady-state step times.
     pub backward_over_forward: f64,
     /// The same forward step with k = 16 vectors (leading-k runs).
     pub leading_k16_step_ms: Stat,
@@ -181,7 +181,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     let floor_ms = 8.0 / 3.0 * d as f64 * (k as f64).powi(2) / (gemm.median * 1e9) * 1e3;
 
     say("forward steps (MD, tangent, QR)");
-    let config = disk_config(n, k, threads, 3, o.steps)?;
+    let config = disk_config(n, k, threads, 3, 100)?;
     let mut fwd = relaxed_forward(&config)?;
     let (mut md, mut qr) = (Vec::new(), Vec::new());
     for _ in 0..reps.max(20) {
@@ -222,58 +222,51 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         ms(t.elapsed())
     }).collect());
 
-    say("stored forward run (store defaults: a checkpoint every 100 steps)");
+    say("stored forward run and backward stage over it, in pairs");
     let tmp = std::env::temp_dir().join(format!("clv-bench-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
-    let mut fsteps = Vec::new();
-    // One run of 3 checkpoint intervals; the wall times its statistics record at the
-    // checkpoints give the steady-state cost of a step (checkpoints, fsyncs and all) after
-    // the first interval, without the start-up that a long run amortises.
-    let steps = 3 * o.steps.max(100);
-    for rep in 0..reps.min(3) {
-        let dir = tmp.join(format!("fwd{rep}"));
-        let cfg = disk_config(n, k, threads, 0, steps)?;
-        let store = StoreConfig::for_run(&cfg);
-        let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: store.clone(), build: BuildInfo::current() };
-        forward_run::create(&dir, &meta, &mut Feedback::default())?;
-        let walls = checkpoint_walls(&dir)?;
-        let at = |step: u64| walls.iter().find(|w| w.0 == step).map(|w| w.1);
-        let (from, to) = (store.checkpoint_every, steps);
-        if let (Some(a), Some(b)) = (at(from), at(to)) {
-            fsteps.push((b - a) * 1e3 / (to - from) as f64);
-        }
-        let _ = std::fs::remove_dir_all(&dir);
-    }
-    let forward_step_ms = Stat::of(fsteps);
-
-    say("backward stage (recomputation overlapped with the sweep)");
-    let mut bsteps = Vec::new();
-    for rep in 0..reps.min(2) {
-        // Store defaults (segments of 100 steps), seven segments; the time per step is taken
-        // over three in the middle, once recomputation and sweep overlap and the two segment
-        // buffers have been touched, as in a long run.
-        let dir = tmp.join(format!("bwd{rep}"));
+    let (mut fsteps, mut bsteps, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
+    // Each pair is one stored forward run (store defaults: a checkpoint every 100 steps) and
+    // the backward stage over it, one right after the other, so that their ratio is taken
+    // under the same load of a shared machine; the ratio reported is the median of the pairs'.
+    for rep in 0..reps.clamp(2, 3) {
+        let dir = tmp.join(format!("pair{rep}"));
         let cfg = disk_config(n, k, threads, 0, 630)?;
         let mut st = StoreConfig::for_run(&cfg);
         st.clv_steps = 500;
         st.transient = 100;
         let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: st.clone(), build: BuildInfo::current() };
         forward_run::create(&dir, &meta, &mut Feedback::default())?;
+        // The wall times the statistics record at the checkpoints give the steady-state cost
+        // of a forward step (checkpoints, fsyncs and all) after the first interval, without
+        // the start-up that a long run amortises.
+        let walls = checkpoint_walls(&dir)?;
+        let at = |step: u64| walls.iter().find(|w| w.0 == step).map(|w| w.1);
+        let forward = match (at(100), at(600)) {
+            (Some(a), Some(b)) => (b - a) * 1e3 / 500.0,
+            _ => f64::NAN,
+        };
         let mut opts = BackwardOptions::for_run(&meta);
         opts.save_every = 0;
         let mut marks: Vec<(Instant, u64)> = Vec::new();
         backward::run(&dir, &opts, false, u64::MAX, &mut |_| Ok(Flow::Continue), &mut |steps, _| marks.push((Instant::now(), steps)))?;
-        // From the end of the third segment's sweep to the end of the last but one: the
-        // period of the overlapped pipeline, once both segment buffers have been written
-        // whole (their first writes fault the pages in). The last sweep runs alone after the
-        // last recomputation, once per run.
-        if let (Some(first), Some(last)) = (marks.get(2), marks.len().checked_sub(2).and_then(|i| marks.get(i)))
-            && last.1 > first.1 {
-                bsteps.push(ms(last.0 - first.0) / (last.1 - first.1) as f64);
-            }
+        // Seven segments of 100 steps; the time per step is taken from the end of the third
+        // segment's sweep to the end of the last but one: the period of the overlapped
+        // pipeline, once both segment buffers have been written whole (their first writes
+        // fault the pages in). The last sweep runs alone after the last recomputation, once
+        // per run.
+        let backward = match (marks.get(2), marks.len().checked_sub(2).and_then(|i| marks.get(i))) {
+            (Some(first), Some(last)) if last.1 > first.1 => ms(last.0 - first.0) / (last.1 - first.1) as f64,
+            _ => f64::NAN,
+        };
+        fsteps.push(forward);
+        bsteps.push(backward);
+        ratios.push(backward / forward);
         let _ = std::fs::remove_dir_all(&dir);
     }
+    let forward_step_ms = Stat::of(fsteps);
     let backward_step_ms = Stat::of(bsteps);
+    let backward_over_forward = Stat::of(ratios).median;
 
     say("leading k = 16");
     let lk = 16.min(d);
@@ -344,7 +337,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         backward_vgc_ms,
         forward_step_over_qr: forward_step_ms.median / qr_ms.median,
         qr_over_floor: qr_ms.median / floor_ms,
-        backward_over_forward: backward_step_ms.median / forward_step_ms.median,
+        backward_over_forward,
         leading_k16_step_ms: Stat::of(s16),
         leading_k16_md_tangent_ms: Stat::of(a16),
         leading_k16_qr_ms: Stat::of(q16),

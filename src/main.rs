@@ -59,9 +59,6 @@ struct BenchArgs {
     /// Repetitions of each measurement.
     #[arg(long, default_value_t = 5)]
     reps: usize,
-    /// Steps of the stored forward run measured (at least 100, one checkpoint interval).
-    #[arg(long, default_value_t = 100)]
-    steps: u64,
     /// System sizes N for the collision-rate measurement (k = 0).
     #[arg(long, value_delimiter = ',', default_value = "198,1980,19800")]
     collision_sizes: Vec<usize>,
@@ -486,7 +483,6 @@ fn bench(args: &BenchArgs) -> Result<()> {
         k: args.vectors,
         threads: args.threads,
         reps: args.reps,
-        steps: args.steps,
         collision_sizes: args.collision_sizes.clone(),
         exe: if args.no_rss { None } else { std::env::current_exe().ok() },
     };

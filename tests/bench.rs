@@ -4,7 +4,7 @@
 #[test]
 fn bench_reports_every_quantity_as_json() {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_clv"))
-        .args(["bench", "--n", "6", "--reps", "2", "--steps", "12", "--collision-sizes", "8,80", "--json"])
+        .args(["bench", "--n", "6", "--reps", "2", "--collision-sizes", "8,80", "--json"])
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));

@@ -22,7 +22,7 @@ use super::forward::{Accumulator, Forward, ForwardState};
 use super::frame::Frame;
 use crate::config::RunConfig;
 use crate::error::{Error, Result};
-use crate::linalg::{pack_upper, par, unpack_upper_into};
+use crate::linalg::{pack_upper, par, unpack_upper, unpack_upper_into};
 use crate::rng::Rng;
 use crate::store::frames::{tmp_path, FrameFile, Flow};
 use crate::store::records::{decode_r, Checkpoint};
@@ -98,12 +98,59 @@ pub struct BackwardReport {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 struct Progress {
     options: BackwardOptions,
-    /// C_at, column-major k x k.
     at: u64,
+    /// C_at: its upper triangle packed column by column ([`pack_upper`]), written as hex.
+    #[serde(with = "f64_hex")]
     c: Vec<f64>,
     acc: Accumulator,
     stats: BackwardStats,
     done: bool,
+}
+
+impl Progress {
+    /// C_at as a matrix: packed, or column-major k x k as earlier builds wrote it.
+    fn c_matrix(&self, k: usize) -> Option<Mat<f64>> {
+        match self.c.len() {
+            n if n == k * (k + 1) / 2 => unpack_upper(&self.c),
+            n if n == k * k => Some(MatRef::from_column_major_slice(&self.c, k, k).to_owned()),
+            _ => None,
+        }
+    }
+}
+
+/// The numbers of C in the progress record as one hex string of their little-endian bytes:
+/// exact, and a few milliseconds a segment at k = 792, where a JSON array of numbers took
+/// 55-80 ms (measured) on the sweep's thread. Arrays of numbers (earlier builds) still read.
+mod f64_hex {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
+        const DIGITS: &[u8; 16] = b"0123456789abcdef";
+        let mut text = Vec::with_capacity(16 * v.len());
+        for byte in v.iter().flat_map(|x| x.to_le_bytes()) {
+            text.extend_from_slice(&[DIGITS[(byte >> 4) as usize], DIGITS[(byte & 15) as usize]]);
+        }
+        s.serialize_str(std::str::from_utf8(&text).expect("hex digits are ASCII"))
+    }
+
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Repr {
+        Hex(String),
+        Numbers(Vec<f64>),
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+        match Repr::deserialize(d)? {
+            Repr::Numbers(v) => Ok(v),
+            Repr::Hex(text) => {
+                let digit = |c: u8| (c as char).to_digit(16).map(|x| x as u8);
+                let bytes: Option<Vec<u8>> = text.as_bytes().chunks(2).map(|p| Some(digit(p[0])? << 4 | digit(*p.get(1)?)?)).collect();
+                let bytes = bytes.filter(|b| b.len() % 8 == 0).ok_or_else(|| serde::de::Error::custom("C is not a hex string of whole f64 values"))?;
+                Ok(bytes.chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().expect("chunks of 8"))).collect())
+            }
+        }
+    }
 }
 
 fn progress_path(dir: &RunDir) -> PathBuf {
@@ -325,11 +372,9 @@ fn recompute(config: &RunConfig, store_r_all: bool, cores: &Cores, cps: &mut Che
     seg.phase[..d].copy_from_slice(&start.system.phase);
     for n in s0 + 1..=s1 {
         fwd.set_threads(cores.recompute_threads());
-        fwd.step()?;
         let i = (n - s0) as usize;
-        fwd.g.write_paper_columns(fwd.system.as_ref(), &mut g[i * dk..(i + 1) * dk]);
+        fwd.step_with_copies(&mut g[i * dk..(i + 1) * dk], &mut seg.r[(i - 1) * kk..i * kk])?;
         seg.phase[i * d..(i + 1) * d].copy_from_slice(&fwd.system.snapshot().phase);
-        crate::linalg::pack_upper_into(fwd.r.as_ref(), &mut seg.r[(i - 1) * kk..i * kk]);
     }
     let got = fwd.state();
     if got != want {
@@ -439,7 +484,9 @@ pub fn run(
     };
 
     let mut c = match &prior {
-        Some(p) => MatRef::from_column_major_slice(&p.c, k, k).to_owned(),
+        Some(p) => p.c_matrix(k).ok_or_else(|| {
+            Error::corrupt(&progress_file, format!("C holds {} numbers, not those of a {k} x {k} upper-triangular matrix; run without --resume to start over", p.c.len()))
+        })?,
         None => initial_c(k, opts.c_init, config.seed),
     };
     let n_frames = window.last - window.first + 1;
@@ -555,7 +602,6 @@ pub fn run(
         if stopped {
             break;
         }
-        cores.set_sweeping(false);
         on_progress(stats.recomputed_steps, stats.frames);
         if let Some(file) = frame_file.as_mut() {
             file.sync()?;
@@ -563,8 +609,11 @@ pub fn run(
         stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();
         let at = seg.s0;
         let _ = free_tx.try_send(seg);
-        let p = Progress { options: opts.clone(), at, c: c.col_iter().flat_map(|col| col.iter().copied().collect::<Vec<_>>()).collect(), acc: acc.clone(), stats: stats.clone(), done: false };
+        let p = Progress { options: opts.clone(), at, c: pack_upper(c.as_ref()), acc: acc.clone(), stats: stats.clone(), done: false };
         write_atomic(&progress_file, &serde_json::to_vec(&p).map_err(|e| Error::Other(e.to_string()))?)?;
+        // The recomputation gets every thread only now: the record above is written on this
+        // thread, and a spinning QR worker must not share its core.
+        cores.set_sweeping(false);
     }
     drop(rx);
     let _ = producer.join();
@@ -611,6 +660,37 @@ fn initial_c(k: usize, init: CInit, seed: u64) -> Mat<f64> {
                 c.col_mut(j).iter_mut().for_each(|x| *x /= norm);
             }
             c
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(c: Vec<f64>) -> Progress {
+        Progress { options: BackwardOptions { transient: 1, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None }, at: 7, c, acc: Accumulator::new(3, 2), stats: BackwardStats::default(), done: false }
+    }
+
+    /// C survives the progress record bit for bit (hex), and records of earlier builds (a JSON
+    /// array, column-major k x k) still read; a damaged C is an error, not a panic.
+    #[test]
+    fn progress_record_keeps_c_exactly() {
+        let k = 3;
+        let c = Mat::from_fn(k, k, |i, j| if i <= j { [1.0 / 3.0, -0.0, 5e-324, f64::MAX, -1.25e-300, 0.1][(i + j) % 6] } else { 0.0 });
+        let text = serde_json::to_string(&record(pack_upper(c.as_ref()))).unwrap();
+        let back: Progress = serde_json::from_str(&text).unwrap();
+        let got = back.c_matrix(k).unwrap();
+        assert!((0..k).all(|i| (0..k).all(|j| got[(i, j)].to_bits() == c[(i, j)].to_bits())));
+
+        let legacy = text.replace(&format!("\"c\":{}", serde_json::to_string(&serde_json::to_value(&back).unwrap()["c"]).unwrap()), "\"c\":[1.0,0.0,0.0,2.0,3.0,0.0,4.0,5.0,6.0]");
+        let old: Progress = serde_json::from_str(&legacy).unwrap();
+        assert_eq!(old.c_matrix(k).unwrap(), Mat::from_fn(k, k, |i, j| [[1.0, 2.0, 4.0], [0.0, 3.0, 5.0], [0.0, 0.0, 6.0]][i][j]));
+
+        assert!(record(vec![1.0; 5]).c_matrix(k).is_none(), "5 numbers are no 3 x 3 triangle");
+        for bad in ["\"c\":\"0g00000000000000\"", "\"c\":\"00000000000000\"", "\"c\":\"000\""] {
+            let damaged = legacy.replace("\"c\":[1.0,0.0,0.0,2.0,3.0,0.0,4.0,5.0,6.0]", bad);
+            assert!(serde_json::from_str::<Progress>(&damaged).is_err(), "{bad}");
         }
     }
 }

@@ -6,7 +6,7 @@
 
 use crate::config::RunConfig;
 use crate::error::{Error, Result};
-use crate::linalg::Qr;
+use crate::linalg::{Copies, PaperColumns, Qr};
 use crate::system::{DynamicalSystem, Snapshot, Tangent};
 use faer::Mat;
 use serde::{Deserialize, Serialize};
@@ -98,6 +98,8 @@ pub struct Forward {
     /// The run's thread setting: the most [`Forward::set_threads`] may use.
     threads: usize,
     qr: Qr,
+    /// internal_row(i) for every paper index i (see [`Forward::step_with_copies`]).
+    paper_rows: Vec<usize>,
 }
 
 impl Forward {
@@ -106,6 +108,7 @@ impl Forward {
         system.set_threads(config.threads);
         let (d, k) = (system.dim(), config.vectors);
         let g = Tangent::identity(system.as_ref(), k);
+        let paper_rows = (0..d).map(|i| system.internal_row(i)).collect();
         let block_len = config.steps.div_ceil(config.blocks as u64);
         Ok(Forward {
             system,
@@ -116,6 +119,7 @@ impl Forward {
             relax_steps: config.relax_steps,
             threads: config.threads.max(1),
             qr: Qr::new(d, k, config.threads),
+            paper_rows,
         })
     }
 
@@ -135,10 +139,25 @@ impl Forward {
     /// [`Forward::step`], returning the time spent in the dynamics (MD and tangent updates)
     /// and in the QR step (for `clv bench`).
     pub fn step_timed(&mut self) -> Result<(std::time::Duration, std::time::Duration)> {
+        self.step_into(None)
+    }
+
+    /// [`Forward::step`], also writing the new G_n in the paper's column layout (column-major
+    /// D x k) to `g_paper` and R_n packed ([`crate::linalg::pack_upper`]) to `r_packed`: what
+    /// the backward stage keeps of a recomputed step, at almost no cost.
+    pub fn step_with_copies(&mut self, g_paper: &mut [f64], r_packed: &mut [f64]) -> Result<()> {
+        self.step_into(Some((g_paper, r_packed))).map(|_| ())
+    }
+
+    fn step_into(&mut self, copies: Option<(&mut [f64], &mut [f64])>) -> Result<(std::time::Duration, std::time::Duration)> {
         let t0 = std::time::Instant::now();
         self.system.advance(&mut self.g)?;
         let t1 = std::time::Instant::now();
-        self.qr.factor(&mut self.g, &mut self.r);
+        let copies = match copies {
+            Some((out, r_packed)) => Copies { g_paper: Some(PaperColumns { internal_row: &self.paper_rows, out }), r_packed: Some(r_packed) },
+            None => Copies::default(),
+        };
+        self.qr.factor_with_copies(&mut self.g, &mut self.r, copies);
         let t2 = std::time::Instant::now();
         if let Some(i) = (0..self.r.ncols()).find(|&i| !(self.r[(i, i)].is_finite() && self.r[(i, i)] > 0.0)) {
             return Err(Error::Dynamics(format!(
@@ -186,5 +205,31 @@ impl Forward {
 
     pub fn time(&self) -> f64 {
         self.step as f64 * self.system.tau()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::SystemConfig;
+
+    /// The backward stage's step (copies of G_n and R_n written from inside the QR) is the
+    /// plain step: same state, and the copies have the bits of `to_paper_columns` and
+    /// `pack_upper`.
+    #[test]
+    fn step_with_copies_is_the_plain_step() {
+        for (threads, k) in [(1, 64), (2, 64), (2, 40)] {
+            let config = RunConfig { system: SystemConfig::disks(16, 0.7, 1.0).unwrap(), tau: 0.6, relax_steps: 0, steps: 4, vectors: k, seed: 3, threads, blocks: 2 };
+            let (mut a, mut b) = (Forward::new(&config).unwrap(), Forward::new(&config).unwrap());
+            let (mut out, mut packed) = (vec![f64::NAN; 64 * k], vec![f64::NAN; k * (k + 1) / 2]);
+            let same = |x: &[f64], y: &[f64]| x.len() == y.len() && x.iter().zip(y).all(|(x, y)| x.to_bits() == y.to_bits());
+            for _ in 0..3 {
+                a.step().unwrap();
+                b.step_with_copies(&mut out, &mut packed).unwrap();
+                assert!(a.state() == b.state() && a.r == b.r, "{threads} thread(s), k = {k}");
+                assert!(same(&out, &a.g.to_paper_columns(a.system.as_ref())), "G_n, {threads} thread(s), k = {k}");
+                assert!(same(&packed, &crate::linalg::pack_upper(a.r.as_ref())), "R_n, {threads} thread(s), k = {k}");
+            }
+        }
     }
 }
