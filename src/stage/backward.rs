@@ -359,10 +359,18 @@ impl Cores {
 
 /// Recompute segment [s0, s1] into `seg` from the older checkpoint and verify it against
 /// the newer one.
-fn recompute(config: &RunConfig, store_r_all: bool, cores: &Cores, cps: &mut Checkpoints, s0: u64, s1: u64, seg: &mut Segment) -> Result<()> {
-    let start = cps.get(s0)?;
+/// The pass `fwd` is made on the first segment and restored on the others.
+fn recompute(config: &RunConfig, store_r_all: bool, cores: &Cores, cps: &mut Checkpoints, fwd: &mut Option<Forward>, s0: u64, s1: u64, seg: &mut Segment) -> Result<()> {
+    // The newer end first: it is the older end of the segment before, still in `cps`.
     let want = cps.get(s1)?;
-    let mut fwd = Forward::resume(config, &start)?;
+    let start = cps.get(s0)?;
+    let fwd = match fwd {
+        Some(f) => {
+            f.restore(&start)?;
+            f
+        }
+        None => fwd.insert(Forward::resume(config, &start)?),
+    };
     let (d, k) = (fwd.system.dim(), config.vectors);
     let (dk, kk) = (d * k, k * (k + 1) / 2);
     seg.s0 = s0;
@@ -511,6 +519,7 @@ pub fn run(
         .name("clv-recompute".into())
         .spawn(move || {
             let mut cps = Checkpoints { segments, last: None };
+            let mut fwd = None;
             let mut allocated = 0;
             for (s0, s1) in producer_todo {
                 let buffer = match free_rx.try_recv() {
@@ -521,7 +530,7 @@ pub fn run(
                     }
                     Err(_) => free_rx.recv().map_err(|_| Error::Other("the sweep stopped".into())),
                 };
-                let seg = buffer.and_then(|mut b| recompute(&producer_config, store_r_all, &producer_cores, &mut cps, s0, s1, &mut b).map(|_| b));
+                let seg = buffer.and_then(|mut b| recompute(&producer_config, store_r_all, &producer_cores, &mut cps, &mut fwd, s0, s1, &mut b).map(|_| b));
                 let failed = seg.is_err();
                 if tx.send(seg).is_err() || failed {
                     break;

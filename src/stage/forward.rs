@@ -189,18 +189,26 @@ impl Forward {
     /// A pass continued from `state`, which must come from a run with the same `config`.
     pub fn resume(config: &RunConfig, state: &ForwardState) -> Result<Self> {
         let mut fwd = Forward::new(config)?;
-        let (d, k) = (fwd.system.dim(), config.vectors);
+        fwd.restore(state)?;
+        Ok(fwd)
+    }
+
+    /// Continue from `state` (of a run with this pass's configuration) in this pass's
+    /// workspace: what [`Forward::resume`] does, without building the system, the QR
+    /// workspace and its threads again (the backward stage restores once a segment).
+    pub fn restore(&mut self, state: &ForwardState) -> Result<()> {
+        let (d, k) = (self.g.dim(), self.g.count());
         if state.g.len() != d * k || state.acc.sum.len() != k {
             return Err(Error::Other(format!(
                 "the saved state at step {} holds {} basis numbers and {} sums, but the configuration needs D x k = {d} x {k}",
                 state.step, state.g.len(), state.acc.sum.len()
             )));
         }
-        fwd.system.restore(&state.system)?;
-        fwd.g = Tangent::from_paper_columns(fwd.system.as_ref(), k, &state.g);
-        fwd.acc = state.acc.clone();
-        fwd.step = state.step;
-        Ok(fwd)
+        self.system.restore(&state.system)?;
+        self.g.read_paper_columns(self.system.as_ref(), &state.g);
+        self.acc = state.acc.clone();
+        self.step = state.step;
+        Ok(())
     }
 
     pub fn time(&self) -> f64 {
@@ -212,6 +220,26 @@ impl Forward {
 mod tests {
     use super::*;
     use crate::config::SystemConfig;
+
+    /// A used pass restored to a saved state continues exactly as a fresh pass resumed from it.
+    #[test]
+    fn restore_into_a_used_pass_is_resume() {
+        let config = RunConfig { system: SystemConfig::disks(16, 0.7, 1.0).unwrap(), tau: 0.6, relax_steps: 1, steps: 8, vectors: 40, seed: 5, threads: 2, blocks: 2 };
+        let mut a = Forward::new(&config).unwrap();
+        a.step().unwrap();
+        let saved = a.state();
+        for _ in 0..4 {
+            a.step().unwrap();
+        }
+        let mut fresh = Forward::resume(&config, &saved).unwrap();
+        a.restore(&saved).unwrap();
+        assert!(a.state() == saved);
+        for _ in 0..3 {
+            a.step().unwrap();
+            fresh.step().unwrap();
+            assert!(a.state() == fresh.state() && a.r == fresh.r);
+        }
+    }
 
     /// The backward stage's step (copies of G_n and R_n written from inside the QR) is the
     /// plain step: same state, and the copies have the bits of `to_paper_columns` and

@@ -156,15 +156,26 @@ impl Tangent {
 
     /// Inverse of [`Tangent::to_paper_columns`].
     pub fn from_paper_columns(system: &dyn DynamicalSystem, k: usize, cols: &[f64]) -> Self {
-        let d = system.dim();
+        let mut t = Tangent::zeros(system.dim(), k);
+        t.read_paper_columns(system, cols);
+        t
+    }
+
+    /// Set all k vectors from the paper's column layout (column-major D x k), in place.
+    pub fn read_paper_columns(&mut self, system: &dyn DynamicalSystem, cols: &[f64]) {
+        let (d, k) = (self.d, self.k);
         assert_eq!(cols.len(), d * k, "column data must hold D x k values");
-        let mut t = Tangent::zeros(d, k);
-        for i in 0..d {
-            let r = system.internal_row(i);
-            for j in 0..k {
-                t.rows[r * k + j] = cols[j * d + i];
+        // Eight rows at a time, as in write_paper_columns: one cache line of each column
+        // per pass.
+        const BLOCK: usize = 8;
+        for i0 in (0..d).step_by(BLOCK) {
+            let i1 = (i0 + BLOCK).min(d);
+            let rows: Vec<usize> = (i0..i1).map(|i| system.internal_row(i) * k).collect();
+            for (j, col) in cols.chunks_exact(d).enumerate() {
+                for (&at, x) in rows.iter().zip(&col[i0..i1]) {
+                    self.rows[at + j] = *x;
+                }
             }
         }
-        t
     }
 }
