@@ -231,9 +231,9 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     // under the same load of a shared machine; the ratio reported is the median of the pairs'.
     for rep in 0..reps.clamp(2, 3) {
         let dir = tmp.join(format!("pair{rep}"));
-        let cfg = disk_config(n, k, threads, 0, 630)?;
+        let cfg = disk_config(n, k, threads, 0, 1030)?;
         let mut st = StoreConfig::for_run(&cfg);
-        st.clv_steps = 500;
+        st.clv_steps = 900;
         st.transient = 100;
         let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: st.clone(), build: BuildInfo::current() };
         forward_run::create(&dir, &meta, &mut Feedback::default())?;
@@ -242,19 +242,19 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         // the start-up that a long run amortises.
         let walls = checkpoint_walls(&dir)?;
         let at = |step: u64| walls.iter().find(|w| w.0 == step).map(|w| w.1);
-        let forward = match (at(100), at(600)) {
-            (Some(a), Some(b)) => (b - a) * 1e3 / 500.0,
+        let forward = match (at(100), at(1000)) {
+            (Some(a), Some(b)) => (b - a) * 1e3 / 900.0,
             _ => f64::NAN,
         };
         let mut opts = BackwardOptions::for_run(&meta);
         opts.save_every = 0;
         let mut marks: Vec<(Instant, u64)> = Vec::new();
         backward::run(&dir, &opts, false, u64::MAX, &mut |_| Ok(Flow::Continue), &mut |steps, _| marks.push((Instant::now(), steps)))?;
-        // Seven segments of 100 steps; the time per step is taken from the end of the third
-        // segment's sweep to the end of the last but one: the period of the overlapped
-        // pipeline, once both segment buffers have been written whole (their first writes
-        // fault the pages in). The last sweep runs alone after the last recomputation, once
-        // per run.
+        // Eleven segments (ten of 100 steps); the time per step is taken from the end of the
+        // third segment's sweep to the end of the last but one (seven segments): the period
+        // of the overlapped pipeline, once both segment buffers have been written whole
+        // (their first writes fault the pages in). The last sweep runs alone after the last
+        // recomputation, once per run.
         let backward = match (marks.get(2), marks.len().checked_sub(2).and_then(|i| marks.get(i))) {
             (Some(first), Some(last)) if last.1 > first.1 => ms(last.0 - first.0) / (last.1 - first.1) as f64,
             _ => f64::NAN,

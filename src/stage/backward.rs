@@ -180,7 +180,7 @@ struct Window {
 /// recomputing its steps.
 struct Checkpoints {
     segments: Vec<SegmentFile>,
-    last: Option<ForwardState>,
+    last: Option<Arc<ForwardState>>,
 }
 
 impl Checkpoints {
@@ -190,10 +190,12 @@ impl Checkpoints {
         })
     }
 
-    fn get(&mut self, step: u64) -> Result<ForwardState> {
+    fn get(&mut self, step: u64) -> Result<Arc<ForwardState>> {
         if let Some(cp) = self.last.as_ref().filter(|cp| cp.step == step) {
             return Ok(cp.clone());
         }
+        // The old one goes before the new one is read: one fewer G_n in memory at the peak.
+        self.last = None;
         let seg = self.segment_of(step)?.path.clone();
         let bytes = match indexed_checkpoint(&seg, step) {
             Some(bytes) => bytes,
@@ -210,6 +212,7 @@ impl Checkpoints {
             }
         };
         let cp = Checkpoint::decode(&bytes).map_err(|e| Error::corrupt(&seg, format!("step {step}: {e}")))?.state;
+        let cp = Arc::new(cp);
         self.last = Some(cp.clone());
         Ok(cp)
     }
@@ -385,7 +388,7 @@ fn recompute(config: &RunConfig, store_r_all: bool, cores: &Cores, cps: &mut Che
         seg.phase[i * d..(i + 1) * d].copy_from_slice(&fwd.system.snapshot().phase);
     }
     let got = fwd.state();
-    if got != want {
+    if got != *want {
         let file = cps.segment_of(s1).map(|s| s.path.display().to_string()).unwrap_or_default();
         return Err(Error::Dynamics(format!(
             "recomputation from step {s0} does not reproduce the checkpoint at step {s1} stored in {file}: {}. \
