@@ -87,7 +87,11 @@ pub struct BenchReport {
     pub backward_step_ms: Stat,
     pub backward_solve_ms: Stat,
     pub backward_vgc_ms: Stat,
+    /// The median over the forward runs of the pairs (below) of the ratio of their
+    /// steady-state step time to the median of ten QR steps timed just before each.
     pub forward_step_over_qr: f64,
+    /// The median over the kernel repetitions of each QR's time over the floor at the gemm
+    /// rate measured just before it.
     pub qr_over_floor: f64,
     /// The median over pairs of runs (a forward run, then the backward stage over it) of
     /// the ratio of their steady-state step times.
@@ -170,27 +174,34 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     let p = par(threads);
     let mut rng = Rng::new(7);
 
-    say("gemm");
+    say("gemm and forward steps (MD, tangent, QR), alternately");
     let (a, b) = (random_mat(d, d, &mut rng), random_mat(d, d, &mut rng));
     let mut c = Mat::<f64>::zeros(d, d);
-    let gemm = Stat::of((0..reps + 1).map(|_| {
+    let mut gemm_once = || {
         let t = Instant::now();
         faer::linalg::matmul::matmul(c.as_mut(), faer::Accum::Replace, a.as_ref(), b.as_ref(), 1.0, p);
         2.0 * (d as f64).powi(3) / t.elapsed().as_secs_f64() / 1e9
-    }).skip(1).collect());
-    let floor_ms = 8.0 / 3.0 * d as f64 * (k as f64).powi(2) / (gemm.median * 1e9) * 1e3;
-
-    say("forward steps (MD, tangent, QR)");
+    };
+    let floor_at = |gflops: f64| 8.0 / 3.0 * d as f64 * (k as f64).powi(2) / (gflops * 1e9) * 1e3;
+    gemm_once(); // warm-up
     let config = disk_config(n, k, threads, 3, 100)?;
     let mut fwd = relaxed_forward(&config)?;
-    let (mut md, mut qr) = (Vec::new(), Vec::new());
+    // One gemm, then one step, so that each QR is compared with the gemm rate of its moment
+    // (the rate of a shared machine moves by 20 % within an hour).
+    let (mut rates, mut md, mut qr, mut over_floor) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for _ in 0..reps.max(20) {
+        let rate = gemm_once();
         let (a, q) = fwd.step_timed()?;
+        rates.push(rate);
         md.push(ms(a));
         qr.push(ms(q));
+        over_floor.push(ms(q) / floor_at(rate));
     }
+    let gemm = Stat::of(rates);
+    let floor_ms = floor_at(gemm.median);
     let qr_ms = Stat::of(qr);
     let md_tangent_ms = Stat::of(md);
+    let qr_over_floor = Stat::of(over_floor).median;
 
     say("store encoding");
     let store = StoreConfig::for_run(&config);
@@ -225,11 +236,17 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     say("stored forward run and backward stage over it, in pairs");
     let tmp = std::env::temp_dir().join(format!("clv-bench-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
-    let (mut fsteps, mut bsteps, mut ratios) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut fsteps, mut bsteps, mut ratios, mut qr_ratios) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     // Each pair is one stored forward run (store defaults: a checkpoint every 100 steps) and
     // the backward stage over it, one right after the other, so that their ratio is taken
     // under the same load of a shared machine; the ratio reported is the median of the pairs'.
+    // Ten QR steps just before each forward run give its forward_step_over_qr the same way.
     for rep in 0..reps.clamp(2, 3) {
+        let mut qr_now = Vec::new();
+        for _ in 0..10 {
+            qr_now.push(ms(fwd.step_timed()?.1));
+        }
+        let qr_now = Stat::of(qr_now).median;
         let dir = tmp.join(format!("pair{rep}"));
         let cfg = disk_config(n, k, threads, 0, 1030)?;
         let mut st = StoreConfig::for_run(&cfg);
@@ -262,11 +279,13 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         fsteps.push(forward);
         bsteps.push(backward);
         ratios.push(backward / forward);
+        qr_ratios.push(forward / qr_now);
         let _ = std::fs::remove_dir_all(&dir);
     }
     let forward_step_ms = Stat::of(fsteps);
     let backward_step_ms = Stat::of(bsteps);
     let backward_over_forward = Stat::of(ratios).median;
+    let forward_step_over_qr = Stat::of(qr_ratios).median;
 
     say("leading k = 16");
     let lk = 16.min(d);
@@ -335,8 +354,8 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         backward_step_ms,
         backward_solve_ms,
         backward_vgc_ms,
-        forward_step_over_qr: forward_step_ms.median / qr_ms.median,
-        qr_over_floor: qr_ms.median / floor_ms,
+        forward_step_over_qr,
+        qr_over_floor,
         backward_over_forward,
         leading_k16_step_ms: Stat::of(s16),
         leading_k16_md_tangent_ms: Stat::of(a16),
