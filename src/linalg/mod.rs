@@ -85,21 +85,6 @@ pub fn pack_upper(r: faer::MatRef<'_, f64>) -> Vec<f64> {
     out
 }
 
-/// [`pack_upper`] into a buffer of k (k + 1) / 2 values.
-pub fn pack_upper_into(r: faer::MatRef<'_, f64>, out: &mut [f64]) {
-    let k = r.ncols();
-    assert_eq!(out.len(), k * (k + 1) / 2, "buffer must hold k (k + 1) / 2 values");
-    let mut at = 0;
-    for j in 0..k {
-        let col = r.col(j);
-        match col.try_as_col_major() {
-            Some(c) => out[at..at + j + 1].copy_from_slice(&c.as_slice()[..=j]),
-            None => out[at..at + j + 1].iter_mut().zip(col.iter()).for_each(|(o, x)| *o = *x),
-        }
-        at += j + 1;
-    }
-}
-
 /// Unpack into an existing k x k matrix (the strictly lower part is left untouched).
 pub fn unpack_upper_into(packed: &[f64], r: &mut Mat<f64>) {
     let k = r.ncols();

@@ -100,7 +100,7 @@ impl Qr {
     }
 
     /// [`Qr::factor`], also writing the copies of G_n and R_n that `copies` asks for, with
-    /// the same bits as [`Tangent::write_paper_columns`] and [`super::pack_upper_into`]: each
+    /// the same bits as [`Tangent::write_paper_columns`] and [`super::pack_upper`]: each
     /// worker writes its chunks while they are in cache, instead of a pass over the whole
     /// block afterwards (the backward stage's recomputation: 1.7 + 0.4 ms a step at D = 792,
     /// measured). Nothing is written there if a column is dependent.
