@@ -82,8 +82,9 @@ pub struct BenchReport {
     pub md_tangent_ms: Stat,
     /// Encoding checkpoint, R and statistics, amortised per step (on the simulation thread).
     pub store_ms: Stat,
-    /// Wall time per step of the backward stage in the steady state (after the first segment,
-    /// recomputation overlapping the sweep), frames consumed in-process.
+    /// Wall time per step of the backward stage in the steady state (from the end of the
+    /// third segment to the end of the last but one, recomputation overlapping the sweep),
+    /// frames consumed in-process.
     pub backward_step_ms: Stat,
     pub backward_solve_ms: Stat,
     pub backward_vgc_ms: Stat,

@@ -91,8 +91,7 @@ pub fn unpack_upper_into(packed: &[f64], r: &mut Mat<f64>) {
     assert_eq!(packed.len(), k * (k + 1) / 2, "packed length must be k (k + 1) / 2");
     let mut at = 0;
     for j in 0..k {
-        let col = r.col_mut(j).try_as_col_major_mut().expect("an owned Mat is column-major");
-        col.as_slice_mut()[..=j].copy_from_slice(&packed[at..at + j + 1]);
+        r.col_as_slice_mut(j)[..=j].copy_from_slice(&packed[at..at + j + 1]);
         at += j + 1;
     }
 }

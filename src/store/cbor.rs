@@ -107,15 +107,22 @@ impl<'a> Cursor<'a> {
         Ok(s)
     }
 
+    /// The next N bytes as an array.
+    fn take_array<const N: usize>(&mut self) -> Result<[u8; N], String> {
+        let mut out = [0; N];
+        out.copy_from_slice(self.take(N)?);
+        Ok(out)
+    }
+
     fn head(&mut self) -> Result<(u8, u8, u64), String> {
         let first = self.take(1)?[0];
         let (major, add) = (first >> 5, first & 31);
         let n = match add {
             0..=23 => add as u64,
             24 => self.take(1)?[0] as u64,
-            25 => u16::from_be_bytes(self.take(2)?.try_into().unwrap()) as u64,
-            26 => u32::from_be_bytes(self.take(4)?.try_into().unwrap()) as u64,
-            27 => u64::from_be_bytes(self.take(8)?.try_into().unwrap()),
+            25 => u16::from_be_bytes(self.take_array()?) as u64,
+            26 => u32::from_be_bytes(self.take_array()?) as u64,
+            27 => u64::from_be_bytes(self.take_array()?),
             _ => return Err(format!("unsupported CBOR item 0x{first:02x} at byte {}", self.at - 1)),
         };
         Ok((major, add, n))
@@ -124,6 +131,18 @@ impl<'a> Cursor<'a> {
     fn len(&mut self, n: u64) -> Result<usize, String> {
         usize::try_from(n).ok().filter(|&n| n <= self.b.len()).ok_or_else(|| format!("length {n} at byte {} exceeds the message", self.at))
     }
+}
+
+/// f64 values from their little-endian bytes (a trailing partial value is ignored; callers
+/// check the length).
+pub fn f64s_from_le_bytes(raw: &[u8]) -> Vec<f64> {
+    raw.chunks_exact(8)
+        .map(|b| {
+            let mut le = [0; 8];
+            le.copy_from_slice(b);
+            f64::from_le_bytes(le)
+        })
+        .collect()
 }
 
 /// Decode a top-level CBOR map of the supported subset.
@@ -151,7 +170,7 @@ pub fn decode_map(bytes: &[u8]) -> Result<BTreeMap<String, Value>, String> {
                     return Err(format!("field {key:?}: byte string of {len} bytes is not an f64 array"));
                 }
                 let raw = c.take(len)?;
-                Value::F64s(raw.chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().unwrap())).collect())
+                Value::F64s(f64s_from_le_bytes(raw))
             }
             (3, _) => {
                 let len = c.len(n)?;
