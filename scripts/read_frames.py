@@ -9,13 +9,15 @@ As a library:
     from read_frames import read_frames
     for f in read_frames("run/frames.mcap"):
         f["step"], f["time"]
-        f["v"]        # (D, k) array: column j is the covariant vector v^(j+1), unit norm
+        f["v"]        # (D, k) array: column j is the covariant vector v^(j+1), unit norm;
+                      # None in frames without vectors (clv backward --vectors-every)
         f["g"]        # (D, k) Gram-Schmidt vectors, or None without --with-gs
         f["local"]    # (k,) local exponents over [t_n, t_n+1]
         f["phase"]    # (D,) phase point (q_x1, q_y1, ..., p_yN)
 
 Frames are stored newest first (the backward pass runs backward in time). The file's
-metadata holds the run's configuration (run.json) and its forward spectrum (spectrum.json).
+metadata holds the run's configuration (run.json), its forward spectrum (spectrum.json) and
+the backward stage's options (backward.json).
 """
 import json
 import sys
@@ -31,11 +33,12 @@ def read_frames(path):
             m = cbor2.loads(message.data)
             d, k = m["d"], m["k"]
             g = np.frombuffer(m["g"], "<f8")
+            v = np.frombuffer(m["v"], "<f8")
             yield {
                 "step": m["step"],
                 "time": m["time"],
                 "phase": np.frombuffer(m["phase"], "<f8"),
-                "v": np.frombuffer(m["v"], "<f8").reshape(k, d).T,
+                "v": v.reshape(k, d).T if v.size else None,
                 "local": np.frombuffer(m["local"], "<f8"),
                 "g": g.reshape(k, d).T if g.size else None,
             }
@@ -54,7 +57,7 @@ def main():
         sys.exit(__doc__)
     frames = list(read_frames(sys.argv[1]))
     local = np.array([f["local"] for f in frames])
-    worst_norm = max(float(np.abs(np.linalg.norm(f["v"], axis=0) - 1).max()) for f in frames)
+    worst_norm = max(float(np.abs(np.linalg.norm(f["v"], axis=0) - 1).max()) for f in frames if f["v"] is not None)
     meta = metadata(sys.argv[1])
     summary = {
         "frames": len(frames),
@@ -63,6 +66,7 @@ def main():
         "clv_exponents": local.mean(axis=0).tolist(),
         "max_unit_norm_error": worst_norm,
         "with_gs": frames[0]["g"] is not None,
+        "frames_with_vectors": sum(f["v"] is not None for f in frames),
         "run_seed": meta.get("run.json", {}).get("config", {}).get("seed"),
     }
     if "--json" in sys.argv:

@@ -187,6 +187,12 @@ struct BackwardArgs {
     /// Keep every m-th frame in the frame file (the stream on stdout always carries all).
     #[arg(long, default_value_t = 1)]
     save_every: u64,
+    /// Form the covariant vectors V_n = G_n C_n (a third of a backward step) only for every
+    /// m-th frame; the others carry the phase point and the local exponents. `clv analyze`
+    /// then samples every m-th frame by default (or a multiple of m: its --every), e.g. 62
+    /// for the paper's 25000 CLV steps (`clv run` does this itself).
+    #[arg(long, default_value_t = 1)]
+    vectors_every: u64,
     /// Continue an interrupted backward sweep from its progress record.
     #[arg(long)]
     resume: bool,
@@ -579,7 +585,14 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if stored.is_none() || given("save_every") || given("out") {
         opts.save_every = if to_stdout { 0 } else { args.save_every };
     }
-    let stream_meta = clv::store::frames::stream_metadata(&serde_json::to_string(&meta).unwrap_or_default(), std::fs::read_to_string(args.dir.join("spectrum.json")).ok().as_deref());
+    if stored.is_none() || given("vectors_every") {
+        opts.vectors_every = args.vectors_every;
+    }
+    let stream_meta = clv::store::frames::stream_metadata(
+        &serde_json::to_string(&meta).unwrap_or_default(),
+        std::fs::read_to_string(args.dir.join("spectrum.json")).ok().as_deref(),
+        &opts.to_json(),
+    );
     let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
     // Two bars: segments recomputed (from the checkpoints) and frames emitted by the sweep.
     let bars = (!args.quiet).then(|| {

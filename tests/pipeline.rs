@@ -26,11 +26,13 @@ fn shell_pipes_give_the_same_numbers_as_files_and_concurrency_changes_nothing() 
     let run = base.join("run");
     let r = run.to_str().unwrap();
     ok(clv(&[&RUN[..], &["--out", r]].concat()));
-    // Through real pipes: clv backward RUN --out - | clv analyze - --out DIR
+    // Through real pipes: clv backward RUN --out - | clv analyze - --out DIR. The pipe
+    // carries the frames newest first, the file gives them oldest first: with every 7th
+    // frame sampled (by its step), both sample the same frames.
     let piped = base.join("piped");
     let mut backward = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", r, "--out", "-", "--with-gs", "--quiet"]).stdout(Stdio::piped()).spawn().unwrap();
     let analyze = Command::new(env!("CARGO_BIN_EXE_clv"))
-        .args(["analyze", "-", "--out", piped.to_str().unwrap()])
+        .args(["analyze", "-", "--out", piped.to_str().unwrap(), "--every", "7"])
         .stdin(backward.stdout.take().unwrap())
         .output()
         .unwrap();
@@ -40,14 +42,14 @@ fn shell_pipes_give_the_same_numbers_as_files_and_concurrency_changes_nothing() 
     let frames = base.join("frames.mcap");
     ok(clv(&["backward", r, "--out", frames.to_str().unwrap(), "--with-gs", "--quiet"]));
     let filed = base.join("filed");
-    ok(clv(&["analyze", frames.to_str().unwrap(), "--out", filed.to_str().unwrap()]));
+    ok(clv(&["analyze", frames.to_str().unwrap(), "--out", filed.to_str().unwrap(), "--every", "7"]));
     for t in TABLES {
         assert_eq!(read(&piped.join(t)), read(&filed.join(t)), "{t}: pipe and file differ");
     }
     // Each analysis alone gives the same numbers as all of them concurrently.
     for (name, table) in [("spectrum", "spectrum.csv"), ("localization", "localization.csv")] {
         let alone = base.join(format!("alone-{name}"));
-        ok(clv(&["analyze", frames.to_str().unwrap(), "--out", alone.to_str().unwrap(), "--only", name]));
+        ok(clv(&["analyze", frames.to_str().unwrap(), "--out", alone.to_str().unwrap(), "--only", name, "--every", "7"]));
         assert_eq!(read(&alone.join(table)), read(&filed.join(table)), "{name}: alone and concurrent differ");
     }
     let out = clv(&["analyze", frames.to_str().unwrap(), "--out", base.join("x").to_str().unwrap(), "--only", "nonsense"]);
@@ -107,6 +109,50 @@ fn clv_run_on_the_default_preset_writes_the_report() {
 
 /// A Python user reads the frames with the mcap package, cbor2 and numpy and gets the same
 /// CLV spectrum as the backward stage.
+/// `--vectors-every m` forms V_n (and G_n) only for the steps n that are multiples of m: those frames are the
+/// full stream's, bit for bit, every frame keeps its phase point and local exponents, and
+/// the analyses of the sparse stream (which sample every m-th frame by default) write every
+/// table of the full stream analysed with `--every m`, byte for byte. An `--every` that is
+/// not a multiple of m is refused before any analysis runs.
+#[test]
+fn vectors_for_every_mth_frame_give_the_analyses_of_the_full_stream() {
+    let base = scratch("sparse");
+    let run = base.join("run");
+    let r = run.to_str().unwrap();
+    ok(clv(&[&RUN[..], &["--out", r]].concat()));
+    let (full, sparse) = (base.join("full.mcap"), base.join("sparse.mcap"));
+    ok(clv(&["backward", r, "--out", full.to_str().unwrap(), "--with-gs", "--quiet"]));
+    ok(clv(&["backward", r, "--out", sparse.to_str().unwrap(), "--with-gs", "--quiet", "--vectors-every", "3"]));
+    let (ff, fs) = (common::frames(&full), common::frames(&sparse));
+    assert_eq!(ff.len(), 401);
+    assert_eq!(ff.len(), fs.len());
+    for (i, (a, b)) in ff.iter().zip(&fs).enumerate() {
+        assert!(a.step == b.step && a.phase == b.phase && a.local == b.local, "frame {i}: phase point or local exponents differ");
+        if a.step % 3 == 0 {
+            assert!(a == b, "frame {i} (step {}) differs from the full stream's", a.step);
+        } else {
+            assert!(b.v.is_empty() && b.g.is_none(), "frame {i} carries vectors");
+        }
+    }
+    let (full_report, sparse_report) = (base.join("full-report"), base.join("sparse-report"));
+    ok(clv(&["analyze", full.to_str().unwrap(), "--out", full_report.to_str().unwrap(), "--every", "3"]));
+    ok(clv(&["analyze", sparse.to_str().unwrap(), "--out", sparse_report.to_str().unwrap()]));
+    let tables: Vec<String> = std::fs::read_dir(&full_report)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".csv"))
+        .collect();
+    assert!(tables.len() >= 10, "only {tables:?}");
+    for t in &tables {
+        assert_eq!(read(&full_report.join(t)), read(&sparse_report.join(t)), "{t}: the sparse stream's analysis differs");
+    }
+    let out = clv(&["analyze", sparse.to_str().unwrap(), "--out", base.join("x").to_str().unwrap(), "--every", "4"]);
+    let err = common::stderr(&out);
+    assert!(!out.status.success() && err.contains("--every") && err.contains("--vectors-every 3"), "{err}");
+    assert!(!base.join("x").join("index.html").exists());
+}
+
 #[test]
 fn python_reads_frame_files() {
     let has = Command::new("python3").args(["-c", "import mcap, cbor2, numpy"]).output().map(|o| o.status.success()).unwrap_or(false);
@@ -120,12 +166,21 @@ fn python_reads_frame_files() {
     let frames = base.join("f.mcap");
     let report: serde_json::Value = serde_json::from_slice(&ok(clv(&["backward", run.to_str().unwrap(), "--out", frames.to_str().unwrap(), "--with-gs", "--quiet", "--json"])).stdout).unwrap();
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/read_frames.py");
-    let out = ok(Command::new("python3").arg(script).arg(&frames).arg("--json").output().unwrap());
+    let out = ok(Command::new("python3").arg(&script).arg(&frames).arg("--json").output().unwrap());
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["frames"], report["statistics"]["frames"]);
     assert_eq!(v["with_gs"], true);
     assert_eq!(v["run_seed"], 1);
     assert!(v["max_unit_norm_error"].as_f64().unwrap() < 1e-12);
+    assert_eq!(v["frames_with_vectors"], v["frames"]);
+    // A stream with V in every 4th frame only.
+    let sparse = base.join("sparse.mcap");
+    ok(clv(&["backward", run.to_str().unwrap(), "--out", sparse.to_str().unwrap(), "--quiet", "--vectors-every", "4"]));
+    let out = ok(Command::new("python3").arg(&script).arg(&sparse).arg("--json").output().unwrap());
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(s["frames"], v["frames"]);
+    assert_eq!(s["frames_with_vectors"].as_u64().unwrap(), v["frames"].as_u64().unwrap().div_ceil(4));
+    assert_eq!(s["clv_exponents"], v["clv_exponents"]);
     let py: Vec<f64> = serde_json::from_value(v["clv_exponents"].clone()).unwrap();
     let rs: Vec<f64> = serde_json::from_value(report["exponents"].clone()).unwrap();
     for (a, b) in py.iter().zip(&rs) {

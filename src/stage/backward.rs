@@ -57,12 +57,35 @@ pub struct BackwardOptions {
     /// Keep every m-th frame in the frame file (0: no frame file).
     pub save_every: u64,
     pub frames_path: Option<PathBuf>,
+    /// Form V_n = G_n C_n (and copy G_n) only for the frames whose step n is a multiple of m
+    /// ([`carries_vectors`]); the others carry the phase point and the local exponents.
+    /// V = G C is D k^2 flops a frame, a third of a backward step, and the analyses of
+    /// vector statistics read every m-th frame anyway (`clv analyze --every`).
+    #[serde(default = "one")]
+    pub vectors_every: u64,
+}
+
+fn one() -> u64 {
+    1
 }
 
 impl BackwardOptions {
     pub fn for_run(meta: &RunMeta) -> Self {
-        BackwardOptions { transient: meta.store.transient, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None }
+        BackwardOptions { transient: meta.store.transient, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1 }
     }
+
+    /// As a frame stream's metadata records them (`backward.json`).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).unwrap_or_default()
+    }
+}
+
+/// Whether the frame of step n carries V_n (and G_n with --with-gs) when the sweep forms
+/// them for every `vectors_every`-th step. By the step, not by the order of the frames, so
+/// that a file (read oldest first) and a pipe (newest first) agree; the analyses sample
+/// frames by the same rule (`clv analyze --every`).
+pub fn carries_vectors(step: u64, vectors_every: u64) -> bool {
+    step.is_multiple_of(vectors_every.max(1))
 }
 
 /// Statistics of a backward sweep.
@@ -430,6 +453,9 @@ pub fn run(
     let gs: crate::report::SpectrumSummary = crate::report::SpectrumSummary::read(&dir.spectrum_path()).map_err(|_| {
         Error::Other(format!("the forward run in {} is not complete (no spectrum.json); finish it with `clv forward --resume {}`", path.display(), path.display()))
     })?;
+    if opts.vectors_every == 0 {
+        return Err(Error::param("vectors-every", "must be at least 1 (1: every frame carries V_n)"));
+    }
     let kept = store.clv_steps + store.transient;
     if opts.transient >= kept {
         return Err(Error::param("transient", format!("must be below the {kept} steps the run kept for the backward stage (--clv-steps + --transient of the forward run)")));
@@ -445,7 +471,7 @@ pub fn run(
     let frames_path = opts.frames_path.clone();
     let saving = opts.save_every > 0 && frames_path.is_some();
     let spectrum_json = std::fs::read_to_string(dir.spectrum_path()).ok();
-    let metadata = crate::store::frames::stream_metadata(&RunDir::meta_json(&meta), spectrum_json.as_deref());
+    let metadata = crate::store::frames::stream_metadata(&RunDir::meta_json(&meta), spectrum_json.as_deref(), &opts.to_json());
     let progress_file = progress_path(&dir);
     let mut notes = Vec::new();
     let record = match std::fs::read_to_string(&progress_file) {
@@ -546,8 +572,8 @@ pub fn run(
 
     let mut r = Mat::<f64>::zeros(k, k);
     let mut norms = vec![0.0; k];
-    // The last frame handed out: once every consumer has dropped it, its buffers take the
-    // next frame's V and G (no allocation, no copy of V per step).
+    // The last frame handed out with V: once every consumer has dropped it, its buffers take
+    // the next such frame's V and G (no allocation per frame).
     let mut spare: Option<Arc<Frame>> = None;
     let mut stopped = false;
     let mut failure = None;
@@ -571,13 +597,25 @@ pub fn run(
             if m < window.first || m > window.last {
                 continue;
             }
-            let at = ((m - seg.s0) as usize) * d * k;
-            let g = &seg.g.slice()[at..at + d * k];
-            let (mut v, recycled_g) = match spare.take().map(Arc::try_unwrap) {
-                Some(Ok(old)) => (old.v, old.g),
-                _ => (vec![0.0; d * k], None),
+            let vectors = carries_vectors(m, opts.vectors_every);
+            let (v, g) = if vectors {
+                let at = ((m - seg.s0) as usize) * d * k;
+                let g = &seg.g.slice()[at..at + d * k];
+                let (mut v, recycled_g) = match spare.take().map(Arc::try_unwrap) {
+                    Some(Ok(old)) => (old.v, old.g),
+                    _ => (vec![0.0; d * k], None),
+                };
+                crate::linalg::mul_upper(MatMut::from_column_major_slice_mut(&mut v, d, k), MatRef::from_column_major_slice(g, d, k), c.as_ref(), par);
+                let g = opts.with_gs.then(|| {
+                    let mut buffer = recycled_g.unwrap_or_default();
+                    buffer.clear();
+                    buffer.extend_from_slice(g);
+                    buffer
+                });
+                (v, g)
+            } else {
+                (Vec::new(), None)
             };
-            crate::linalg::mul_upper(MatMut::from_column_major_slice_mut(&mut v, d, k), MatRef::from_column_major_slice(g, d, k), c.as_ref(), par);
             // local CLV exponents, -ln |R_n^-1 c_j| / tau
             let local: Vec<f64> = norms.iter().map(|n| -n.ln() / tau).collect();
             // The CLV spectrum is the mean of the frames' local exponents (accumulated with
@@ -591,12 +629,7 @@ pub fn run(
                 phase: seg.phase[(m - seg.s0) as usize * d..(m - seg.s0 + 1) as usize * d].to_vec(),
                 v,
                 local,
-                g: opts.with_gs.then(|| {
-                    let mut buffer = recycled_g.unwrap_or_default();
-                    buffer.clear();
-                    buffer.extend_from_slice(g);
-                    buffer
-                }),
+                g,
             });
             if stats.frames == 0 {
                 stats.last_frame_step = m;
@@ -607,7 +640,9 @@ pub fn run(
                     file.write(&frame)?;
                 }
             stats.frames += 1;
-            spare = Some(frame.clone());
+            if vectors {
+                spare = Some(frame.clone());
+            }
             if consumer(frame)? == Flow::Stop {
                 stopped = true;
                 break;
@@ -683,7 +718,7 @@ mod tests {
     use super::*;
 
     fn record(c: Vec<f64>) -> Progress {
-        Progress { options: BackwardOptions { transient: 1, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None }, at: 7, c, acc: Accumulator::new(3, 2), stats: BackwardStats::default(), done: false }
+        Progress { options: BackwardOptions { transient: 1, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1 }, at: 7, c, acc: Accumulator::new(3, 2), stats: BackwardStats::default(), done: false }
     }
 
     /// C survives the progress record bit for bit (hex), and records of earlier builds (a JSON

@@ -12,7 +12,8 @@ pub struct Frame {
     pub k: usize,
     /// Gamma_n in the paper's ordering.
     pub phase: Vec<f64>,
-    /// V_n = G_n C_n (paper eq. for V_n): unit columns, column-major D x k, paper ordering.
+    /// V_n = G_n C_n (paper eq. for V_n): unit columns, column-major D x k, paper ordering;
+    /// empty in the frames the backward stage formed no vectors for (`--vectors-every`).
     pub v: Vec<f64>,
     /// Local CLV exponents over [t_n, t_{n+1}], k values.
     pub local: Vec<f64>,

@@ -39,9 +39,11 @@ pub fn run(config: &RunConfig, out: &Path, feedback: &mut Feedback, say: &mut dy
     let mut opts = BackwardOptions::for_run(&meta);
     opts.with_gs = true;
     opts.save_every = 0;
+    opts.vectors_every = super::analyze::vectors_every_for(&meta);
     let info = StreamInfo {
         run_json: Some(RunDir::meta_json(&meta)),
         spectrum_json: std::fs::read_to_string(dir.spectrum_path()).ok(),
+        backward_json: Some(opts.to_json()),
     };
     say("backward pass and analyses".into());
     let mut analyzer: Option<Analyzer> = None;

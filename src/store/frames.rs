@@ -197,16 +197,18 @@ impl FrameStdout {
     }
 }
 
-/// The description a frame stream carries: the run (run.json) and its forward spectrum.
+/// The description a frame stream carries: the run (run.json), its forward spectrum, and
+/// the options of the backward stage that wrote it (none in streams before 2026-11-24).
 #[derive(Clone, Debug, Default)]
 pub struct StreamInfo {
     pub run_json: Option<String>,
     pub spectrum_json: Option<String>,
+    pub backward_json: Option<String>,
 }
 
 /// The metadata written at the head of a frame stream.
-pub fn stream_metadata(run_json: &str, spectrum_json: Option<&str>) -> BTreeMap<String, String> {
-    let mut m = BTreeMap::from([("run.json".to_string(), run_json.to_string())]);
+pub fn stream_metadata(run_json: &str, spectrum_json: Option<&str>, backward_json: &str) -> BTreeMap<String, String> {
+    let mut m = BTreeMap::from([("run.json".to_string(), run_json.to_string()), ("backward.json".to_string(), backward_json.to_string())]);
     if let Some(s) = spectrum_json {
         m.insert("spectrum.json".into(), s.to_string());
     }
@@ -225,7 +227,11 @@ pub fn read_frames_with(
     let mut on_message = |m: super::segment::Message| -> Result<()> {
         if m.topic == RUN_METADATA {
             let map: BTreeMap<String, String> = serde_json::from_slice(m.data).map_err(|e| Error::corrupt(source, e.to_string()))?;
-            return on_info(StreamInfo { run_json: map.get("run.json").cloned(), spectrum_json: map.get("spectrum.json").cloned() });
+            return on_info(StreamInfo {
+                run_json: map.get("run.json").cloned(),
+                spectrum_json: map.get("spectrum.json").cloned(),
+                backward_json: map.get("backward.json").cloned(),
+            });
         }
         if stop || m.topic != FRAME.topic {
             return Ok(());

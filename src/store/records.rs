@@ -147,9 +147,29 @@ impl crate::stage::frame::Frame {
         let mut m = super::schema::FRAME.decode(bytes)?;
         let (d, k, step) = (m.u64("d") as usize, m.u64("k") as usize, m.u64("step"));
         let (phase, v, local, g) = (m.take_f64s("phase"), m.take_f64s("v"), m.take_f64s("local"), m.take_f64s("g"));
-        if phase.len() != d || v.len() != d * k || local.len() != k || !(g.is_empty() || g.len() == d * k) {
+        if phase.len() != d || !(v.is_empty() || v.len() == d * k) || local.len() != k || !(g.is_empty() || g.len() == d * k) {
             return Err(format!("frame at step {step}: array lengths do not match D = {d}, k = {k}"));
         }
         Ok(Self { step, time: m.f64("time"), d, k, phase, v, local, g: if g.is_empty() { None } else { Some(g) } })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::stage::frame::Frame;
+
+    /// A frame survives encoding, with or without its vectors (`--vectors-every`); arrays of
+    /// the wrong length are refused with the step named.
+    #[test]
+    fn frames_round_trip_with_and_without_vectors() {
+        let (d, k) = (4, 2);
+        let full = Frame { step: 12, time: 7.2, d, k, phase: vec![0.5; d], v: (0..d * k).map(|i| i as f64 / 7.0).collect(), local: vec![1.5, -1.5], g: Some(vec![0.25; d * k]) };
+        let bare = Frame { v: Vec::new(), g: None, ..full.clone() };
+        for f in [&full, &bare] {
+            assert_eq!(&Frame::decode(&f.encode()).unwrap(), f);
+        }
+        let short = Frame { v: vec![1.0; d * k - 1], ..full.clone() };
+        let err = Frame::decode(&short.encode()).unwrap_err();
+        assert!(err.contains("step 12") && err.contains("D = 4"), "{err}");
     }
 }

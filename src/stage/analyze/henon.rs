@@ -139,7 +139,9 @@ impl Analysis for HenonPicture {
         self.points.push(Point {
             step: frame.step,
             x: [frame.phase[0], frame.phase[1]],
-            v: frame.v[..2 * k].to_vec(),
+            // Empty where the stream carries no vectors (`--vectors-every`; `clv run` forms
+            // them for every frame of a Henon run): the point still belongs to the attractor.
+            v: frame.v.get(..2 * k).unwrap_or_default().to_vec(),
             g: frame.g.as_ref().map(|g| g[..2 * k].to_vec()),
         });
         Ok(())

@@ -24,6 +24,7 @@ pub mod spectrum;
 mod testing;
 pub mod transversality;
 
+use super::backward::{carries_vectors, BackwardOptions};
 use super::frame::Frame;
 use crate::error::{Error, Result};
 use crate::report::SpectrumSummary;
@@ -68,6 +69,30 @@ pub struct Context {
     pub source: String,
 }
 
+/// Whether analyses of vector statistics use the frame of `step` (`--every`): by the step,
+/// so that a file (oldest first) and a pipe (newest first) give the same sample, and the
+/// frames sampled carry V_n whenever `every` is a multiple of the stream's --vectors-every.
+pub fn in_sample(step: u64, every: u64) -> bool {
+    carries_vectors(step, every)
+}
+
+/// How often the analyses that apply to this run read V_n, for the backward stage's
+/// `vectors_every`: at every `--every`-th frame by default, but at every frame of the Henon
+/// map, whose picture follows the vectors along the orbit (and where V costs nothing).
+pub fn vectors_every_for(meta: &RunMeta) -> u64 {
+    match meta.config.system {
+        crate::config::SystemConfig::Henon { .. } => 1,
+        crate::config::SystemConfig::Disks { .. } => default_every(meta.store.clv_steps, 1),
+    }
+}
+
+/// The default of `--every`: about 400 frames of a window of `clv_steps`, rounded up to a
+/// multiple of the stream's `vectors_every` (only those frames carry V_n).
+pub fn default_every(clv_steps: u64, vectors_every: u64) -> u64 {
+    let m = vectors_every.max(1);
+    (clv_steps / 400).max(1).div_ceil(m) * m
+}
+
 impl Context {
     /// The context of a stream, from its description and its first frame.
     pub fn new(info: &StreamInfo, first: &Frame, source: &str, every: Option<u64>, j: Option<Vec<usize>>, deltas: Option<Vec<u64>>) -> Result<Self> {
@@ -97,9 +122,19 @@ impl Context {
         if let Some(bad) = j.iter().find(|&&j| j == 0 || j > first.k) {
             return Err(Error::param("j", format!("index {bad} is outside 1..={}", first.k)));
         }
-        let every = every.unwrap_or((clv_steps / 400).max(1));
+        // Streams written before 2026-11-24 carry no backward options: V in every frame.
+        let backward: Option<BackwardOptions> = info.backward_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
+        let vectors_every = backward.as_ref().map_or(1, |o| o.vectors_every.max(1));
+        let with_gs = backward.as_ref().map_or(first.g.is_some(), |o| o.with_gs);
+        let every = every.unwrap_or_else(|| default_every(clv_steps, vectors_every));
         if every == 0 {
             return Err(Error::param("every", "must be at least 1"));
+        }
+        if !every.is_multiple_of(vectors_every) {
+            return Err(Error::param("every", format!(
+                "{source}: the backward stage formed the covariant vectors only for every {vectors_every}-th frame (--vectors-every {vectors_every}), \
+                 so vector statistics can use every m-th frame only for m a multiple of {vectors_every}, not {every}"
+            )));
         }
         let deltas = deltas.unwrap_or_else(|| [1u64, 2, 5, 10, 20, 50, 100, 200, 500].into_iter().filter(|&dl| dl * 4 <= clv_steps.max(4)).collect());
         if deltas.contains(&0) {
@@ -115,7 +150,7 @@ impl Context {
             lx,
             ly,
             tau,
-            with_gs: first.g.is_some(),
+            with_gs,
             options: Options { every, j, deltas },
             source: source.to_string(),
         })
@@ -213,17 +248,16 @@ impl Analyzer {
             let (tx, rx) = bounded::<Arc<Frame>>(8);
             let name = analysis.name();
             let dir = out.to_path_buf();
-            let sampled = analysis.sampled();
+            let wants_sample = analysis.sampled();
             let handle = std::thread::Builder::new()
                 .name(format!("clv-{name}"))
                 .spawn(move || -> Result<Vec<Produced>> {
-                    let (mut seen, mut used) = (0u64, 0u64);
+                    let mut used = 0u64;
                     for frame in rx {
-                        if !sampled || seen % every == 0 {
+                        if !wants_sample || in_sample(frame.step, every) {
                             analysis.consume(&frame)?;
                             used += 1;
                         }
-                        seen += 1;
                     }
                     analysis.finish(&dir, used)
                 })
@@ -235,6 +269,16 @@ impl Analyzer {
 
     /// Hand a frame to every analysis. A failed analysis stops the stream with its error.
     pub fn feed(&mut self, frame: Arc<Frame>) -> Result<Flow> {
+        if in_sample(frame.step, self.ctx.options.every) && frame.v.is_empty() {
+            return Err(Error::corrupt(
+                &self.ctx.source,
+                format!(
+                    "the frame of step {} carries no covariant vectors although the analyses sample it (every {}-th step); \
+                     the stream was written with another --vectors-every than its metadata says",
+                    frame.step, self.ctx.options.every
+                ),
+            ));
+        }
         self.frames += 1;
         self.first_step = self.first_step.min(frame.step);
         self.last_step = self.last_step.max(frame.step);
