@@ -187,10 +187,10 @@ struct BackwardArgs {
     /// Keep every m-th frame in the frame file (the stream on stdout always carries all).
     #[arg(long, default_value_t = 1)]
     save_every: u64,
-    /// Form the covariant vectors V_n = G_n C_n (a third of a backward step) only for every
-    /// m-th frame; the others carry the phase point and the local exponents. `clv analyze`
-    /// then samples every m-th frame by default (or a multiple of m: its --every), e.g. 62
-    /// for the paper's 25000 CLV steps (`clv run` does this itself).
+    /// Form the covariant vectors V_n = G_n C_n (a quarter of a backward step) only for the
+    /// steps n that are multiples of m; the other frames carry the phase point and the local
+    /// exponents. `clv analyze` then samples those frames (its --every: m by default, or a
+    /// multiple of m), e.g. m = 62 for the paper's 25000 CLV steps (`clv run` does this itself).
     #[arg(long, default_value_t = 1)]
     vectors_every: u64,
     /// Continue an interrupted backward sweep from its progress record.
