@@ -77,7 +77,7 @@ pub fn in_sample(step: u64, every: u64) -> bool {
 }
 
 /// How often the analyses that apply to this run read V_n, for the backward stage's
-/// `vectors_every`: at every `--every`-th frame by default, but at every frame of the Henon
+/// `vectors_every`: at every `--every`-th step by default, but at every frame of the Henon
 /// map, whose picture follows the vectors along the orbit (and where V costs nothing).
 pub fn vectors_every_for(meta: &RunMeta) -> u64 {
     match meta.config.system {
@@ -132,8 +132,8 @@ impl Context {
         }
         if !every.is_multiple_of(vectors_every) {
             return Err(Error::param("every", format!(
-                "{source}: the backward stage formed the covariant vectors only for every {vectors_every}-th frame (--vectors-every {vectors_every}), \
-                 so vector statistics can use every m-th frame only for m a multiple of {vectors_every}, not {every}"
+                "{source}: the backward stage formed the covariant vectors only at the steps that are multiples of {vectors_every} (--vectors-every {vectors_every}), \
+                 so the vector statistics can sample every m-th step only for m a multiple of {vectors_every}, not {every}"
             )));
         }
         let deltas = deltas.unwrap_or_else(|| [1u64, 2, 5, 10, 20, 50, 100, 200, 500].into_iter().filter(|&dl| dl * 4 <= clv_steps.max(4)).collect());
