@@ -223,7 +223,8 @@ struct AnalyzeArgs {
     /// Directory for index.html, figures (PNG, SVG) and tables (CSV, JSON).
     #[arg(long)]
     out: PathBuf,
-    /// Vector statistics use every m-th frame (default: scaled so about 400 frames are used).
+    /// Vector statistics use the frames of the steps that are multiples of m (default: about
+    /// 400 frames, and a multiple of the stream's --vectors-every).
     #[arg(long)]
     every: Option<u64>,
     /// Lyapunov indices (1-based) for the overlap figures, e.g. 1,200,370 (default: the

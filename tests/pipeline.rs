@@ -111,7 +111,7 @@ fn clv_run_on_the_default_preset_writes_the_report() {
 /// CLV spectrum as the backward stage.
 /// `--vectors-every m` forms V_n (and G_n) only for the steps n that are multiples of m: those frames are the
 /// full stream's, bit for bit, every frame keeps its phase point and local exponents, and
-/// the analyses of the sparse stream (which sample every m-th frame by default) write every
+/// the analyses of the sparse stream (which sample the frames of every m-th step by default) write every
 /// table of the full stream analysed with `--every m`, byte for byte. An `--every` that is
 /// not a multiple of m is refused before any analysis runs.
 #[test]
@@ -173,7 +173,7 @@ fn python_reads_frame_files() {
     assert_eq!(v["run_seed"], 1);
     assert!(v["max_unit_norm_error"].as_f64().unwrap() < 1e-12);
     assert_eq!(v["frames_with_vectors"], v["frames"]);
-    // A stream with V in every 4th frame only.
+    // A stream with V at every 4th step only.
     let sparse = base.join("sparse.mcap");
     ok(clv(&["backward", run.to_str().unwrap(), "--out", sparse.to_str().unwrap(), "--quiet", "--vectors-every", "4"]));
     let out = ok(Command::new("python3").arg(&script).arg(&sparse).arg("--json").output().unwrap());

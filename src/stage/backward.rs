@@ -60,7 +60,7 @@ pub struct BackwardOptions {
     /// Form V_n = G_n C_n (and copy G_n) only for the frames whose step n is a multiple of m
     /// ([`carries_vectors`]); the others carry the phase point and the local exponents.
     /// V = G C is D k^2 flops a frame, a quarter of a backward step (k = D), and the analyses of
-    /// vector statistics read every m-th frame anyway (`clv analyze --every`).
+    /// vector statistics read only the frames of every m-th step anyway (`clv analyze --every`).
     #[serde(default = "one")]
     pub vectors_every: u64,
 }

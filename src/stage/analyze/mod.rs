@@ -39,7 +39,7 @@ use std::thread::JoinHandle;
 /// Choices common to all analyses; the defaults scale with the system size.
 #[derive(Clone, Debug, Serialize)]
 pub struct Options {
-    /// Analyses of vector statistics use every m-th frame.
+    /// Analyses of vector statistics use the frames of the steps that are multiples of m.
     pub every: u64,
     /// Selected Lyapunov indices (1-based, as in the paper) for the overlap figures.
     pub j: Vec<usize>,
@@ -156,6 +156,14 @@ impl Context {
         })
     }
 
+    /// Which frames the vector statistics use, for captions.
+    pub fn sample(&self) -> String {
+        match self.options.every {
+            1 => "every frame of the stream".into(),
+            m => format!("the frames of the steps that are multiples of {m}"),
+        }
+    }
+
     pub fn is_disks(&self) -> bool {
         self.system == "disks"
     }
@@ -182,7 +190,7 @@ pub struct Produced {
 pub trait Analysis: Send {
     /// Short name (used for threads and messages).
     fn name(&self) -> &'static str;
-    /// Whether it wants only every m-th frame (`--every`), or all of them.
+    /// Whether it wants only the sampled frames (`--every`, [`in_sample`]), or all of them.
     fn sampled(&self) -> bool {
         true
     }
@@ -327,7 +335,7 @@ fn write_index(ctx: &Context, out: &Path, produced: &[Produced], frames: u64, fi
     let run = ctx.run.as_ref().map(|m| serde_json::to_string(&m.config).unwrap_or_default()).unwrap_or_default();
     let mut html = String::from("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>clv analyses</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em} figure{margin:2em 0} img{max-width:100%} code{background:#eee}</style></head><body>\n");
     html += &format!(
-        "<h1>Covariant Lyapunov vector analyses</h1>\n<p>Source: <code>{}</code>; {} frames (steps {}..{}), D = {}, k = {}{}; vector statistics use every {}-th frame.</p>\n<p>Run: <code>{}</code></p>\n",
+        "<h1>Covariant Lyapunov vector analyses</h1>\n<p>Source: <code>{}</code>; {} frames (steps {}..{}), D = {}, k = {}{}; vector statistics use {}.</p>\n<p>Run: <code>{}</code></p>\n",
         escape(&ctx.source),
         frames,
         if frames > 0 { first } else { 0 },
@@ -335,7 +343,7 @@ fn write_index(ctx: &Context, out: &Path, produced: &[Produced], frames: u64, fi
         ctx.d,
         ctx.k,
         if ctx.with_gs { ", with Gram-Schmidt vectors" } else { "" },
-        ctx.options.every,
+        ctx.sample(),
         escape(&run)
     );
     for p in produced {

@@ -10,7 +10,7 @@
 //!   indices next to the null space), restricted to the central part of the spectrum.
 //!
 //! The absolute value is taken because only the direction of a tangent vector matters (the
-//! paper, Sec. 5.1). Averages run over the consumed frames (every m-th frame, `--every`).
+//! paper, Sec. 5.1). Averages run over the consumed frames (those of every m-th step, `--every`).
 
 use super::kernels::angles::{abs_dots_pairwise, abs_dots_with};
 use super::{save_figure, write_csv, Analysis, Context, Mean, Produced};
@@ -127,8 +127,7 @@ impl Analysis for Overlaps {
     fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
         let ctx = &self.ctx;
         let idx: Vec<f64> = (1..=ctx.k).map(|i| i as f64).collect();
-        let every = ctx.options.every;
-        let avg = if every == 1 { format!("averaged over {frames} frames (every frame of the stream)") } else { format!("averaged over {frames} frames (every {every}-th frame of the stream)") };
+        let avg = format!("averaged over {frames} frames ({})", ctx.sample());
         let central = central_range(ctx);
         let mut produced = Vec::new();
 

@@ -9,7 +9,7 @@
 //!   smallest positive and -1 for the smallest negative exponents, for CLVs not.
 //!
 //! Each figure comes with an enlargement of the central (mode) part, as the paper's right
-//! panels and insets. Averages run over the consumed frames (every m-th frame, `--every`).
+//! panels and insets. Averages run over the consumed frames (those of every m-th step, `--every`).
 
 use super::kernels::projections::{cos_theta, eta_q_p};
 use super::{save_figure, write_csv, Analysis, Context, Mean, Produced};
@@ -120,8 +120,7 @@ impl Analysis for Projections {
         let idx: Vec<f64> = (1..=k).map(|i| i as f64).collect();
         let central = central_range(ctx);
         let full = k == ctx.d;
-        let every = ctx.options.every;
-        let avg = if every == 1 { format!("averaged over {frames} frames (every frame of the stream)") } else { format!("averaged over {frames} frames (every {every}-th frame of the stream)") };
+        let avg = format!("averaged over {frames} frames ({})", ctx.sample());
         let tables = vec!["projections.csv".to_string()];
 
         // One figure and its central enlargement.

@@ -14,7 +14,7 @@
 //!   >= J are dropped.
 //! * Fig. 17: the minimum of Theta over all pairs and frames for every separation 1..J-1.
 //!
-//! Principal angles cost ~160 ms per frame at D = 792, so the analysis uses every m-th frame.
+//! Principal angles cost ~160 ms per frame at D = 792, so the analysis uses the frames of every m-th step.
 
 use super::kernels::angles;
 use super::kernels::modes::Step;
