@@ -386,9 +386,11 @@ impl Cores {
 }
 
 /// Recompute segment [s0, s1] into `seg` from the older checkpoint and verify it against
-/// the newer one.
+/// the newer one: R_n for every step, G_n for the steps n where `reads_g(n)` (the frames
+/// that carry vectors).
 /// The pass `fwd` is made on the first segment and restored on the others.
-fn recompute(config: &RunConfig, store_r_all: bool, cores: &Cores, cps: &mut Checkpoints, fwd: &mut Option<Forward>, s0: u64, s1: u64, seg: &mut Segment) -> Result<()> {
+#[allow(clippy::too_many_arguments)]
+fn recompute(config: &RunConfig, store_r_all: bool, reads_g: &dyn Fn(u64) -> bool, cores: &Cores, cps: &mut Checkpoints, fwd: &mut Option<Forward>, s0: u64, s1: u64, seg: &mut Segment) -> Result<()> {
     // The newer end first: it is the older end of the segment before, still in `cps`.
     let want = cps.get(s1)?;
     let start = cps.get(s0)?;
@@ -409,7 +411,8 @@ fn recompute(config: &RunConfig, store_r_all: bool, cores: &Cores, cps: &mut Che
     for n in s0 + 1..=s1 {
         fwd.set_threads(cores.recompute_threads());
         let i = (n - s0) as usize;
-        fwd.step_with_copies(&mut g[i * dk..(i + 1) * dk], &mut seg.r[(i - 1) * kk..i * kk])?;
+        let g_n = reads_g(n).then(|| &mut g[i * dk..(i + 1) * dk]);
+        fwd.step_with_copies(g_n, &mut seg.r[(i - 1) * kk..i * kk])?;
         seg.phase[i * d..(i + 1) * d].copy_from_slice(&fwd.system.snapshot().phase);
     }
     let got = fwd.state();
@@ -546,6 +549,8 @@ pub fn run(
     let segments = dir.segments()?;
     let producer_todo = todo.clone();
     let producer_cores = cores.clone();
+    let vectors_every = opts.vectors_every;
+    let reads_g = move |n: u64| n >= window.first && n <= window.last && carries_vectors(n, vectors_every);
     let producer = std::thread::Builder::new()
         .name("clv-recompute".into())
         .spawn(move || {
@@ -561,7 +566,7 @@ pub fn run(
                     }
                     Err(_) => free_rx.recv().map_err(|_| Error::Other("the sweep stopped".into())),
                 };
-                let seg = buffer.and_then(|mut b| recompute(&producer_config, store_r_all, &producer_cores, &mut cps, &mut fwd, s0, s1, &mut b).map(|_| b));
+                let seg = buffer.and_then(|mut b| recompute(&producer_config, store_r_all, &reads_g, &producer_cores, &mut cps, &mut fwd, s0, s1, &mut b).map(|_| b));
                 let failed = seg.is_err();
                 if tx.send(seg).is_err() || failed {
                     break;
