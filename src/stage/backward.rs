@@ -317,20 +317,42 @@ impl Storage {
     }
 }
 
-/// One recomputed segment [s0, s1]: G_n and Gamma_n for n = s0..=s1 and packed R_n for
-/// n = s0+1..=s1, in flat buffers that are handed back and reused (two exist at most), so
-/// the memory of the sweep never depends on the window length.
+/// One recomputed segment [s0, s1]: Gamma_n for n = s0..=s1, packed R_n for n = s0+1..=s1,
+/// and G_n for the steps whose frames carry vectors, in flat buffers that are handed back
+/// and reused (two exist at most), so the memory of the sweep never depends on the window
+/// length. G_n of step s0 + i is in slot `g_slot[i]`; with `--vectors-every m` a segment of
+/// C steps needs at most ceil((C + 1) / m) slots instead of C + 1.
 struct Segment {
     s0: u64,
     s1: u64,
     g: Storage,
+    g_slot: Vec<Option<usize>>,
     phase: Vec<f64>,
     r: Vec<f64>,
 }
 
 impl Segment {
-    fn new(steps: usize, d: usize, k: usize, out_of_core: Option<&Path>) -> Result<Self> {
-        Ok(Segment { s0: 0, s1: 0, g: Storage::new((steps + 1) * d * k, out_of_core)?, phase: vec![0.0; (steps + 1) * d], r: vec![0.0; steps * k * (k + 1) / 2] })
+    fn new(steps: usize, d: usize, k: usize, vectors_every: u64, out_of_core: Option<&Path>) -> Result<Self> {
+        Ok(Segment {
+            s0: 0,
+            s1: 0,
+            g: Storage::new(Self::g_slots(steps, vectors_every) * d * k, out_of_core)?,
+            g_slot: vec![None; steps + 1],
+            phase: vec![0.0; (steps + 1) * d],
+            r: vec![0.0; steps * k * (k + 1) / 2],
+        })
+    }
+
+    /// G_n slots a segment of `steps` steps needs: one per multiple of `vectors_every` among
+    /// its steps + 1 step numbers.
+    fn g_slots(steps: usize, vectors_every: u64) -> usize {
+        (steps + 1).div_ceil(vectors_every.max(1) as usize)
+    }
+
+    /// G_n of step `n`, if the segment kept it.
+    fn g(&self, n: u64, dk: usize) -> Option<&[f64]> {
+        let slot = (*self.g_slot.get(n.checked_sub(self.s0)? as usize)?)?;
+        Some(&self.g.slice()[slot * dk..(slot + 1) * dk])
     }
 }
 
@@ -405,13 +427,25 @@ fn recompute(config: &RunConfig, store_r_all: bool, reads_g: &dyn Fn(u64) -> boo
     let (dk, kk) = (d * k, k * (k + 1) / 2);
     seg.s0 = s0;
     seg.s1 = s1;
+    let mut used = 0;
+    for (i, slot) in seg.g_slot.iter_mut().enumerate() {
+        *slot = (i as u64 <= s1 - s0 && reads_g(s0 + i as u64)).then(|| {
+            used += 1;
+            used - 1
+        });
+    }
+    if used * dk > seg.g.slice().len() {
+        return Err(Error::Other(format!("segment {s0}..{s1} needs {used} G_n slots, more than its buffer holds (a bug: please report it)")));
+    }
     let g = seg.g.slice_mut();
-    g[..dk].copy_from_slice(&start.g);
+    if let Some(slot) = seg.g_slot[0] {
+        g[slot * dk..(slot + 1) * dk].copy_from_slice(&start.g);
+    }
     seg.phase[..d].copy_from_slice(&start.system.phase);
     for n in s0 + 1..=s1 {
         fwd.set_threads(cores.recompute_threads());
         let i = (n - s0) as usize;
-        let g_n = reads_g(n).then(|| &mut g[i * dk..(i + 1) * dk]);
+        let g_n = seg.g_slot[i].map(|slot| &mut g[slot * dk..(slot + 1) * dk]);
         fwd.step_with_copies(g_n, &mut seg.r[(i - 1) * kk..i * kk])?;
         seg.phase[i * d..(i + 1) * d].copy_from_slice(&fwd.system.snapshot().phase);
     }
@@ -537,7 +571,7 @@ pub fn run(
     let resume_at = prior.as_ref().map(|p| p.at).unwrap_or(total);
     let todo: Vec<(u64, u64)> = bounds.windows(2).rev().map(|w| (w[0], w[1])).filter(|&(_, s1)| s1 <= resume_at).collect();
 
-    let segment_bytes = 8 * (c_every + 1) * (d * k) as u64;
+    let segment_bytes = 8 * (Segment::g_slots(c_every as usize, opts.vectors_every) * d * k) as u64;
     let out_of_core = (3 * segment_bytes > memory_bytes).then(|| dir.path.clone());
     let store_r_all = store.store_r == StoreR::All;
     let cores = Arc::new(Cores::new(config.threads));
@@ -562,7 +596,7 @@ pub fn run(
                     Ok(b) => Ok(b),
                     Err(_) if allocated < 2 => {
                         allocated += 1;
-                        Segment::new(c_every as usize, d, k, out_of_core.as_deref())
+                        Segment::new(c_every as usize, d, k, vectors_every, out_of_core.as_deref())
                     }
                     Err(_) => free_rx.recv().map_err(|_| Error::Other("the sweep stopped".into())),
                 };
@@ -604,8 +638,10 @@ pub fn run(
             }
             let vectors = carries_vectors(m, opts.vectors_every);
             let (v, g) = if vectors {
-                let at = ((m - seg.s0) as usize) * d * k;
-                let g = &seg.g.slice()[at..at + d * k];
+                let Some(g) = seg.g(m, d * k) else {
+                    failure = Some(Error::Other(format!("the recomputed segment {}..{} lacks G_n of step {m} (a bug: please report it)", seg.s0, seg.s1)));
+                    break;
+                };
                 let (mut v, recycled_g) = match spare.take().map(Arc::try_unwrap) {
                     Some(Ok(old)) => (old.v, old.g),
                     _ => (vec![0.0; d * k], None),
@@ -653,7 +689,7 @@ pub fn run(
                 break;
             }
         }
-        if stopped {
+        if stopped || failure.is_some() {
             break;
         }
         on_progress(stats.recomputed_steps, stats.frames);
