@@ -184,7 +184,8 @@ struct BackwardArgs {
     /// Include the Gram-Schmidt vectors G_n in every frame (for GS-CLV comparisons).
     #[arg(long)]
     with_gs: bool,
-    /// Keep every m-th frame in the frame file (the stream on stdout always carries all).
+    /// Keep the frames of the steps that are multiples of m in the frame file (the stream on
+    /// stdout always carries all).
     #[arg(long, default_value_t = 1)]
     save_every: u64,
     /// Form the covariant vectors V_n = G_n C_n (a quarter of a backward step) only for the
@@ -584,7 +585,13 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| args.dir.join("frames.mcap"))) };
     }
     if stored.is_none() || given("save_every") || given("out") {
-        opts.save_every = if to_stdout { 0 } else { args.save_every };
+        // Resuming with --out FILE again keeps the stored --save-every unless it is given.
+        let stored_save = stored.as_ref().map(|s| s.save_every).filter(|&s| s > 0);
+        opts.save_every = match (to_stdout, given("save_every"), stored_save) {
+            (true, _, _) => 0,
+            (false, false, Some(s)) => s,
+            _ => args.save_every,
+        };
     }
     if stored.is_none() || given("vectors_every") {
         opts.vectors_every = args.vectors_every;

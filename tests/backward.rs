@@ -216,13 +216,18 @@ fn killed_backward_resumes_to_identical_frames() {
     let d = dir.to_str().unwrap().to_string();
     let want_report = backward_json(&dir, &["--out", &format!("{d}/full.mcap")]);
     let want = frames(&dir.join("full.mcap"));
-    // With --vectors-every 4: the frames of the other steps without V_n and G_n.
-    let sparse: Vec<Frame> = want.iter().map(|f| if f.step % 4 == 0 { f.clone() } else { Frame { v: Vec::new(), g: None, ..f.clone() } }).collect();
+    // With --vectors-every m, the frames of the other steps come without V_n and G_n; with
+    // --save-every s, the file keeps the frames of the steps that are multiples of s.
+    let expect = |m: u64, s: u64| -> Vec<Frame> {
+        want.iter().filter(|f| f.step % s == 0).map(|f| if f.step % m == 0 { f.clone() } else { Frame { v: Vec::new(), g: None, ..f.clone() } }).collect()
+    };
     let mut interrupted = 0;
-    for (trial, (delay, every)) in [(150u64, "1"), (400, "1"), (80, "4"), (160, "4")].into_iter().enumerate() {
+    for (trial, (delay, every, save)) in [(150u64, 1, 1), (400, 1, 1), (80, 4, 1), (160, 4, 1), (120, 1, 3)].into_iter().enumerate() {
         let out = format!("{d}/part-{trial}.mcap");
+        let (every_s, save_s) = (every.to_string(), save.to_string());
+        let flags = ["--vectors-every", every_s.as_str(), "--save-every", save_s.as_str()];
         let _ = std::fs::remove_file(dir.join("backward.json"));
-        let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", &d, "--quiet", "--out", &out, "--vectors-every", every]).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args([&["backward", &d, "--quiet", "--out", &out][..], &flags].concat()).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
         std::thread::sleep(std::time::Duration::from_millis(delay));
         child.kill().unwrap();
         child.wait().unwrap();
@@ -236,10 +241,9 @@ fn killed_backward_resumes_to_identical_frames() {
             let report = backward_json(&dir, &["--out", &out, "--resume"]);
             assert_eq!(report["exponents"], want_report["exponents"]);
         } else {
-            backward_json(&dir, &["--out", &format!("{d}/again-{trial}.mcap"), "--vectors-every", every]);
+            backward_json(&dir, &[&["--out", &format!("{d}/again-{trial}.mcap")][..], &flags].concat());
         }
-        let expected = if every == "1" { &want } else { &sparse };
-        assert!(frames(Path::new(&out)) == *expected, "trial {trial}: frames after resume differ");
+        assert!(frames(Path::new(&out)) == expect(every, save), "trial {trial}: frames after resume differ");
     }
     assert!(interrupted >= 1, "no kill landed before the end of the sweep");
 }

@@ -54,7 +54,7 @@ pub struct BackwardOptions {
     pub c_init: CInit,
     /// Put G_n into the frames too.
     pub with_gs: bool,
-    /// Keep every m-th frame in the frame file (0: no frame file).
+    /// Keep the frames of the steps that are multiples of m in the frame file (0: no file).
     pub save_every: u64,
     pub frames_path: Option<PathBuf>,
     /// Form V_n = G_n C_n (and copy G_n) only for the frames whose step n is a multiple of m
@@ -86,6 +86,12 @@ impl BackwardOptions {
 /// frames by the same rule (`clv analyze --every`).
 pub fn carries_vectors(step: u64, vectors_every: u64) -> bool {
     step.is_multiple_of(vectors_every.max(1))
+}
+
+/// How many multiples of m lie in lo..=hi (none if lo > hi).
+fn multiples_in(lo: u64, hi: u64, m: u64) -> u64 {
+    let m = m.max(1);
+    (hi / m + 1).saturating_sub(lo.div_ceil(m))
 }
 
 /// Statistics of a backward sweep.
@@ -554,7 +560,9 @@ pub fn run(
     }
 
     let mut frame_file = match (&frames_path, saving, &prior) {
-        (Some(f), true, Some(p)) => Some(FrameFile::salvage(f, &metadata, p.stats.frames.div_ceil(opts.save_every))?),
+        // The frames saved before the record: those of the steps that are multiples of
+        // --save-every among the ones the sweep had emitted, window.last down.
+        (Some(f), true, Some(p)) => Some(FrameFile::salvage(f, &metadata, multiples_in((window.last + 1).saturating_sub(p.stats.frames), window.last, opts.save_every))?),
         (Some(f), true, None) => Some(FrameFile::create(f, &metadata)?),
         _ => None,
     };
@@ -677,7 +685,7 @@ pub fn run(
             }
             stats.first_frame_step = m;
             if let Some(file) = frame_file.as_mut()
-                && stats.frames.is_multiple_of(opts.save_every) {
+                && m.is_multiple_of(opts.save_every) {
                     file.write(&frame)?;
                 }
             stats.frames += 1;
@@ -760,6 +768,14 @@ mod tests {
 
     fn record(c: Vec<f64>) -> Progress {
         Progress { options: BackwardOptions { transient: 1, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1 }, at: 7, c, acc: Accumulator::new(3, 2), stats: BackwardStats::default(), done: false }
+    }
+
+    #[test]
+    fn multiples_in_counts_inclusively() {
+        let brute = |lo: u64, hi: u64, m: u64| (lo..=hi).filter(|n| n % m == 0).count() as u64;
+        for (lo, hi, m) in [(0, 0, 3), (0, 10, 3), (1, 10, 3), (3, 3, 3), (4, 5, 3), (7, 7, 1), (5, 4, 2), (1500, 1900, 62)] {
+            assert_eq!(multiples_in(lo, hi, m), brute(lo, hi, m), "{lo}..={hi}, m = {m}");
+        }
     }
 
     /// C survives the progress record bit for bit (hex), and records of earlier builds (a JSON
