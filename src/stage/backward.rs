@@ -19,7 +19,7 @@
 //!   bit for bit from there.
 
 use super::forward::{Accumulator, Forward, ForwardState};
-use super::frame::Frame;
+use super::frame::{on_stride, Frame};
 use crate::config::RunConfig;
 use crate::error::{Error, Result};
 use crate::linalg::{pack_upper, par, unpack_upper, unpack_upper_into};
@@ -58,7 +58,7 @@ pub struct BackwardOptions {
     pub save_every: u64,
     pub frames_path: Option<PathBuf>,
     /// Form V_n = G_n C_n (and copy G_n) only for the frames whose step n is a multiple of m
-    /// ([`carries_vectors`]); the others carry the phase point and the local exponents.
+    /// ([`on_stride`]); the others carry the phase point and the local exponents.
     /// V = G C is D k^2 flops a frame, a quarter of a backward step (k = D), and the analyses of
     /// vector statistics read only the frames of every m-th step anyway (`clv analyze --every`).
     #[serde(default = "one")]
@@ -78,14 +78,6 @@ impl BackwardOptions {
     pub fn to_json(&self) -> String {
         serde_json::to_string(self).unwrap_or_default()
     }
-}
-
-/// Whether the frame of step n carries V_n (and G_n with --with-gs) when the sweep forms
-/// them for every `vectors_every`-th step. By the step, not by the order of the frames, so
-/// that a file (read oldest first) and a pipe (newest first) agree; the analyses sample
-/// frames by the same rule (`clv analyze --every`).
-pub fn carries_vectors(step: u64, vectors_every: u64) -> bool {
-    step.is_multiple_of(vectors_every.max(1))
 }
 
 /// How many multiples of m lie in lo..=hi (none if lo > hi).
@@ -592,7 +584,7 @@ pub fn run(
     let producer_todo = todo.clone();
     let producer_cores = cores.clone();
     let vectors_every = opts.vectors_every;
-    let reads_g = move |n: u64| n >= window.first && n <= window.last && carries_vectors(n, vectors_every);
+    let reads_g = move |n: u64| n >= window.first && n <= window.last && on_stride(n, vectors_every);
     let producer = std::thread::Builder::new()
         .name("clv-recompute".into())
         .spawn(move || {
@@ -644,7 +636,7 @@ pub fn run(
             if m < window.first || m > window.last {
                 continue;
             }
-            let vectors = carries_vectors(m, opts.vectors_every);
+            let vectors = on_stride(m, opts.vectors_every);
             let (v, g) = if vectors {
                 let Some(g) = seg.g(m, d * k) else {
                     failure = Some(Error::Other(format!("the recomputed segment {}..{} lacks G_n of step {m} (a bug: please report it)", seg.s0, seg.s1)));
@@ -685,7 +677,7 @@ pub fn run(
             }
             stats.first_frame_step = m;
             if let Some(file) = frame_file.as_mut()
-                && m.is_multiple_of(opts.save_every) {
+                && on_stride(m, opts.save_every) {
                     file.write(&frame)?;
                 }
             stats.frames += 1;

@@ -32,3 +32,11 @@ impl Frame {
         self.g.as_ref().map(|g| &g[j * self.d..(j + 1) * self.d])
     }
 }
+
+/// Whether the frame of `step` is on a stride of m steps: the one rule of every stride of the
+/// pipeline (`clv backward --vectors-every` and `--save-every`, `clv analyze --every`). By
+/// the step, not by the order of the frames, so that a file (read oldest first) and a pipe
+/// (newest first) agree, and a stride that is a multiple of another lands on its frames.
+pub fn on_stride(step: u64, m: u64) -> bool {
+    step.is_multiple_of(m.max(1))
+}

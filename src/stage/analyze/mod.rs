@@ -24,8 +24,8 @@ pub mod spectrum;
 mod testing;
 pub mod transversality;
 
-use super::backward::{carries_vectors, BackwardOptions};
-use super::frame::Frame;
+use super::backward::BackwardOptions;
+use super::frame::{on_stride, Frame};
 use crate::error::{Error, Result};
 use crate::report::SpectrumSummary;
 use crate::store::frames::{Flow, StreamInfo};
@@ -67,13 +67,6 @@ pub struct Context {
     pub options: Options,
     /// Where the frames came from, for captions.
     pub source: String,
-}
-
-/// Whether analyses of vector statistics use the frame of `step` (`--every`): by the step,
-/// so that a file (oldest first) and a pipe (newest first) give the same sample, and the
-/// frames sampled carry V_n whenever `every` is a multiple of the stream's --vectors-every.
-pub fn in_sample(step: u64, every: u64) -> bool {
-    carries_vectors(step, every)
 }
 
 /// How often the analyses that apply to this run read V_n, for the backward stage's
@@ -190,7 +183,7 @@ pub struct Produced {
 pub trait Analysis: Send {
     /// Short name (used for threads and messages).
     fn name(&self) -> &'static str;
-    /// Whether it wants only the sampled frames (`--every`, [`in_sample`]), or all of them.
+    /// Whether it wants only the sampled frames (`--every`, [`on_stride`]), or all of them.
     fn sampled(&self) -> bool {
         true
     }
@@ -262,7 +255,7 @@ impl Analyzer {
                 .spawn(move || -> Result<Vec<Produced>> {
                     let mut used = 0u64;
                     for frame in rx {
-                        if !wants_sample || in_sample(frame.step, every) {
+                        if !wants_sample || on_stride(frame.step, every) {
                             analysis.consume(&frame)?;
                             used += 1;
                         }
@@ -277,7 +270,7 @@ impl Analyzer {
 
     /// Hand a frame to every analysis. A failed analysis stops the stream with its error.
     pub fn feed(&mut self, frame: Arc<Frame>) -> Result<Flow> {
-        if in_sample(frame.step, self.ctx.options.every) && frame.v.is_empty() {
+        if on_stride(frame.step, self.ctx.options.every) && frame.v.is_empty() {
             return Err(Error::corrupt(
                 &self.ctx.source,
                 format!(
