@@ -14,6 +14,9 @@
 //!   larger part (a QR per step against two triangular products), so it takes every thread
 //!   the sweep is not using. Two segments are in memory at most; past the `--memory`
 //!   budget the Gram-Schmidt bases of a segment live in an unlinked scratch file (memmap2).
+//! - C is iterated at every step (the local exponents need it), but V_n = G_n C_n, a quarter
+//!   of a step's arithmetic, and the G_n it needs are kept only for the frames that will be
+//!   read (`--vectors-every`): the analyses of vector statistics sample a few hundred frames.
 //! - After each segment the frame file is synced and a progress record (C at the segment's
 //!   older end, the accumulated exponents, frames written) is saved: `--resume` continues
 //!   bit for bit from there.
