@@ -6,7 +6,7 @@
 #   scripts/reproduce_paper.sh [OUT_DIR] [THREADS]      (defaults: paper-out, 2)
 #
 # How long, on a 2-core machine of the CI kind (two threads): forward 1.18 h (measured
-# 2026-11-23), backward piped into every analysis 12.1 min (measured 2026-11-24); 1.38 h.
+# 2026-11-23), backward piped into every analysis 10.9 min (measured 2026-11-24); 1.36 h.
 # The run is resumable: start the script again after a crash or a kill and it continues.
 # Disk: about 3 GB for the kept checkpoints; the frames are streamed to the analyses.
 set -euo pipefail
