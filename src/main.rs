@@ -559,7 +559,7 @@ fn spectrum(config: RunConfig, json: bool, quiet: bool) -> Result<()> {
 fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     use clv::stage::backward::{self, BackwardOptions, CInit};
     use clv::store::frames::{FrameStdout, Flow};
-    let (_, meta) = clv::store::RunDir::open(&args.dir)?;
+    let (dir, meta) = clv::store::RunDir::open(&args.dir)?;
     let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
     // A resumed sweep continues with the options it was started with; flags given again
     // must agree with them (the stage refuses a contradiction).
@@ -596,11 +596,7 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if stored.is_none() || given("vectors_every") {
         opts.vectors_every = args.vectors_every;
     }
-    let stream_meta = clv::store::frames::stream_metadata(
-        &serde_json::to_string(&meta).unwrap_or_default(),
-        std::fs::read_to_string(args.dir.join("spectrum.json")).ok().as_deref(),
-        &opts.to_json(),
-    );
+    let stream_meta = backward::stream_info(&dir, &meta, &opts).metadata();
     let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
     // Two bars: segments recomputed (from the checkpoints) and frames emitted by the sweep.
     let bars = (!args.quiet).then(|| {

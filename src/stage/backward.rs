@@ -27,7 +27,7 @@ use crate::config::RunConfig;
 use crate::error::{Error, Result};
 use crate::linalg::{pack_upper, par, unpack_upper, unpack_upper_into};
 use crate::rng::Rng;
-use crate::store::frames::{tmp_path, FrameFile, Flow};
+use crate::store::frames::{tmp_path, FrameFile, Flow, StreamInfo};
 use crate::store::records::{decode_r, Checkpoint};
 use crate::store::run::{write_atomic, RunDir, RunMeta, SegmentFile, StoreR};
 use crate::store::schema::{CHECKPOINT, R};
@@ -80,6 +80,16 @@ impl BackwardOptions {
     /// As a frame stream's metadata records them (`backward.json`).
     pub fn to_json(&self) -> String {
         serde_json::to_string(self).unwrap_or_default()
+    }
+}
+
+/// The description of the frame stream a backward stage with `opts` writes over the run in
+/// `dir`: the run, its forward spectrum, and the options (file, pipe and in-process alike).
+pub fn stream_info(dir: &RunDir, meta: &RunMeta, opts: &BackwardOptions) -> StreamInfo {
+    StreamInfo {
+        run_json: Some(RunDir::meta_json(meta)),
+        spectrum_json: std::fs::read_to_string(dir.spectrum_path()).ok(),
+        backward_json: Some(opts.to_json()),
     }
 }
 
@@ -508,8 +518,7 @@ pub fn run(
 
     let frames_path = opts.frames_path.clone();
     let saving = opts.save_every > 0 && frames_path.is_some();
-    let spectrum_json = std::fs::read_to_string(dir.spectrum_path()).ok();
-    let metadata = crate::store::frames::stream_metadata(&RunDir::meta_json(&meta), spectrum_json.as_deref(), &opts.to_json());
+    let metadata = stream_info(&dir, &meta, opts).metadata();
     let progress_file = progress_path(&dir);
     let mut notes = Vec::new();
     let record = match std::fs::read_to_string(&progress_file) {

@@ -9,7 +9,7 @@ use super::backward::{self, BackwardOptions};
 use super::forward_run::{self, Feedback};
 use crate::config::RunConfig;
 use crate::error::Result;
-use crate::store::frames::{Flow, StreamInfo};
+use crate::store::frames::Flow;
 use crate::store::run::{BuildInfo, RunMeta, StoreConfig, FORMAT};
 use crate::store::RunDir;
 use std::path::{Path, PathBuf};
@@ -40,11 +40,7 @@ pub fn run(config: &RunConfig, out: &Path, feedback: &mut Feedback, say: &mut dy
     opts.with_gs = true;
     opts.save_every = 0;
     opts.vectors_every = super::analyze::vectors_every_for(&meta);
-    let info = StreamInfo {
-        run_json: Some(RunDir::meta_json(&meta)),
-        spectrum_json: std::fs::read_to_string(dir.spectrum_path()).ok(),
-        backward_json: Some(opts.to_json()),
-    };
+    let info = backward::stream_info(&dir, &meta, &opts);
     say("backward pass and analyses".into());
     let mut analyzer: Option<Analyzer> = None;
     let source = format!("clv run, in-process stream of {}", run_dir.display());

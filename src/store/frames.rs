@@ -206,13 +206,14 @@ pub struct StreamInfo {
     pub backward_json: Option<String>,
 }
 
-/// The metadata written at the head of a frame stream.
-pub fn stream_metadata(run_json: &str, spectrum_json: Option<&str>, backward_json: &str) -> BTreeMap<String, String> {
-    let mut m = BTreeMap::from([("run.json".to_string(), run_json.to_string()), ("backward.json".to_string(), backward_json.to_string())]);
-    if let Some(s) = spectrum_json {
-        m.insert("spectrum.json".into(), s.to_string());
+impl StreamInfo {
+    /// The metadata written at the head of a frame stream (read back by [`read_frames_with`]).
+    pub fn metadata(&self) -> BTreeMap<String, String> {
+        [("run.json", &self.run_json), ("spectrum.json", &self.spectrum_json), ("backward.json", &self.backward_json)]
+            .into_iter()
+            .filter_map(|(key, value)| value.clone().map(|v| (key.to_string(), v)))
+            .collect()
     }
-    m
 }
 
 /// Read frames from a file, or from standard input when `source` is "-". `on_info` is
