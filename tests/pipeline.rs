@@ -79,6 +79,10 @@ fn analyze_refuses_bad_sources_clearly() {
     let out = clv(&["analyze", junk.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("junk.mcap") && !err.contains("panicked"), "{err}");
+    // An empty pipe (the command before it failed): said so, not reported as a damaged record.
+    let out = Command::new(env!("CARGO_BIN_EXE_clv")).args(["analyze", "-", "--out", base.join("o").to_str().unwrap()]).stdin(Stdio::null()).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("<stdin>") && err.contains("it is empty") && !err.contains("panicked"), "{err}");
 }
 
 /// The README's main command on the embedded default: every stage, every figure, and a

@@ -193,7 +193,11 @@ fn read_stream_limited(name: &Path, mut input: impl Read, mode: ReadMode, max_re
         let record = match record {
             Ok(r) => r,
             Err(e) => {
-                report.damage = Some(format!("{e} (within the first {consumed} bytes, after {} complete messages)", report.messages));
+                report.damage = Some(if consumed == 0 {
+                    "it is empty: nothing was written to it; from a pipe, the command writing it failed or wrote elsewhere, and its own error says why".to_string()
+                } else {
+                    format!("{e} (within the first {consumed} bytes, after {} complete messages)", report.messages)
+                });
                 break;
             }
         };
