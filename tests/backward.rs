@@ -214,7 +214,9 @@ fn out_of_core_segments_and_random_c_give_consistent_results() {
 fn killed_backward_resumes_to_identical_frames() {
     let dir = forward("resume", &["--n", "16", "--aspect", "1", "--steps", "6000", "--clv-steps", "1200", "--transient", "600"]);
     let d = dir.to_str().unwrap().to_string();
+    let started = std::time::Instant::now();
     let want_report = backward_json(&dir, &["--out", &format!("{d}/full.mcap")]);
+    let sweep_ms = started.elapsed().as_secs_f64() * 1e3;
     let want = frames(&dir.join("full.mcap"));
     // With --vectors-every m, the frames of the other steps come without V_n and G_n; with
     // --save-every s, the file keeps the frames of the steps that are multiples of s.
@@ -222,7 +224,9 @@ fn killed_backward_resumes_to_identical_frames() {
         want.iter().filter(|f| f.step % s == 0).map(|f| if f.step % m == 0 { f.clone() } else { Frame { v: Vec::new(), g: None, ..f.clone() } }).collect()
     };
     let mut interrupted = 0;
-    for (trial, (delay, every, save)) in [(150u64, 1, 1), (400, 1, 1), (80, 4, 1), (160, 4, 1), (120, 1, 3)].into_iter().enumerate() {
+    // Kills at shares of the uninterrupted sweep's time on this machine (one after its end).
+    for (trial, (share, every, save)) in [(0.7, 1, 1), (1.8, 1, 1), (0.35, 4, 1), (0.7, 4, 1), (0.55, 1, 3)].into_iter().enumerate() {
+        let delay = (share * sweep_ms) as u64;
         let out = format!("{d}/part-{trial}.mcap");
         let (every_s, save_s) = (every.to_string(), save.to_string());
         let flags = ["--vectors-every", every_s.as_str(), "--save-every", save_s.as_str()];
@@ -246,6 +250,50 @@ fn killed_backward_resumes_to_identical_frames() {
         assert!(frames(Path::new(&out)) == expect(every, save), "trial {trial}: frames after resume differ");
     }
     assert!(interrupted >= 1, "no kill landed before the end of the sweep");
+}
+
+/// Killed after the finished frame file was renamed into place, before the progress record
+/// said the sweep was done: resuming salvages from the finished file and ends with the same
+/// frames; a finished file of another sweep is refused, not overwritten.
+#[test]
+fn killed_between_the_finished_file_and_its_record_resumes() {
+    let dir = forward("rename", &["--n", "16", "--aspect", "1", "--steps", "6000", "--clv-steps", "1200", "--transient", "600"]);
+    let d = dir.to_str().unwrap().to_string();
+    let started = std::time::Instant::now();
+    backward_json(&dir, &["--out", &format!("{d}/full.mcap")]);
+    let sweep_ms = started.elapsed().as_secs_f64() * 1e3;
+    let want = frames(&dir.join("full.mcap"));
+    let (out, record) = (dir.join("part.mcap"), dir.join("backward.json"));
+    let o = out.to_str().unwrap();
+    // A sweep stopped with a progress record and its FILE.tmp: the state just before the end.
+    let mut interim = None;
+    for share in [0.5, 0.7, 0.3, 0.85, 0.2, 0.6] {
+        let _ = std::fs::remove_file(&record);
+        let _ = std::fs::remove_file(dir.join("part.mcap.tmp"));
+        common::kill_after(&["backward", &d, "--quiet", "--out", o], (share * sweep_ms) as u64);
+        if record.exists() && !out.exists() {
+            interim = Some(std::fs::read(&record).unwrap());
+            break;
+        }
+        let _ = std::fs::remove_file(&out);
+    }
+    let interim = interim.expect("no kill landed after a finished segment");
+    ok(clv(&["backward", &d, "--quiet", "--out", o, "--resume"]));
+    assert!(frames(&out) == want);
+    // Finished file in place, record not yet done.
+    std::fs::write(&record, &interim).unwrap();
+    ok(clv(&["backward", &d, "--quiet", "--out", o, "--resume"]));
+    assert!(frames(&out) == want, "frames after resuming from the finished file differ");
+    assert!(!dir.join("part.mcap.tmp.old").exists() && !dir.join("part.mcap.tmp").exists());
+    // The same state, but FILE written by a sweep with other options.
+    let other = dir.join("other.mcap");
+    ok(clv(&["backward", &d, "--quiet", "--out", other.to_str().unwrap(), "--vectors-every", "3"]));
+    std::fs::rename(&other, &out).unwrap();
+    std::fs::write(&record, &interim).unwrap();
+    let refused = clv(&["backward", &d, "--quiet", "--out", o, "--resume"]);
+    let err = common::stderr(&refused);
+    assert!(!refused.status.success() && err.contains("another backward sweep") && err.contains("part.mcap"), "{err}");
+    assert!(out.exists(), "the other sweep's file is kept");
 }
 
 #[test]

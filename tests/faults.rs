@@ -26,18 +26,9 @@ fn reference(name: &str) -> (std::path::PathBuf, Contents) {
     (dir, c)
 }
 
-/// Start clv, SIGKILL it after `delay_ms`; true if it was still running (the kill landed).
-fn kill_after(args: &[&str], delay_ms: u64) -> bool {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
-    std::thread::sleep(Duration::from_millis(delay_ms));
-    let running = child.try_wait().unwrap().is_none();
-    let _ = child.kill();
-    child.wait().unwrap();
-    running
-}
-
-/// At least 20 distinct kill points over forward and backward; every resumed run equals
-/// the uninterrupted one bit for bit.
+/// At least 20 distinct kill points over forward and backward (each stage killed once in
+/// every trial, its resumption too when it is still running); every resumed run equals the
+/// uninterrupted one bit for bit.
 #[test]
 fn sigkill_at_many_points_then_resume_is_bit_identical() {
     let started = std::time::Instant::now();
@@ -57,7 +48,8 @@ fn sigkill_at_many_points_then_resume_is_bit_identical() {
         let run = scratch("faults", &format!("kill-f{trial}")).join("run");
         let args = forward_args(&run);
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        kills += kill_after(&args, at(forward_ms, 1.0)) as usize;
+        kill_landing(&args, at(forward_ms, 1.0), || drop(std::fs::remove_dir_all(&run)));
+        kills += 1;
         // A second kill, this time of the resuming process.
         let r = run.to_str().unwrap();
         kills += kill_after(&["forward", "--resume", r, "--quiet"], at(forward_ms, 0.5)) as usize;
@@ -67,13 +59,15 @@ fn sigkill_at_many_points_then_resume_is_bit_identical() {
     for trial in 0..8 {
         let out = dir.parent().unwrap().join(format!("frames-{trial}.mcap"));
         let o = out.to_str().unwrap();
-        if kill_after(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o], at(backward_ms, 1.0)) {
-            kills += 1;
-            // Kill the resuming process too, early (while it salvages the frames) or later.
-            kills += kill_after(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"], at(backward_ms, 0.5)) as usize;
-            if !out.exists() {
-                ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"]));
-            }
+        kill_landing(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o], at(backward_ms, 1.0), || {
+            let _ = std::fs::remove_file(&out);
+            let _ = std::fs::remove_file(dir.join("backward.json"));
+        });
+        kills += 1;
+        // Kill the resuming process too, early (while it salvages the frames) or later.
+        kills += kill_after(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"], at(backward_ms, 0.5)) as usize;
+        if !out.exists() {
+            ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"]));
         }
         assert!(frames(&out) == want_frames, "backward trial {trial}: frames differ after resume");
         let _ = std::fs::remove_file(dir.join("backward.json"));

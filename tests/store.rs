@@ -7,11 +7,10 @@ use clv::rng::Rng;
 use clv::stage::forward::Forward;
 use clv::store::records::Checkpoint;
 use clv::store::RunDir;
-use common::{clv, contents, copy_dir, Contents};
+use common::{clv, contents, copy_dir, kill_after, kill_landing, Contents};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::Duration;
+use std::process::Command;
 
 fn scratch(name: &str) -> PathBuf {
     common::scratch("store", name)
@@ -22,17 +21,28 @@ const RUN: [&str; 16] = [
     "--checkpoint-every", "50", "--segment-checkpoints", "4", "--clv-steps", "400", "--quiet",
 ];
 
-/// The uninterrupted run every fault test compares with, made once per test binary.
-fn reference() -> (PathBuf, &'static Contents) {
-    static REF: std::sync::OnceLock<(PathBuf, Contents)> = std::sync::OnceLock::new();
-    let (dir, c) = REF.get_or_init(|| {
+/// The uninterrupted run every fault test compares with, made once per test binary, and
+/// how long it took (milliseconds).
+fn reference_run() -> &'static (PathBuf, Contents, f64) {
+    static REF: std::sync::OnceLock<(PathBuf, Contents, f64)> = std::sync::OnceLock::new();
+    REF.get_or_init(|| {
         let dir = scratch("reference").join("run");
+        let started = std::time::Instant::now();
         let out = clv(&[&RUN[..], &["--out", dir.to_str().unwrap()]].concat());
+        let ms = started.elapsed().as_secs_f64() * 1e3;
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         let c = contents(&dir);
-        (dir, c)
-    });
+        (dir, c, ms)
+    })
+}
+
+fn reference() -> (PathBuf, &'static Contents) {
+    let (dir, c, _) = reference_run();
     (dir.clone(), c)
+}
+
+fn reference_ms() -> f64 {
+    reference_run().2
 }
 
 /// A private copy of the reference run, for tests that change it.
@@ -77,24 +87,16 @@ fn killed_runs_resume_to_identical_results() {
     assert!(want.files.len() >= 3, "the reference should span several segments: {:?}", want.files);
     // Pruning kept the window (last 400 + 200 steps) and two older segments only.
     assert!(want.checkpoints.keys().next().copied().unwrap() > 0);
-    let mut interrupted = 0;
-    for (trial, delays) in [vec![150u64], vec![700], vec![400, 900], vec![1500]].into_iter().enumerate() {
+    // Kills at shares of the uninterrupted run's time (each first kill lands: see
+    // kill_landing), in one trial the resuming process killed again.
+    let run_ms = reference_ms();
+    for (trial, shares) in [vec![0.1], vec![0.45], vec![0.25, 0.55], vec![0.9]].into_iter().enumerate() {
         let dir = scratch(&format!("killed-{trial}")).join("run");
-        for (i, delay) in delays.iter().enumerate() {
-            let mut args: Vec<&str> = RUN.to_vec();
-            let d = dir.to_str().unwrap().to_string();
-            if i == 0 {
-                args.extend(["--out", &d]);
-            } else {
-                args = vec!["forward", "--resume", &d, "--quiet"];
-            }
-            let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(&args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
-            std::thread::sleep(Duration::from_millis(*delay));
-            child.kill().unwrap(); // SIGKILL
-            child.wait().unwrap();
-        }
-        if !dir.join("spectrum.json").exists() {
-            interrupted += 1;
+        let d = dir.to_str().unwrap().to_string();
+        let first: Vec<&str> = [&RUN[..], &["--out", &d]].concat();
+        kill_landing(&first, (shares[0] * run_ms) as u64, || drop(std::fs::remove_dir_all(&dir)));
+        for share in &shares[1..] {
+            kill_after(&["forward", "--resume", &d, "--quiet"], (share * run_ms) as u64);
         }
         let out = clv(&["forward", "--resume", dir.to_str().unwrap()]);
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -102,7 +104,6 @@ fn killed_runs_resume_to_identical_results() {
         assert_eq!(got.files, want.files);
         assert!(got == *want, "trial {trial}: resumed run differs from the uninterrupted one");
     }
-    assert!(interrupted >= 3, "only {interrupted} kills landed before the end of the run");
 }
 
 #[test]
@@ -116,6 +117,16 @@ fn resuming_a_finished_run_does_nothing_and_conflicts_are_refused() {
     let out = clv(&["forward", "--resume", d, "--steps", "5000"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--steps 5000 conflicts") && err.contains("--steps 3000"), "{err}");
+    // Killed between its last segment and spectrum.json: resuming writes the spectrum.
+    let spectrum = |dir: &Path| -> serde_json::Value { serde_json::from_str(&std::fs::read_to_string(dir.join("spectrum.json")).unwrap()).unwrap() };
+    let before = spectrum(&dir);
+    std::fs::remove_file(dir.join("spectrum.json")).unwrap();
+    let out = clv(&["forward", "--resume", d]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && err.contains("was not written yet"), "{err}");
+    assert!(contents(&dir) == *want);
+    let after = spectrum(&dir);
+    assert_eq!((&after["exponents"], &after["stderr"], &after["statistics"]["collisions"]), (&before["exponents"], &before["stderr"], &before["statistics"]["collisions"]));
     let out = clv(&["forward", "--resume", d, "--n", "36", "--seed", "1"]);
     assert!(out.status.success(), "flags equal to the stored ones are fine: {}", String::from_utf8_lossy(&out.stderr));
     let out = clv(&[&RUN[..], &["--out", d]].concat());

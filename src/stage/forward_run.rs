@@ -114,6 +114,11 @@ pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
     let fwd = Forward::resume(&meta.config, &last.checkpoint.state)?;
     if step >= total {
         let report = report_of(&meta, &fwd, last.stats.energy_initial, last.stats.wall_seconds);
+        if !dir.spectrum_path().exists() {
+            // Killed after its last segment was finished, before the spectrum was written.
+            feedback.notice(format!("the run was complete but {} was not written yet; writing it", dir.spectrum_path().display()));
+            write_spectrum(&dir, &report)?;
+        }
         return Ok(Outcome { report, resumed_from: Some(step), already_finished: true });
     }
     feedback.notice(format!("resuming {} at step {step} of {total}", path.display()));
@@ -212,7 +217,12 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
     }
     sink.close()?;
     let report = report_of(meta, &fwd, energy0, wall0 + started.elapsed().as_secs_f64());
-    let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Other(e.to_string()))?;
-    write_atomic(&dir.spectrum_path(), json.as_bytes())?;
+    write_spectrum(dir, &report)?;
     Ok(report)
+}
+
+/// RUN_DIR/spectrum.json: the spectrum of a finished run, written last.
+fn write_spectrum(dir: &RunDir, report: &SpectrumReport) -> Result<()> {
+    let json = serde_json::to_string_pretty(report).map_err(|e| Error::Other(e.to_string()))?;
+    write_atomic(&dir.spectrum_path(), json.as_bytes())
 }

@@ -99,9 +99,28 @@ impl FrameFile {
     /// the last progress record), rewrite them into a fresh FILE.tmp and append from there.
     /// The interrupted file is kept as FILE.tmp.old until the copy is synced, and a salvage
     /// that was itself interrupted starts again from that copy.
+    ///
+    /// A sweep killed after it renamed the finished FILE, before its progress record said
+    /// so, left no FILE.tmp: FILE itself is then the interrupted file, if this sweep wrote it.
     pub fn salvage(path: &Path, metadata: &BTreeMap<String, String>, keep: u64) -> Result<Self> {
         let tmp = tmp_path(path);
         let old = tmp.with_extension("tmp.old");
+        if keep > 0 && !old.exists() && !tmp.exists() && path.exists() {
+            let mut theirs = StreamInfo::default();
+            read_frames_with(path, |info| {
+                theirs = info;
+                Ok(())
+            }, |_| Ok(Flow::Stop))?;
+            if theirs.run_json.as_ref() != metadata.get("run.json") || theirs.backward_json.as_ref() != metadata.get("backward.json") {
+                return Err(Error::Other(format!(
+                    "{} exists but was written by another backward sweep, and the interrupted sweep's {} is missing; remove {} or choose another --out, and run without --resume to start over",
+                    path.display(),
+                    tmp.display(),
+                    path.display()
+                )));
+            }
+            std::fs::rename(path, &old).map_err(|e| Error::io(path, e))?;
+        }
         if old.exists() {
             if tmp.exists() {
                 std::fs::remove_file(&tmp).map_err(|e| Error::io(&tmp, e))?;

@@ -11,7 +11,8 @@ use clv::store::segment::read_segment;
 use clv::store::RunDir;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
 
 pub fn clv(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_clv")).args(args).output().unwrap()
@@ -124,4 +125,24 @@ pub fn alter_checkpoint(dir: &Path, step: u64, change: impl Fn(&mut Checkpoint))
     let written = w.finish().unwrap();
     std::fs::rename(written, &seg.path).unwrap();
     std::fs::remove_dir_all(&tmpdir).unwrap();
+}
+
+/// Start clv, SIGKILL it after `delay_ms`; true if it was still running (the kill landed).
+pub fn kill_after(args: &[&str], delay_ms: u64) -> bool {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+    std::thread::sleep(Duration::from_millis(delay_ms));
+    let running = child.try_wait().unwrap().is_none();
+    let _ = child.kill();
+    child.wait().unwrap();
+    running
+}
+
+/// Kill `args` after `delay_ms`; while the process ends before the kill (machines and their
+/// load vary), clear what it wrote with `reset` and try again with half the delay.
+pub fn kill_landing(args: &[&str], mut delay_ms: u64, reset: impl Fn()) {
+    while !kill_after(args, delay_ms) {
+        assert!(delay_ms > 0, "{args:?} ends before it can be killed");
+        delay_ms /= 2;
+        reset();
+    }
 }
