@@ -407,8 +407,9 @@ fn print_report(report: &SpectrumReport, json: bool) -> Result<()> {
 
 fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
     if let Some(dir) = &args.resume {
-        check_resume_flags(args, matches, dir)?;
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
+        forward_run::complete_creation(dir, &mut feedback)?;
+        check_resume_flags(args, matches, dir)?;
         let outcome = forward_run::resume(dir, &mut feedback)?;
         if let Some(bar) = &feedback.bar {
             bar.finish_and_clear();

@@ -6,6 +6,7 @@
 mod common;
 use common::*;
 use clv::rng::Rng;
+use clv::store::fault::{CRASH_POINTS, CRASH_STATUS};
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -73,6 +74,67 @@ fn sigkill_at_many_points_then_resume_is_bit_identical() {
         let _ = std::fs::remove_file(dir.join("backward.json"));
     }
     assert!(kills >= 20, "only {kills} kills landed before the end of a stage");
+}
+
+/// Did the process stop at the crash point it was given?
+fn crashed(out: &std::process::Output, at: &str) -> bool {
+    if out.status.code() == Some(CRASH_STATUS) {
+        return true;
+    }
+    assert!(out.status.success(), "{at}: {}", stderr(out));
+    false
+}
+
+/// A crash at every point between two durable steps of the store (fault::CRASH_POINTS, at
+/// their first and third occurrence), in the forward stage, the backward stage and
+/// a resuming backward stage: the documented way on (rerun the command that crashed, with
+/// --resume) ends in the uninterrupted run's files and frames, bit for bit.
+#[test]
+fn a_crash_between_any_two_durable_steps_is_recovered() {
+    let (dir, want) = reference("crash-ref");
+    let d = dir.to_str().unwrap();
+    let bwd_ref = dir.parent().unwrap().join("frames-ref.mcap");
+    ok(clv(&["backward", d, "--quiet", "--out", bwd_ref.to_str().unwrap()]));
+    let want_frames = frames(&bwd_ref);
+    let mut reached = std::collections::BTreeSet::new();
+    for point in CRASH_POINTS {
+        for n in [1, 3] {
+            let at = format!("{point}#{n}");
+            let env = [("CLV_FAULT_CRASH_AT", at.as_str())];
+            let run = scratch("faults", &format!("crash-{point}-{n}")).join("run");
+            let r = run.to_str().unwrap();
+            let args = forward_args(&run);
+            let out = clv_env(&args.iter().map(String::as_str).collect::<Vec<_>>(), &env);
+            if crashed(&out, &at) {
+                reached.insert(*point);
+                ok(clv(&["forward", "--resume", r, "--quiet"]));
+            }
+            assert!(contents(&run) == want, "forward crashed at {at}: the resumed run differs");
+
+            let _ = std::fs::remove_file(dir.join("backward.json"));
+            let f = dir.parent().unwrap().join(format!("crash-{point}-{n}.mcap"));
+            let o = f.to_str().unwrap();
+            if crashed(&clv_env(&["backward", d, "--quiet", "--out", o], &env), &at) {
+                reached.insert(*point);
+                ok(clv(&["backward", d, "--quiet", "--out", o, "--resume"]));
+            }
+            assert!(frames(&f) == want_frames, "backward crashed at {at}: the resumed frames differ");
+
+            // A sweep stopped after its eighth segment (150 frames after the backward
+            // transient of 250 steps), then its resumption crashed too.
+            let _ = std::fs::remove_file(dir.join("backward.json"));
+            let f = dir.parent().unwrap().join(format!("crash-resume-{point}-{n}.mcap"));
+            let o = f.to_str().unwrap();
+            assert!(crashed(&clv_env(&["backward", d, "--quiet", "--out", o], &[("CLV_FAULT_CRASH_AT", "frames-synced#8")]), "frames-synced#8"));
+            if crashed(&clv_env(&["backward", d, "--quiet", "--out", o, "--resume"], &env), &at) {
+                reached.insert(*point);
+                ok(clv(&["backward", d, "--quiet", "--out", o, "--resume"]));
+            }
+            assert!(frames(&f) == want_frames, "resumed backward crashed at {at}: the frames differ");
+        }
+    }
+    let missed: Vec<_> = CRASH_POINTS.iter().filter(|p| !reached.contains(*p)).collect();
+    assert!(missed.is_empty(), "crash points never reached: {missed:?}");
 }
 
 #[test]

@@ -7,7 +7,7 @@ use clv::rng::Rng;
 use clv::stage::forward::Forward;
 use clv::store::records::Checkpoint;
 use clv::store::RunDir;
-use common::{clv, contents, copy_dir, kill_after, kill_landing, Contents};
+use common::{clv, contents, copy_dir, kill_after, kill_landing, ok, Contents};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -117,6 +117,16 @@ fn resuming_a_finished_run_does_nothing_and_conflicts_are_refused() {
     let out = clv(&["forward", "--resume", d, "--steps", "5000"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--steps 5000 conflicts") && err.contains("--steps 3000"), "{err}");
+    // Killed while run.json's temporary file was half written: nothing to resume, and
+    // starting again in the same directory works.
+    let fresh = scratch("half-created").join("run");
+    std::fs::create_dir_all(&fresh).unwrap();
+    std::fs::write(fresh.join("run.tmp"), b"{\"format\": \"clv-run").unwrap();
+    let out = clv(&["forward", "--resume", fresh.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("interrupted while it was being created") && err.contains("clv forward --out"), "{err}");
+    ok(clv(&[&RUN[..], &["--out", fresh.to_str().unwrap()]].concat()));
+    assert!(contents(&fresh) == *want);
     // Killed between its last segment and spectrum.json: resuming writes the spectrum.
     let spectrum = |dir: &Path| -> serde_json::Value { serde_json::from_str(&std::fs::read_to_string(dir.join("spectrum.json")).unwrap()).unwrap() };
     let before = spectrum(&dir);

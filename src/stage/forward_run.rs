@@ -67,8 +67,18 @@ struct LastCheckpoint {
     stats: Stats,
 }
 
+/// Put run.json in place if the run's creation was cut short just before (see
+/// [`RunDir::complete_creation`]); [`resume`] does this first.
+pub fn complete_creation(path: &Path, feedback: &mut Feedback) -> Result<()> {
+    if RunDir::complete_creation(path)? {
+        feedback.notice(format!("the run in {} was interrupted while it was being created; its run.json is now in place", path.display()));
+    }
+    Ok(())
+}
+
 /// Continue an interrupted run in `path` (or report a finished one).
 pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
+    complete_creation(path, feedback)?;
     let (dir, meta) = RunDir::open(path)?;
     let _lock = dir.lock("forward pass")?;
     meta.build.check_can_continue(path)?;
@@ -216,6 +226,7 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
         }
     }
     sink.close()?;
+    crate::store::fault::crash_point("forward-done");
     let report = report_of(meta, &fwd, energy0, wall0 + started.elapsed().as_secs_f64());
     write_spectrum(dir, &report)?;
     Ok(report)

@@ -1,8 +1,14 @@
-//! An injectable disk-full fault, so that tests can prove what a full disk does to a run.
+//! Injectable faults, so that tests can prove what a full disk or a crash does to a run.
 //!
 //! With `CLV_FAULT_DISK_FULL_AFTER=BYTES` in the environment, every file the store writes
 //! through [`Output`] counts against one budget for the process, and writes beyond it fail
 //! with ENOSPC exactly as a full file system would. Without the variable this is a plain file.
+//!
+//! With `CLV_FAULT_CRASH_AT=POINT` (or `POINT#N`, the N-th time it is reached), the process
+//! exits on the spot at that [`crash_point`], with status [`CRASH_STATUS`], running no
+//! destructor and flushing no buffer: what is on disk then is what a SIGKILL or a power cut
+//! between two steps of the store's protocol leaves. Random kills rarely land in the short
+//! windows between those steps; the crash points name every one of them.
 
 use std::fs::File;
 use std::io::{self, Seek, SeekFrom, Write};
@@ -48,4 +54,52 @@ impl Seek for Output {
     fn seek(&mut self, pos: SeekFrom) -> io::Result<u64> {
         self.0.seek(pos)
     }
+}
+
+/// Every point between two durable steps of the store, in the order a run meets them.
+pub const CRASH_POINTS: &[&str] = &[
+    // write_atomic (run.json, spectrum.json, backward.json, clv_spectrum.json)
+    "atomic-synced",
+    "atomic-renamed",
+    // a run segment: finished and synced, renamed, older segments pruned
+    "segment-synced",
+    "segment-renamed",
+    "segment-pruned",
+    // the forward stage: every segment written, spectrum.json not yet
+    "forward-done",
+    // a frame file: a segment's frames synced, the file finished, renamed
+    "frames-synced",
+    "frames-finished",
+    "frames-renamed",
+    // resuming a frame file: the interrupted file moved aside, its frames copied
+    "salvage-moved",
+    "salvage-copied",
+];
+
+/// The exit status of a process stopped at a crash point.
+pub const CRASH_STATUS: i32 = 86;
+
+/// The crash point and count `CLV_FAULT_CRASH_AT` asks for.
+fn crash_target() -> Option<&'static (String, u64)> {
+    static TARGET: OnceLock<Option<(String, u64)>> = OnceLock::new();
+    TARGET
+        .get_or_init(|| {
+            let v = std::env::var("CLV_FAULT_CRASH_AT").ok()?;
+            let (name, n) = v.split_once('#').map_or((v.as_str(), Some(1)), |(a, b)| (a, b.parse().ok()));
+            Some((name.to_string(), n?))
+        })
+        .as_ref()
+}
+
+static REACHED: AtomicU64 = AtomicU64::new(0);
+
+/// Exit here if `CLV_FAULT_CRASH_AT` names this point (see the module doc).
+pub fn crash_point(name: &'static str) {
+    debug_assert!(CRASH_POINTS.contains(&name), "unlisted crash point {name}");
+    if let Some((target, n)) = crash_target()
+        && target == name
+        && REACHED.fetch_add(1, Ordering::SeqCst) + 1 == *n {
+            eprintln!("clv: crash point {name} reached (CLV_FAULT_CRASH_AT)");
+            std::process::exit(CRASH_STATUS);
+        }
 }

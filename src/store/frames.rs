@@ -105,7 +105,7 @@ impl FrameFile {
     pub fn salvage(path: &Path, metadata: &BTreeMap<String, String>, keep: u64) -> Result<Self> {
         let tmp = tmp_path(path);
         let old = tmp.with_extension("tmp.old");
-        if keep > 0 && !old.exists() && !tmp.exists() && path.exists() {
+        if !old.exists() && !tmp.exists() && path.exists() {
             let mut theirs = StreamInfo::default();
             read_frames_with(path, |info| {
                 theirs = info;
@@ -130,6 +130,7 @@ impl FrameFile {
         } else if tmp.exists() {
             std::fs::remove_file(&tmp).map_err(|e| Error::io(&tmp, e))?;
         }
+        super::fault::crash_point("salvage-moved");
         let mut file = FrameFile::create(path, metadata)?;
         if old.exists() {
             read_stream(&old, std::io::BufReader::new(File::open(&old).map_err(|e| Error::io(&old, e))?), ReadMode::Salvage, |m| {
@@ -142,6 +143,7 @@ impl FrameFile {
                 return Err(Error::corrupt(&old, format!("holds {} complete frames, the progress record says {keep}", file.frames)));
             }
             file.sync()?;
+            super::fault::crash_point("salvage-copied");
             std::fs::remove_file(&old).map_err(|e| Error::io(&old, e))?;
             super::segment::sync_dir(path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")))?;
         }
@@ -161,14 +163,19 @@ impl FrameFile {
     /// Close the current chunk and fsync: every frame so far survives a crash.
     pub fn sync(&mut self) -> Result<()> {
         self.out.writer.flush().map_err(|e| mcap_err(&self.tmp, e))?;
-        self.sync_handle.sync_all().map_err(|e| Error::io(&self.tmp, e))
+        self.sync_handle.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
+        super::fault::crash_point("frames-synced");
+        Ok(())
     }
 
     pub fn finish(mut self) -> Result<PathBuf> {
         self.out.writer.finish().map_err(|e| mcap_err(&self.tmp, e))?;
         let file = self.out.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?.into_inner();
         file.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
+        super::fault::crash_point("frames-finished");
         std::fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;
+        super::fault::crash_point("frames-renamed");
+        super::segment::sync_dir(self.path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new(".")))?;
         Ok(self.path)
     }
 }

@@ -224,7 +224,9 @@ impl RunDir {
     /// Create a new run directory (it must not exist, or be empty).
     pub fn create(path: &Path, meta: &RunMeta) -> Result<Self> {
         if path.exists() {
-            let mut entries = fs::read_dir(path).map_err(|e| Error::io(path, e))?;
+            // A creation cut short before run.json was in place left at most its temporary file.
+            let stale = path.join("run.tmp");
+            let mut entries = fs::read_dir(path).map_err(|e| Error::io(path, e))?.filter(|e| !e.as_ref().is_ok_and(|e| e.path() == stale));
             if entries.next().is_some() {
                 return Err(Error::Other(format!(
                     "{} already exists and is not empty; resume it with `clv forward --resume {}` or choose another --out",
@@ -238,6 +240,30 @@ impl RunDir {
         let json = serde_json::to_string_pretty(meta).map_err(|e| Error::Other(e.to_string()))?;
         write_atomic(&dir.meta_path(), json.as_bytes())?;
         Ok(dir)
+    }
+
+    /// Complete a creation cut short between writing run.json's temporary file and renaming
+    /// it into place: true if run.json was missing and its temporary file was whole (and is
+    /// now run.json), false if there was nothing to complete. A partial temporary file means
+    /// nothing of the run was computed; the error says to start it again.
+    pub fn complete_creation(path: &Path) -> Result<bool> {
+        let dir = RunDir { path: path.to_path_buf() };
+        let (meta_path, tmp) = (dir.meta_path(), path.join("run.tmp"));
+        if meta_path.exists() || !tmp.exists() {
+            return Ok(false);
+        }
+        let text = fs::read_to_string(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        if serde_json::from_str::<RunMeta>(&text).is_err() {
+            return Err(Error::Other(format!(
+                "the run in {} was interrupted while it was being created ({} is incomplete) and holds no results; start it again with `clv forward --out {} ...`",
+                path.display(),
+                tmp.display(),
+                path.display()
+            )));
+        }
+        fs::rename(&tmp, &meta_path).map_err(|e| Error::io(&meta_path, e))?;
+        segment::sync_dir(path)?;
+        Ok(true)
     }
 
     /// Take the run's write lock, or explain who holds it.
@@ -314,7 +340,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = path.with_extension("tmp");
     let mut f = fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
     super::fault::charge(bytes.len()).and_then(|_| f.write_all(bytes)).and_then(|_| f.sync_all()).map_err(|e| Error::io(&tmp, e))?;
+    super::fault::crash_point("atomic-synced");
     fs::rename(&tmp, path).map_err(|e| Error::io(path, e))?;
+    super::fault::crash_point("atomic-renamed");
     if let Some(dir) = path.parent() {
         segment::sync_dir(if dir.as_os_str().is_empty() { Path::new(".") } else { dir })?;
     }

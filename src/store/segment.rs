@@ -95,12 +95,14 @@ impl SegmentWriter {
         let file = self.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?.into_inner();
         file.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
         drop(file);
+        super::fault::crash_point("segment-synced");
         let last = self.last_checkpoint.unwrap_or(self.first_step);
         let path = self.dir.join(final_name(self.first_step, last));
         if path.exists() {
             return Err(Error::Other(format!("{} already exists; refusing to overwrite a finished segment", path.display())));
         }
         fs::rename(&self.tmp, &path).map_err(|e| Error::io(&path, e))?;
+        super::fault::crash_point("segment-renamed");
         sync_dir(&self.dir)?;
         Ok(path)
     }

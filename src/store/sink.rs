@@ -99,6 +99,7 @@ fn prune(dir: &std::path::Path, policy: &Policy) -> Result<()> {
     let excess = prunable.len().saturating_sub(policy.keep_segments as usize);
     for s in &prunable[..excess] {
         fs::remove_file(&s.path).map_err(|e| Error::io(&s.path, e))?;
+        super::fault::crash_point("segment-pruned");
     }
     Ok(())
 }
