@@ -27,5 +27,6 @@ $CLV inspect "$OUT/run"
 # statistics use the frames of every 62nd step (about 400; the paper averages 100 frames
 # 250 tau apart), the spectrum and local exponents every frame; so the backward pass forms
 # the covariant vectors (and copies the GS vectors, 10 MB a frame) only for those steps.
-$CLV backward "$OUT/run" --with-gs --vectors-every 62 --out - | $CLV analyze - --out "$OUT/report"
+# A rerun of this script regenerates the report (--overwrite).
+$CLV backward "$OUT/run" --with-gs --vectors-every 62 --out - | $CLV analyze - --out "$OUT/report" --overwrite
 echo "figures and tables: $OUT/report/index.html"

@@ -239,6 +239,10 @@ struct AnalyzeArgs {
     /// Run only these analyses (comma-separated names, e.g. spectrum,localization).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
+    /// Replace the files of an earlier report in --out (without it, a directory that holds
+    /// files is refused).
+    #[arg(long)]
+    overwrite: bool,
     /// No progress bar or closing summary.
     #[arg(long)]
     quiet: bool,
@@ -505,6 +509,14 @@ fn bench(args: &BenchArgs) -> Result<()> {
 }
 
 fn analyze(args: &AnalyzeArgs) -> Result<()> {
+    // A report can be all that is left of a long run: never replace one by accident.
+    let holds_files = std::fs::read_dir(&args.out).is_ok_and(|mut entries| entries.next().is_some());
+    if holds_files && !args.overwrite {
+        return Err(Error::param(
+            "out",
+            format!("{} already holds files (an earlier report?); choose another --out, or add --overwrite to replace them", args.out.display()),
+        ));
+    }
     // The number of frames is not known ahead (a stream on stdin): count and rate only.
     let bar = (!args.quiet).then(|| {
         let bar = ProgressBar::new_spinner();

@@ -79,6 +79,16 @@ fn analyze_refuses_bad_sources_clearly() {
     let out = clv(&["analyze", junk.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("junk.mcap") && !err.contains("panicked"), "{err}");
+    // A report directory that holds files is not written over without --overwrite.
+    let kept = base.join("kept");
+    std::fs::create_dir_all(&kept).unwrap();
+    std::fs::write(kept.join("index.html"), b"an earlier report").unwrap();
+    let out = clv(&["analyze", junk.to_str().unwrap(), "--out", kept.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--out") && err.contains("--overwrite") && !err.contains("junk.mcap"), "{err}");
+    assert_eq!(std::fs::read(kept.join("index.html")).unwrap(), b"an earlier report");
+    let out = clv(&["analyze", junk.to_str().unwrap(), "--out", kept.to_str().unwrap(), "--overwrite"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("junk.mcap"), "--overwrite goes on to read the source");
     // An empty pipe (the command before it failed): said so, not reported as a damaged record.
     let out = Command::new(env!("CARGO_BIN_EXE_clv")).args(["analyze", "-", "--out", base.join("o").to_str().unwrap()]).stdin(Stdio::null()).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
