@@ -118,6 +118,11 @@ fn clv_run_on_the_default_preset_writes_the_report() {
     let again = ok(clv(&["run", "--out", o]));
     let err = String::from_utf8_lossy(&again.stderr);
     assert!(err.contains("continuing the run"), "{err}");
+    // Another preset into the same --out: refused, the run and its report left as they are.
+    let other = clv(&["run", "--preset", "henon", "--out", o, "--quiet"]);
+    let err = String::from_utf8_lossy(&other.stderr);
+    assert!(!other.status.success() && err.contains("--out") && err.contains("another configuration"), "{err}");
+    assert_eq!(read(&out.join("report/index.html")), html);
     drop(first);
 }
 

@@ -8,7 +8,7 @@ use super::analyze::{registry, Analyzer, Context, Produced};
 use super::backward::{self, BackwardOptions};
 use super::forward_run::{self, Feedback};
 use crate::config::RunConfig;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::store::frames::Flow;
 use crate::store::run::{BuildInfo, RunMeta, StoreConfig, FORMAT};
 use crate::store::RunDir;
@@ -28,6 +28,19 @@ pub fn run(config: &RunConfig, out: &Path, feedback: &mut Feedback, say: &mut dy
     let run_dir = out.join("run");
     let report_dir = out.join("report");
     if run_dir.join("run.json").exists() {
+        let (_, stored) = RunDir::open(&run_dir)?;
+        if stored.config != *config {
+            let json = |c: &RunConfig| serde_json::to_string(c).unwrap_or_default();
+            return Err(Error::param(
+                "out",
+                format!(
+                    "{} holds a run of another configuration ({}), not of the one asked for ({}); choose another --out, or ask for that run's configuration to continue it",
+                    run_dir.display(),
+                    json(&stored.config),
+                    json(config)
+                ),
+            ));
+        }
         say(format!("continuing the run in {}", run_dir.display()));
         forward_run::resume(&run_dir, feedback)?;
     } else {
