@@ -35,6 +35,7 @@ pub struct Inspection {
     /// Spectrum at the newest intact checkpoint.
     pub exponents: Vec<f64>,
     pub stderr: Vec<f64>,
+    /// Every finished segment reads back whole (an interrupted one is not counted as damage).
     pub intact: bool,
 }
 
@@ -86,7 +87,9 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         steps_done: newest.as_ref().map(|(s, _)| *s),
         finished: dir.spectrum_path().exists() && newest.as_ref().is_some_and(|(s, _)| *s == total_steps),
         checkpoints: segments.iter().map(|s| s.checkpoints).sum(),
-        intact: segments.iter().all(|s| s.damage.is_none()) && partial_segments.is_empty(),
+        // A segment left unfinished by a kill is the expected trace of an interrupted run,
+        // not damage: --resume discards and recomputes it.
+        intact: segments.iter().all(|s| s.damage.is_none()),
         segments,
         partial_segments,
         disk_bytes,
@@ -123,7 +126,7 @@ impl Inspection {
             let show: Vec<String> = self.exponents.iter().take(4).map(|x| format!("{x:.5}")).collect();
             let _ = writeln!(s, "spectrum so far: lambda_1.. = {} ... lambda_k = {:.5}", show.join(", "), self.exponents.last().unwrap_or(&f64::NAN));
         }
-        let _ = writeln!(s, "{}", if self.intact { "all files intact" } else { "DAMAGE FOUND (see above)" });
+        let _ = writeln!(s, "{}", if self.intact { "all finished files intact" } else { "DAMAGE FOUND (see above)" });
         s
     }
 }
