@@ -219,7 +219,8 @@ struct InspectArgs {
 
 #[derive(Args)]
 struct AnalyzeArgs {
-    /// Frames: a file written by `clv backward --out FILE`, or - for standard input.
+    /// Frames: a file written by `clv backward --out FILE`, - for standard input, or a run
+    /// directory (the frames.mcap that `clv backward RUN_DIR` wrote into it).
     source: PathBuf,
     /// Directory for index.html, figures (PNG, SVG) and tables (CSV, JSON).
     #[arg(long)]
@@ -595,7 +596,7 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         _ => args.out.as_deref() == Some(std::path::Path::new("-")),
     };
     if stored.is_none() || given("out") {
-        opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| args.dir.join("frames.mcap"))) };
+        opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| clv::store::RunDir { path: args.dir.clone() }.frames_path())) };
     }
     if stored.is_none() || given("save_every") || given("out") {
         // Resuming with --out FILE again keeps the stored --save-every unless it is given.

@@ -31,7 +31,8 @@ fn report() -> &'static Path {
         ]));
         ok(clv(&["backward", run.to_str().unwrap(), "--quiet", "--with-gs"]));
         let report = base.join("report");
-        ok(clv(&["analyze", run.join("frames.mcap").to_str().unwrap(), "--out", report.to_str().unwrap()]));
+        // The run directory stands for the frame file the backward stage wrote into it.
+        ok(clv(&["analyze", run.to_str().unwrap(), "--out", report.to_str().unwrap()]));
         report
     })
 }

@@ -79,6 +79,14 @@ fn analyze_refuses_bad_sources_clearly() {
     let out = clv(&["analyze", junk.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("junk.mcap") && !err.contains("panicked"), "{err}");
+    // A directory without frames, and a run segment instead of frames: what to run instead.
+    let err = common::stderr(&clv(&["analyze", base.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
+    assert!(err.contains("a directory without a frame file") && err.contains("clv backward"), "{err}");
+    let run = base.join("run");
+    ok(clv(&[&RUN[..], &["--out", run.to_str().unwrap()]].concat()));
+    let segment = clv::store::RunDir { path: run.clone() }.segments().unwrap().remove(0).path;
+    let err = common::stderr(&clv(&["analyze", segment.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
+    assert!(err.contains("is a segment of a run directory") && err.contains("clv backward"), "{err}");
     // A report directory that holds files is not written over without --overwrite.
     let kept = base.join("kept");
     std::fs::create_dir_all(&kept).unwrap();

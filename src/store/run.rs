@@ -217,6 +217,10 @@ impl RunDir {
     pub fn meta_path(&self) -> PathBuf {
         self.path.join("run.json")
     }
+    /// Where `clv backward` writes its frames unless told otherwise.
+    pub fn frames_path(&self) -> PathBuf {
+        self.path.join("frames.mcap")
+    }
     pub fn spectrum_path(&self) -> PathBuf {
         self.path.join("spectrum.json")
     }

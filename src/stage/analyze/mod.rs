@@ -407,6 +407,34 @@ impl Mean {
     }
 }
 
+/// A run directory stands for the frame file `clv backward` writes into it by default.
+fn frame_source(source: &Path) -> Result<PathBuf> {
+    if !source.is_dir() {
+        return Ok(source.to_path_buf());
+    }
+    let frames = crate::store::RunDir { path: source.to_path_buf() }.frames_path();
+    if frames.exists() {
+        return Ok(frames);
+    }
+    let d = source.display();
+    Err(Error::Other(format!(
+        "{d} is a directory without a frame file ({}); analyse a run with `clv backward {d} --out - | clv analyze - --out REPORT`, or write {} with `clv backward {d}` first",
+        frames.display(),
+        frames.display()
+    )))
+}
+
+/// Whether `path` holds the checkpoints of a run segment (read only to explain an error).
+fn is_run_segment(path: &Path) -> bool {
+    use crate::store::schema::CHECKPOINT;
+    let mut found = false;
+    let _ = crate::store::segment::read_segment(path, crate::store::segment::ReadMode::Salvage, |m| {
+        found |= m.topic == CHECKPOINT.topic;
+        Ok(())
+    });
+    found
+}
+
 /// Run every applicable analysis over the frames of `source` (a file, or "-" for standard
 /// input) into `out`, calling `on_frame` with the count of frames read so far. Returns what
 /// was produced and the number of frames read.
@@ -419,6 +447,7 @@ pub fn analyze_source(
     only: &[String],
     on_frame: &mut dyn FnMut(u64),
 ) -> Result<(Vec<Produced>, u64)> {
+    let source = &frame_source(source)?;
     let info = std::cell::RefCell::new(StreamInfo::default());
     let mut analyzer: Option<Analyzer> = None;
     let name = if source == Path::new("-") { "<stdin>".to_string() } else { source.display().to_string() };
@@ -441,6 +470,11 @@ pub fn analyze_source(
         },
     )?;
     let Some(analyzer) = analyzer else {
+        if is_run_segment(source) {
+            return Err(Error::Other(format!(
+                "{name} is a segment of a run directory (checkpoints and R matrices), not a frame stream; make the frames with `clv backward RUN_DIR --out - | clv analyze - --out REPORT`"
+            )));
+        }
         return Err(Error::Other(format!("{name}: no frames in the stream{}", damage.map(|d| format!(" ({d})")).unwrap_or_default())));
     };
     let frames = analyzer.frames;
