@@ -595,6 +595,9 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         (Some(s), false) => s.frames_path.is_none(),
         _ => args.out.as_deref() == Some(std::path::Path::new("-")),
     };
+    if to_stdout && std::io::IsTerminal::is_terminal(&std::io::stdout()) {
+        return Err(Error::param("out", "- writes a binary MCAP stream, and standard output is a terminal; pipe it into `clv analyze -` (or another reader), or give a file"));
+    }
     if stored.is_none() || given("out") {
         opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| clv::store::RunDir { path: args.dir.clone() }.frames_path())) };
     }

@@ -320,6 +320,10 @@ fn frames_flow_through_real_pipes_and_a_closed_pipe_ends_cleanly() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("closed the stream"), "{err}");
+    // Standard output on a terminal (script(1), from util-linux, gives it one): refused.
+    let tty = Command::new("script").args(["-qec", &format!("{} backward {d} --out -", env!("CARGO_BIN_EXE_clv")), "/dev/null"]).output().expect("script(1) from util-linux");
+    let text = String::from_utf8_lossy(&tty.stdout);
+    assert!(!tty.status.success() && text.contains("standard output is a terminal"), "{text}");
     // A reader that closes before reading anything (a consumer that failed to start), with
     // frames larger than the stream's 1 MB write buffer, so that the write fails inside a
     // chunk (which leaves the MCAP writer unable to finish).
