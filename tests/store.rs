@@ -191,6 +191,31 @@ fn damaged_segments_are_named_and_resume_falls_back() {
         assert!(err.contains("moving it aside"), "{what}: {err}");
         assert!(contents(&copy) == *want, "{what}: resumed run differs");
     }
+    // Damage to an older segment of a finished run: resume recomputes it and the segments
+    // after it from the checkpoint before it (bit-identical numbers), and keeps only the damaged
+    // file aside.
+    for trial in 0..4 {
+        let copy = base.join(format!("repair-{trial}"));
+        copy_dir(&dir, &copy);
+        let segs = RunDir { path: copy.clone() }.segments().unwrap();
+        let seg = &segs[rng.below(segs.len() - 1)];
+        let what = damage(&seg.path, &mut rng, trial % 2 == 0);
+        let out = clv(&["forward", "--resume", copy.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success() && err.contains("moving it aside") && err.contains("follows a damaged segment"), "{what}: {err}");
+        assert!(contents(&copy) == *want, "{what}: repaired run differs");
+        let aside: Vec<String> = std::fs::read_dir(&copy).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).filter(|n| !n.ends_with(".mcap") && !n.ends_with(".json") && !n.starts_with('.')).collect();
+        assert_eq!(aside, vec![seg.path.with_extension("mcap.corrupt").file_name().unwrap().to_string_lossy().into_owned()]);
+    }
+    // The backward stage meeting a damaged segment says how to repair it.
+    let copy = base.join("backward-hint");
+    copy_dir(&dir, &copy);
+    let newest = RunDir { path: copy.clone() }.segments().unwrap().pop().unwrap();
+    let len = std::fs::metadata(&newest.path).unwrap().len();
+    std::fs::OpenOptions::new().write(true).open(&newest.path).unwrap().set_len(len / 2).unwrap();
+    let out = clv(&["backward", copy.to_str().unwrap(), "--quiet", "--out", "-"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains(&*newest.path.to_string_lossy()) && err.contains("clv forward --resume"), "{err}");
 }
 
 #[test]

@@ -492,6 +492,24 @@ pub fn run(
     consumer: &mut dyn FnMut(Arc<Frame>) -> Result<Flow>,
     on_progress: OnProgress,
 ) -> Result<BackwardReport> {
+    sweep(path, opts, resume, memory_bytes, consumer, on_progress).map_err(|e| match e {
+        Error::Corrupt { path: file, msg } if RunDir { path: path.to_path_buf() }.segments().is_ok_and(|segs| segs.iter().any(|s| s.path == file)) => Error::Other(format!(
+            "{}: corrupt or unreadable: {msg}; the forward stage recomputes it and the segments after it, with bit-identical numbers: run `clv forward --resume {}`, then this again",
+            file.display(),
+            path.display()
+        )),
+        e => e,
+    })
+}
+
+fn sweep(
+    path: &Path,
+    opts: &BackwardOptions,
+    resume: bool,
+    memory_bytes: u64,
+    consumer: &mut dyn FnMut(Arc<Frame>) -> Result<Flow>,
+    on_progress: OnProgress,
+) -> Result<BackwardReport> {
     let started = Instant::now();
     let (dir, meta) = RunDir::open(path)?;
     let _lock = dir.lock("backward pass")?;

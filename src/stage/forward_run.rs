@@ -99,27 +99,47 @@ pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
         feedback.notice(format!("discarding the interrupted segment {} ({what}); they will be recomputed", partial.display()));
         std::fs::remove_file(&partial).map_err(|e| Error::io(&partial, e))?;
     }
-    let mut last: Option<LastCheckpoint> = None;
-    for seg in dir.segments()?.iter().rev() {
-        match read_last(&seg.path) {
-            Ok(found) => {
-                last = Some(found);
-                break;
-            }
-            Err(e) => {
-                let aside = seg.path.with_extension("mcap.corrupt");
-                feedback.notice(format!("{e}; moving it aside to {} and falling back to the previous segment", aside.display()));
-                std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
-            }
+    // Every finished segment is read whole (CRCs checked). From the oldest damaged one on,
+    // the segments are recomputed from the last intact checkpoint before it: the dynamics
+    // is deterministic, so the new files hold the numbers of the old, bit for bit (only wall
+    // times differ). Intact segments after the damage are set aside until their
+    // replacements are written.
+    let segments = dir.segments()?;
+    let reads: Vec<Result<()>> = segments.iter().map(|seg| read_last(&seg.path).map(drop)).collect();
+    let intact = reads.iter().position(Result::is_err).unwrap_or(segments.len());
+    let mut superseded = Vec::new();
+    if intact < segments.len() {
+        for (seg, read) in segments[intact..].iter().zip(&reads[intact..]) {
+            let aside = match read {
+                Err(e) => {
+                    let aside = seg.path.with_extension("mcap.corrupt");
+                    feedback.notice(format!("{e}; moving it aside to {} and recomputing from the checkpoint before it", aside.display()));
+                    aside
+                }
+                Ok(_) => {
+                    let aside = seg.path.with_extension("mcap.superseded");
+                    feedback.notice(format!("{} follows a damaged segment and is recomputed with it (kept as {} until then)", seg.path.display(), aside.display()));
+                    superseded.push(aside.clone());
+                    aside
+                }
+            };
+            std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
         }
     }
+    let recomputed = |report: SpectrumReport, from: u64| -> Result<Outcome> {
+        for aside in &superseded {
+            std::fs::remove_file(aside).map_err(|e| Error::io(aside, e))?;
+        }
+        Ok(Outcome { report, resumed_from: Some(from), already_finished: false })
+    };
     let total = meta.config.relax_steps + meta.config.steps;
-    let Some(last) = last else {
+    let Some(newest) = intact.checked_sub(1) else {
         feedback.notice("no intact checkpoint found; starting the run over from step 0".into());
         let fwd = Forward::new(&meta.config)?;
         let energy0 = fwd.system.invariants().energy;
-        return drive(&dir, &meta, fwd, energy0, 0.0, true, feedback).map(|report| Outcome { report, resumed_from: Some(0), already_finished: false });
+        return recomputed(drive(&dir, &meta, fwd, energy0, 0.0, true, feedback)?, 0);
     };
+    let last = read_last(&segments[newest].path)?;
     let step = last.checkpoint.state.step;
     let fwd = Forward::resume(&meta.config, &last.checkpoint.state)?;
     if step >= total {
@@ -132,8 +152,7 @@ pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
         return Ok(Outcome { report, resumed_from: Some(step), already_finished: true });
     }
     feedback.notice(format!("resuming {} at step {step} of {total}", path.display()));
-    drive(&dir, &meta, fwd, last.stats.energy_initial, last.stats.wall_seconds, false, feedback)
-        .map(|report| Outcome { report, resumed_from: Some(step), already_finished: false })
+    recomputed(drive(&dir, &meta, fwd, last.stats.energy_initial, last.stats.wall_seconds, false, feedback)?, step)
 }
 
 /// The last checkpoint and stats of a finished segment, reading it whole (CRCs checked).
