@@ -16,7 +16,7 @@ use crate::store::segment::read_segment;
 use crate::store::sink::{Policy, Sink};
 use crate::system::Invariants;
 use indicatif::ProgressBar;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Largest relative energy drift a run may accumulate (round-off over 1e8 collisions is far
@@ -107,7 +107,12 @@ pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
     let segments = dir.segments()?;
     let reads: Vec<Result<()>> = segments.iter().map(|seg| read_last(&seg.path).map(drop)).collect();
     let intact = reads.iter().position(Result::is_err).unwrap_or(segments.len());
-    let mut superseded = Vec::new();
+    // Set aside by a repair that was itself interrupted: removed once this one finishes.
+    let mut superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
+        .map_err(|e| Error::io(&dir.path, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.to_string_lossy().ends_with(".mcap.superseded"))
+        .collect();
     if intact < segments.len() {
         for (seg, read) in segments[intact..].iter().zip(&reads[intact..]) {
             let aside = match read {
@@ -126,10 +131,14 @@ pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
             std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
         }
     }
-    let recomputed = |report: SpectrumReport, from: u64| -> Result<Outcome> {
+    let drop_superseded = || -> Result<()> {
         for aside in &superseded {
             std::fs::remove_file(aside).map_err(|e| Error::io(aside, e))?;
         }
+        Ok(())
+    };
+    let recomputed = |report: SpectrumReport, from: u64| -> Result<Outcome> {
+        drop_superseded()?;
         Ok(Outcome { report, resumed_from: Some(from), already_finished: false })
     };
     let total = meta.config.relax_steps + meta.config.steps;
@@ -149,6 +158,7 @@ pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
             feedback.notice(format!("the run was complete but {} was not written yet; writing it", dir.spectrum_path().display()));
             write_spectrum(&dir, &report)?;
         }
+        drop_superseded()?;
         return Ok(Outcome { report, resumed_from: Some(step), already_finished: true });
     }
     feedback.notice(format!("resuming {} at step {step} of {total}", path.display()));
