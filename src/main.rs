@@ -678,7 +678,7 @@ fn inspect_cmd(args: &InspectArgs) -> Result<()> {
     } else {
         print!("{}", found.text());
     }
-    if found.intact { Ok(()) } else { Err(Error::Other(format!("{}: damaged files found (see above)", args.dir.display()))) }
+    if found.intact { Ok(()) } else { Err(Error::Other(format!("{}: damaged files found (see above); repair them with `clv forward --resume {}`", args.dir.display(), args.dir.display()))) }
 }
 
 /// The command line with a `--config FILE` of `clv forward` expanded into flags, placed

@@ -177,6 +177,7 @@ fn damaged_segments_are_named_and_resume_falls_back() {
         let name = seg.path.file_name().unwrap().to_string_lossy();
         assert!(!out.status.success(), "{what} in {name} went unnoticed");
         assert!(text.lines().any(|l| l.contains(&*name) && l.contains("corrupt")), "{what}: {text}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains("clv forward --resume"), "the way to repair it is named");
         assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
     }
     // Damage to the newest segment: resume moves it aside and recomputes it.

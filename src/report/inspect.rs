@@ -126,7 +126,7 @@ impl Inspection {
             let show: Vec<String> = self.exponents.iter().take(4).map(|x| format!("{x:.5}")).collect();
             let _ = writeln!(s, "spectrum so far: lambda_1.. = {} ... lambda_k = {:.5}", show.join(", "), self.exponents.last().unwrap_or(&f64::NAN));
         }
-        let _ = writeln!(s, "{}", if self.intact { "all finished files intact" } else { "DAMAGE FOUND (see above)" });
+        let _ = writeln!(s, "{}", if self.intact { "all finished files intact" } else { "DAMAGE FOUND (see above): `clv forward --resume` recomputes the damaged segments" });
         s
     }
 }
