@@ -181,6 +181,13 @@ impl Analysis for LocalExponents {
 
         // Finite-time exponents: windows of Delta frames from the newest frame on, as in the
         // domination test.
+        let frames_n = self.steps.len();
+        let too_long: Vec<usize> = self.deltas.iter().copied().filter(|&dl| dl > frames_n).collect();
+        let unfilled = if too_long.is_empty() {
+            String::new()
+        } else {
+            format!(" No window of Δ = {too_long:?} fits in the {frames_n} frames: their rows hold 0 windows and NaN.")
+        };
         let mut rows = Vec::new();
         for (s, &i) in self.series.iter().zip(&self.idx) {
             for &delta in &self.deltas {
@@ -191,7 +198,6 @@ impl Analysis for LocalExponents {
         }
         write_csv(&out.join("finite_time_exponents.csv"), &["i", "delta", "windows", "mean", "std", "min", "max"], rows)?;
         // The finite-time exponents of the largest Delta with at least 10 windows.
-        let frames_n = self.steps.len();
         let show = self.deltas.iter().copied().filter(|&dl| frames_n / dl >= 10).max().unwrap_or(self.deltas[0]);
         let mut fig = Figure::new(&format!("Finite-time exponents, Δ = {show} steps")).x_label("t (window start)").y_label("Λ_i averaged over Δ");
         let windows = frames_n / show;
@@ -207,7 +213,7 @@ impl Analysis for LocalExponents {
         produced.push(Produced {
             title: "Finite-time exponents (Sec. 6)".into(),
             caption: format!(
-                "Local exponents averaged over consecutive windows of Δ = {show} steps (counted from the newest frame) for i = {}; the table gives mean, standard deviation, minimum and maximum over the windows for every Δ = {:?}.{caveat}",
+                "Local exponents averaged over consecutive windows of Δ = {show} steps (counted from the newest frame) for i = {}; the table gives mean, standard deviation, minimum and maximum over the windows for every Δ = {:?}.{unfilled}{caveat}",
                 names.join(", "),
                 self.deltas
             ),
@@ -255,7 +261,7 @@ impl Analysis for LocalExponents {
         produced.push(Produced {
             title: "Domination of the Oseledec splitting (Sec. 6)".into(),
             caption: format!(
-                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over all {} adjacent pairs{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0 (degenerate exponents, as in the null space and the modes, swap for every Δ). Overall fraction at Δ = {}: {:.3e}; at Δ = {}: {:.3e}.{caveat}",
+                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over all {} adjacent pairs{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0 (degenerate exponents, as in the null space and the modes, swap for every Δ). Overall fraction at Δ = {}: {:.3e}; at Δ = {}: {:.3e}.{unfilled}{caveat}",
                 ctx.k.saturating_sub(1),
                 if ctx.is_disks() { ", averaged over the pairs outside the null space" } else { "" },
                 self.deltas[0],
@@ -296,6 +302,22 @@ mod tests {
     fn frame(step: u64, local: Vec<f64>) -> Frame {
         let k = local.len();
         Frame { step, time: 0.6 * step as f64, d: k, k, phase: vec![0.0; k], v: vec![0.0; k * k], local, g: None }
+    }
+
+    #[test]
+    fn windows_longer_than_the_stream_are_said_to_be_empty() {
+        let ctx = context(3, vec![1], vec![2, 50]);
+        let mut a = new(&ctx).unwrap();
+        for step in (0..20u64).rev() {
+            a.consume(&frame(step, (0..12).map(|i| (12 - i) as f64 + noise(step, i)).collect())).unwrap();
+        }
+        let out = scratch("too-long");
+        let produced = a.finish(&out, 20).unwrap();
+        let said: Vec<bool> = produced.iter().map(|p| p.caption.contains("No window of Δ = [50] fits in the 20 frames")).collect();
+        assert_eq!(said, [false, true, true], "local exponents, finite-time exponents, domination");
+        let ft = read_csv(&out.join("finite_time_exponents.csv"));
+        let row = ft.1.iter().find(|r| r[1] == 50.0).unwrap();
+        assert!(row[2] == 0.0 && row[3].is_nan());
     }
 
     #[test]
