@@ -99,38 +99,7 @@ pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
         feedback.notice(format!("discarding the interrupted segment {} ({what}); they will be recomputed", partial.display()));
         std::fs::remove_file(&partial).map_err(|e| Error::io(&partial, e))?;
     }
-    // Every finished segment is read whole (CRCs checked). From the oldest damaged one on,
-    // the segments are recomputed from the last intact checkpoint before it: the dynamics
-    // is deterministic, so the new files hold the numbers of the old, bit for bit (only wall
-    // times differ). Intact segments after the damage are set aside until their
-    // replacements are written.
-    let segments = dir.segments()?;
-    let reads: Vec<Result<()>> = segments.iter().map(|seg| read_last(&seg.path).map(drop)).collect();
-    let intact = reads.iter().position(Result::is_err).unwrap_or(segments.len());
-    // Set aside by a repair that was itself interrupted: removed once this one finishes.
-    let mut superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
-        .map_err(|e| Error::io(&dir.path, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.to_string_lossy().ends_with(".mcap.superseded"))
-        .collect();
-    if intact < segments.len() {
-        for (seg, read) in segments[intact..].iter().zip(&reads[intact..]) {
-            let aside = match read {
-                Err(e) => {
-                    let aside = seg.path.with_extension("mcap.corrupt");
-                    feedback.notice(format!("{e}; moving it aside to {} and recomputing from the checkpoint before it", aside.display()));
-                    aside
-                }
-                Ok(_) => {
-                    let aside = seg.path.with_extension("mcap.superseded");
-                    feedback.notice(format!("{} follows a damaged segment and is recomputed with it (kept as {} until then)", seg.path.display(), aside.display()));
-                    superseded.push(aside.clone());
-                    aside
-                }
-            };
-            std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
-        }
-    }
+    let Triage { newest_intact, superseded } = triage(&dir, feedback)?;
     let drop_superseded = || -> Result<()> {
         for aside in &superseded {
             std::fs::remove_file(aside).map_err(|e| Error::io(aside, e))?;
@@ -142,13 +111,13 @@ pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
         Ok(Outcome { report, resumed_from: Some(from), already_finished: false })
     };
     let total = meta.config.relax_steps + meta.config.steps;
-    let Some(newest) = intact.checked_sub(1) else {
+    let Some(newest) = newest_intact else {
         feedback.notice("no intact checkpoint found; starting the run over from step 0".into());
         let fwd = Forward::new(&meta.config)?;
         let energy0 = fwd.system.invariants().energy;
         return recomputed(drive(&dir, &meta, fwd, energy0, 0.0, true, feedback)?, 0);
     };
-    let last = read_last(&segments[newest].path)?;
+    let last = read_last(&newest)?;
     let step = last.checkpoint.state.step;
     let fwd = Forward::resume(&meta.config, &last.checkpoint.state)?;
     if step >= total {
@@ -163,6 +132,47 @@ pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
     }
     feedback.notice(format!("resuming {} at step {step} of {total}", path.display()));
     recomputed(drive(&dir, &meta, fwd, last.stats.energy_initial, last.stats.wall_seconds, false, feedback)?, step)
+}
+
+/// What a resume keeps of the finished segments.
+struct Triage {
+    /// The newest segment before any damage: the run continues from its last checkpoint.
+    newest_intact: Option<PathBuf>,
+    /// Intact segments after the damage, set aside until their replacements are written.
+    superseded: Vec<PathBuf>,
+}
+
+/// Read every finished segment whole (CRCs checked). From the oldest damaged one on, the
+/// segments are recomputed from the last intact checkpoint before it: the dynamics is
+/// deterministic, so the new files hold the numbers of the old, bit for bit (only wall
+/// times differ). Damaged segments are moved aside as `.corrupt`, the intact ones after
+/// them as `.superseded`, together with any a repair that was itself interrupted left.
+fn triage(dir: &RunDir, feedback: &mut Feedback) -> Result<Triage> {
+    let segments = dir.segments()?;
+    let reads: Vec<Result<()>> = segments.iter().map(|seg| read_last(&seg.path).map(drop)).collect();
+    let intact = reads.iter().position(Result::is_err).unwrap_or(segments.len());
+    let mut superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
+        .map_err(|e| Error::io(&dir.path, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.to_string_lossy().ends_with(".mcap.superseded"))
+        .collect();
+    for (seg, read) in segments[intact..].iter().zip(&reads[intact..]) {
+        let aside = match read {
+            Err(e) => {
+                let aside = seg.path.with_extension("mcap.corrupt");
+                feedback.notice(format!("{e}; moving it aside to {} and recomputing from the checkpoint before it", aside.display()));
+                aside
+            }
+            Ok(()) => {
+                let aside = seg.path.with_extension("mcap.superseded");
+                feedback.notice(format!("{} follows a damaged segment and is recomputed with it (kept as {} until then)", seg.path.display(), aside.display()));
+                superseded.push(aside.clone());
+                aside
+            }
+        };
+        std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
+    }
+    Ok(Triage { newest_intact: intact.checked_sub(1).map(|i| segments[i].path.clone()), superseded })
 }
 
 /// The last checkpoint and stats of a finished segment, reading it whole (CRCs checked).
