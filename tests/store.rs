@@ -213,6 +213,9 @@ fn damaged_segments_are_named_and_resume_falls_back() {
         assert!(contents(&copy) == *want, "{what}: repaired run differs");
         let aside: Vec<String> = std::fs::read_dir(&copy).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).filter(|n| !n.ends_with(".mcap") && !n.ends_with(".json") && !n.starts_with('.')).collect();
         assert_eq!(aside, vec![seg.path.with_extension("mcap.corrupt").file_name().unwrap().to_string_lossy().into_owned()]);
+        let seen = clv(&["inspect", copy.to_str().unwrap()]);
+        let text = String::from_utf8_lossy(&seen.stdout);
+        assert!(seen.status.success() && text.lines().any(|l| l.contains(&aside[0]) && l.contains("safe to delete")), "{text}");
     }
     // The backward stage meeting a damaged segment says how to repair it.
     let copy = base.join("backward-hint");

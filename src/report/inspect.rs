@@ -31,6 +31,9 @@ pub struct Inspection {
     pub checkpoints: u64,
     pub segments: Vec<SegmentReport>,
     pub partial_segments: Vec<String>,
+    /// Segments a repair set aside: damaged ones (`.corrupt`, kept for a look, safe to
+    /// delete) and intact ones waiting for their replacements (`.superseded`).
+    pub set_aside: Vec<String>,
     pub disk_bytes: u64,
     /// Spectrum at the newest intact checkpoint.
     pub exponents: Vec<f64>,
@@ -77,9 +80,15 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     }
     let partial_segments: Vec<String> = dir.partial_segments()?.iter().map(|p| p.display().to_string()).collect();
     let mut disk_bytes = 0;
+    let mut set_aside = Vec::new();
     for entry in std::fs::read_dir(&dir.path).map_err(|e| crate::Error::io(&dir.path, e))?.flatten() {
         disk_bytes += entry.metadata().map(|m| m.len()).unwrap_or(0);
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name.ends_with(".mcap.corrupt") || name.ends_with(".mcap.superseded") {
+            set_aside.push(name);
+        }
     }
+    set_aside.sort();
     let total_steps = meta.config.relax_steps + meta.config.steps;
     let (exponents, stderr) = newest.as_ref().map(|(_, s)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
     Ok(Inspection {
@@ -92,6 +101,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         intact: segments.iter().all(|s| s.damage.is_none()),
         segments,
         partial_segments,
+        set_aside,
         disk_bytes,
         exponents,
         stderr,
@@ -121,6 +131,10 @@ impl Inspection {
         }
         for p in &self.partial_segments {
             let _ = writeln!(s, "  {p}  interrupted (discarded on --resume)");
+        }
+        for name in &self.set_aside {
+            let why = if name.ends_with(".corrupt") { "damaged, set aside by a repair; not read, safe to delete" } else { "set aside by an interrupted repair; removed by the next --resume" };
+            let _ = writeln!(s, "  {name}  {why}");
         }
         if !self.exponents.is_empty() {
             let show: Vec<String> = self.exponents.iter().take(4).map(|x| format!("{x:.5}")).collect();
