@@ -85,10 +85,33 @@ fn crash_target() -> Option<&'static (String, u64)> {
     TARGET
         .get_or_init(|| {
             let v = std::env::var("CLV_FAULT_CRASH_AT").ok()?;
-            let (name, n) = v.split_once('#').map_or((v.as_str(), Some(1)), |(a, b)| (a, b.parse().ok()));
-            Some((name.to_string(), n?))
+            let target = parse_target(&v);
+            if target.is_none() {
+                eprintln!("clv: CLV_FAULT_CRASH_AT={v:?} is not POINT or POINT#N (N >= 1) with a POINT of {CRASH_POINTS:?}; ignored");
+            }
+            target
         })
         .as_ref()
+}
+
+/// `POINT` or `POINT#N` (N >= 1): the point and the occurrence to stop at.
+fn parse_target(v: &str) -> Option<(String, u64)> {
+    let (name, n) = v.split_once('#').map_or(Some((v, 1)), |(a, b)| b.parse().ok().map(|n| (a, n)))?;
+    CRASH_POINTS.contains(&name).then_some(()).filter(|_| n >= 1).map(|_| (name.to_string(), n))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_target;
+
+    #[test]
+    fn crash_targets_name_a_listed_point_and_an_occurrence() {
+        assert_eq!(parse_target("frames-synced"), Some(("frames-synced".into(), 1)));
+        assert_eq!(parse_target("segment-renamed#3"), Some(("segment-renamed".into(), 3)));
+        assert_eq!(parse_target("segment-renamed#0"), None);
+        assert_eq!(parse_target("segment-renamed#"), None);
+        assert_eq!(parse_target("no-such-point"), None);
+    }
 }
 
 static REACHED: AtomicU64 = AtomicU64::new(0);
