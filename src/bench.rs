@@ -202,9 +202,20 @@ fn relaxed_forward(config: &RunConfig) -> Result<Forward> {
 }
 
 pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
-    let (n, threads, reps) = (o.n, o.threads.max(1), o.reps.max(1));
+    let (n, threads, reps) = (o.n, o.threads, o.reps);
+    for (name, value) in [("threads", threads), ("reps", reps), ("n", n)] {
+        if value == 0 {
+            return Err(Error::param(name, "must be at least 1"));
+        }
+    }
     let d = 4 * n;
-    let k = o.k.unwrap_or(d).min(d);
+    if o.k.is_some_and(|k| k == 0 || k > d) {
+        return Err(Error::param("vectors", format!("must be between 1 and D = {d}")));
+    }
+    if let Some(&bad) = o.collision_sizes.iter().find(|&&size| size < 2) {
+        return Err(Error::param("collision-sizes", format!("{bad} disks cannot collide with each other; give sizes of at least 2")));
+    }
+    let k = o.k.unwrap_or(d);
     let p = par(threads);
     let mut rng = Rng::new(7);
 

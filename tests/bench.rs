@@ -23,3 +23,19 @@ fn bench_reports_every_quantity_as_json() {
     assert_eq!((rss[0]["runs"].as_u64(), rss[1]["runs"].as_u64()), (Some(3), Some(1)), "the short run is repeated, its peak the largest");
     assert_eq!(v["backward_peak_rss"].as_array().unwrap().len(), 2);
 }
+
+/// Options that would measure nothing (or never end) are refused, naming the flag.
+#[test]
+fn bench_refuses_options_that_measure_nothing() {
+    for (args, flag) in [
+        (&["--threads", "0"][..], "--threads"),
+        (&["--reps", "0"], "--reps"),
+        (&["--n", "0"], "--n"),
+        (&["--vectors", "5000"], "--vectors"),
+        (&["--collision-sizes", "8,1"], "--collision-sizes"),
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_clv")).arg("bench").args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(&format!("invalid {flag}")), "{args:?}: {err}");
+    }
+}
