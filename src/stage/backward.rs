@@ -243,11 +243,12 @@ impl Checkpoints {
                         found = Some(m.data.to_vec());
                     }
                     Ok(())
-                })?;
-                found.ok_or_else(|| Error::corrupt(&seg, format!("no checkpoint at step {step}")))?
+                })
+                .map_err(damaged)?;
+                found.ok_or_else(|| damaged(Error::corrupt(&seg, format!("no checkpoint at step {step}"))))?
             }
         };
-        let cp = Checkpoint::decode(&bytes).map_err(|e| Error::corrupt(&seg, format!("step {step}: {e}")))?.state;
+        let cp = Checkpoint::decode(&bytes).map_err(|e| damaged(Error::corrupt(&seg, format!("step {step}: {e}"))))?.state;
         let cp = Arc::new(cp);
         self.last = Some(cp.clone());
         Ok(cp)
@@ -263,9 +264,22 @@ impl Checkpoints {
                     out.insert(m.step, pack_upper(r.as_ref()));
                 }
                 Ok(())
-            })?;
+            })
+            .map_err(damaged)?;
         }
         Ok(out)
+    }
+}
+
+/// A run segment that does not read back, with the way to repair it.
+fn damaged(e: Error) -> Error {
+    match e {
+        Error::Corrupt { path, msg } => Error::Other(format!(
+            "{}: corrupt or unreadable: {msg}; the forward stage recomputes it and the segments after it, with bit-identical numbers: run `clv forward --resume {}`, then this again",
+            path.display(),
+            path.parent().map(|p| p.display().to_string()).unwrap_or_default()
+        )),
+        e => e,
     }
 }
 
@@ -485,24 +499,6 @@ pub type OnProgress<'a> = &'a mut dyn FnMut(u64, u64);
 /// Run the backward pass over the run in `path`, handing every frame to `consumer`
 /// (newest first). Frames are also saved to the frame file if the options ask for one.
 pub fn run(
-    path: &Path,
-    opts: &BackwardOptions,
-    resume: bool,
-    memory_bytes: u64,
-    consumer: &mut dyn FnMut(Arc<Frame>) -> Result<Flow>,
-    on_progress: OnProgress,
-) -> Result<BackwardReport> {
-    sweep(path, opts, resume, memory_bytes, consumer, on_progress).map_err(|e| match e {
-        Error::Corrupt { path: file, msg } if RunDir { path: path.to_path_buf() }.segments().is_ok_and(|segs| segs.iter().any(|s| s.path == file)) => Error::Other(format!(
-            "{}: corrupt or unreadable: {msg}; the forward stage recomputes it and the segments after it, with bit-identical numbers: run `clv forward --resume {}`, then this again",
-            file.display(),
-            path.display()
-        )),
-        e => e,
-    })
-}
-
-fn sweep(
     path: &Path,
     opts: &BackwardOptions,
     resume: bool,
