@@ -210,7 +210,7 @@ struct BackwardArgs {
 
 #[derive(Args)]
 struct InspectArgs {
-    /// The run directory.
+    /// A run directory, or a frame file written by `clv backward --out FILE`.
     dir: PathBuf,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
@@ -672,6 +672,22 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
 }
 
 fn inspect_cmd(args: &InspectArgs) -> Result<()> {
+    if args.dir.is_file() {
+        let found = inspect::inspect_frames(&args.dir)?;
+        if args.json {
+            println!("{}", serde_json::to_string(&found).map_err(|e| Error::Other(e.to_string()))?);
+        } else {
+            print!("{}", found.text());
+        }
+        return match &found.damage {
+            None => Ok(()),
+            Some(_) => Err(Error::Other(format!(
+                "{}: damaged or cut short; its {} complete frames can still be analysed, and `clv backward RUN_DIR --out FILE --resume` continues a sweep that was interrupted",
+                args.dir.display(),
+                found.frames
+            ))),
+        };
+    }
     let found = inspect::inspect(&args.dir)?;
     if args.json {
         println!("{}", serde_json::to_string(&found).map_err(|e| Error::Other(e.to_string()))?);

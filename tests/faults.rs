@@ -329,7 +329,17 @@ fn damaged_frame_files_and_cut_streams_are_reported() {
         let err = stderr(&out);
         assert!(!out.status.success(), "damage {i} at byte {at} went unnoticed");
         assert!(err.contains(&format!("damaged-{i}.mcap")) && !err.contains("panicked"), "{err}");
+        // clv inspect finds the same damage.
+        let seen = clv(&["inspect", path.to_str().unwrap()]);
+        assert!(!seen.status.success() && !stderr(&seen).contains("panicked"), "inspect missed damage {i} at byte {at}");
     }
+    // ... and summarises the intact file.
+    let seen = ok(clv(&["inspect", file.to_str().unwrap(), "--json"]));
+    let v: serde_json::Value = serde_json::from_slice(&seen.stdout).unwrap();
+    let want = frames(&file);
+    assert_eq!(v["frames"].as_u64(), Some(want.len() as u64));
+    assert_eq!(v["with_vectors"], v["frames"]);
+    assert!(v["damage"].is_null() && v["backward"]["vectors_every"] == 1, "{v}");
     // A stream that ends mid-record on stdin.
     let cut = &bytes[..bytes.len() * 2 / 3];
     let mut child = Command::new(env!("CARGO_BIN_EXE_clv"))

@@ -1,4 +1,4 @@
-//! `clv inspect`: what a run directory holds and whether every file is intact.
+//! `clv inspect`: what a run directory or a frame file holds and whether it is intact.
 
 use crate::error::Result;
 use crate::store::records::{Checkpoint, Stats};
@@ -141,6 +141,68 @@ impl Inspection {
             let _ = writeln!(s, "spectrum so far: lambda_1.. = {} ... lambda_k = {:.5}", show.join(", "), self.exponents.last().unwrap_or(&f64::NAN));
         }
         let _ = writeln!(s, "{}", if self.intact { "all finished files intact" } else { "DAMAGE FOUND (see above): `clv forward --resume` recomputes the damaged segments" });
+        s
+    }
+}
+
+/// What a frame file (written by `clv backward --out FILE`) holds.
+#[derive(Debug, Serialize)]
+pub struct FrameFileInspection {
+    pub frames: u64,
+    /// Steps of the oldest and newest frame.
+    pub steps: Option<(u64, u64)>,
+    /// Phase-space dimension D and number of vectors k.
+    pub d: usize,
+    pub k: usize,
+    /// Frames that carry V_n (all but those `--vectors-every` skipped), and G_n.
+    pub with_vectors: u64,
+    pub with_gs: u64,
+    /// The backward stage's options, as the stream records them (`backward.json`).
+    pub backward: Option<serde_json::Value>,
+    /// None if the file reads back whole, else where it ends or what is wrong.
+    pub damage: Option<String>,
+}
+
+/// Read a frame file whole (every CRC checked) and summarise it.
+pub fn inspect_frames(path: &Path) -> Result<FrameFileInspection> {
+    let mut found = FrameFileInspection { frames: 0, steps: None, d: 0, k: 0, with_vectors: 0, with_gs: 0, backward: None, damage: None };
+    let mut backward_json = None;
+    let damage = crate::store::frames::read_frames_with(
+        path,
+        |info| {
+            backward_json = info.backward_json;
+            Ok(())
+        },
+        |f| {
+            found.frames += 1;
+            found.steps = Some(found.steps.map_or((f.step, f.step), |(lo, hi)| (lo.min(f.step), hi.max(f.step))));
+            (found.d, found.k) = (f.d, f.k);
+            found.with_vectors += u64::from(!f.v.is_empty());
+            found.with_gs += u64::from(f.g.is_some());
+            Ok(crate::store::frames::Flow::Continue)
+        },
+    )?;
+    if found.frames == 0 && damage.is_none() {
+        return Err(crate::Error::Other(format!(
+            "{} holds no frames: `clv inspect` reads a run directory or a frame file written by `clv backward --out FILE`",
+            path.display()
+        )));
+    }
+    found.backward = backward_json.and_then(|j| serde_json::from_str(&j).ok());
+    found.damage = damage;
+    Ok(found)
+}
+
+impl FrameFileInspection {
+    pub fn text(&self) -> String {
+        let mut s = String::new();
+        let steps = self.steps.map_or("none".into(), |(lo, hi)| format!("{lo}..{hi}"));
+        let _ = writeln!(s, "frame file: {} frames, steps {steps}, D = {}, k = {}", self.frames, self.d, self.k);
+        let _ = writeln!(s, "covariant vectors V_n in {} frames, Gram-Schmidt vectors G_n in {}", self.with_vectors, self.with_gs);
+        if let Some(b) = &self.backward {
+            let _ = writeln!(s, "backward options: {b}");
+        }
+        let _ = writeln!(s, "{}", self.damage.as_ref().map_or("intact".to_string(), |d| format!("DAMAGED: {d}")));
         s
     }
 }
