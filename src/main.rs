@@ -430,6 +430,9 @@ fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
             eprintln!("clv: configuration: {}", serde_json::to_string(&meta.config).unwrap_or_default());
             eprintln!("clv: writing {}: {}", dir.display(), meta.store.footprint(&meta.config).1);
         }
+        if let Some(warning) = clv::store::run::space_warning(dir, meta.store.footprint(&meta.config).0) {
+            eprintln!("clv: {warning}");
+        }
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
         let outcome = forward_run::create(dir, &meta, &mut feedback)?;
         if let Some(bar) = &feedback.bar {
@@ -613,6 +616,10 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if stored.is_none() || given("vectors_every") {
         opts.vectors_every = args.vectors_every;
     }
+    if let Some(path) = &opts.frames_path
+        && let Some(warning) = clv::store::run::space_warning(path, backward::frame_file_bytes(&meta, &opts)) {
+            eprintln!("clv: {warning} (--save-every m keeps one frame in m)");
+        }
     let stream_meta = backward::stream_info(&dir, &meta, &opts).metadata();
     let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
     // Two bars: segments recomputed (from the checkpoints) and frames emitted by the sweep.

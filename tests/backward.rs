@@ -263,6 +263,12 @@ fn killed_between_the_finished_file_and_its_record_resumes() {
     backward_json(&dir, &["--out", &format!("{d}/full.mcap")]);
     let sweep_ms = started.elapsed().as_secs_f64() * 1e3;
     let want = frames(&dir.join("full.mcap"));
+    // The size the disk-space warning expects is the file's, within 10 %.
+    let (_, meta) = clv::store::RunDir::open(&dir).unwrap();
+    let mut opts = clv::stage::backward::BackwardOptions::for_run(&meta);
+    opts.frames_path = Some(dir.join("full.mcap"));
+    let (expected, actual) = (clv::stage::backward::frame_file_bytes(&meta, &opts), std::fs::metadata(dir.join("full.mcap")).unwrap().len());
+    assert!((expected as f64 / actual as f64 - 1.0).abs() < 0.1, "expected {expected} bytes, the file has {actual}");
     let (out, record) = (dir.join("part.mcap"), dir.join("backward.json"));
     let o = out.to_str().unwrap();
     // A sweep stopped with a progress record and its FILE.tmp: the state just before the end.

@@ -146,6 +146,13 @@ fn a_crash_between_any_two_durable_steps_is_recovered() {
 #[test]
 fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
     let (_, want) = reference("full-ref");
+    // A disk too small for the run is pointed out before it starts.
+    let dir = scratch("faults", "full-warned").join("run");
+    let args = forward_args(&dir);
+    let out = clv_env(&args.iter().map(String::as_str).collect::<Vec<_>>(), &[("CLV_FAULT_DISK_FREE", "100000")]);
+    let err = stderr(&ok(out));
+    assert!(err.contains("warning") && err.contains("100 kB free"), "{err}");
+    assert!(contents(&dir) == want);
     for limit in ["20000", "400000", "900000"] {
         let dir = scratch("faults", &format!("full-{limit}")).join("run");
         let args = forward_args(&dir);

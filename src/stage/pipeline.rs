@@ -46,6 +46,9 @@ pub fn run(config: &RunConfig, out: &Path, feedback: &mut Feedback, say: &mut dy
     } else {
         let meta = RunMeta { format: FORMAT.into(), config: config.clone(), store: StoreConfig::for_run(config), build: BuildInfo::current() };
         say(format!("forward pass into {} ({})", run_dir.display(), meta.store.footprint(config).1));
+        if let Some(warning) = crate::store::run::space_warning(&run_dir, meta.store.footprint(config).0) {
+            eprintln!("clv run: {warning}");
+        }
         forward_run::create(&run_dir, &meta, feedback)?;
     }
     let (dir, meta) = RunDir::open(&run_dir)?;

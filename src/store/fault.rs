@@ -56,6 +56,12 @@ impl Seek for Output {
     }
 }
 
+/// With `CLV_FAULT_DISK_FREE=BYTES`, the free space the store reports for any file system
+/// (so that tests can see the warning a too-small disk gets without filling one).
+pub fn fake_free_bytes() -> Option<u64> {
+    std::env::var("CLV_FAULT_DISK_FREE").ok().and_then(|v| v.parse().ok())
+}
+
 /// Every point between two durable steps of the store, in the order a run meets them.
 pub const CRASH_POINTS: &[&str] = &[
     // write_atomic (run.json, spectrum.json, backward.json, clv_spectrum.json)

@@ -113,6 +113,44 @@ impl StoreConfig {
     }
 }
 
+/// Bytes free for an unprivileged user on the file system that holds `path` (or would hold
+/// it: its nearest existing ancestor); None where it cannot be found out.
+pub fn free_bytes(path: &Path) -> Option<u64> {
+    if let Some(fake) = super::fault::fake_free_bytes() {
+        return Some(fake);
+    }
+    let existing = path.ancestors().find(|p| !p.as_os_str().is_empty() && p.exists()).unwrap_or(Path::new("."));
+    statvfs_free(existing)
+}
+
+#[cfg(unix)]
+fn statvfs_free(path: &Path) -> Option<u64> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = std::ffi::CString::new(path.as_os_str().as_bytes()).ok()?;
+    let mut st = std::mem::MaybeUninit::<libc::statvfs>::uninit();
+    // SAFETY: `c` is a NUL-terminated path and `st` is written by statvfs before it is read.
+    let st = unsafe { (libc::statvfs(c.as_ptr(), st.as_mut_ptr()) == 0).then(|| st.assume_init())? };
+    Some((st.f_bavail as u64).saturating_mul(st.f_frsize as u64))
+}
+
+#[cfg(not(unix))]
+fn statvfs_free(_: &Path) -> Option<u64> {
+    None
+}
+
+/// A warning when `needed` bytes will not fit in the free space where `path` is written.
+pub fn space_warning(path: &Path, needed: u64) -> Option<String> {
+    let free = free_bytes(path)?;
+    (free < needed).then(|| {
+        format!(
+            "warning: this needs about {} on disk, and the file system of {} has {} free; when it fills, the run stops cleanly and continues with --resume once there is space",
+            human(needed),
+            path.display(),
+            human(free)
+        )
+    })
+}
+
 pub fn human(bytes: u64) -> String {
     let b = bytes as f64;
     if b >= 1e9 {
@@ -351,4 +389,15 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         segment::sync_dir(if dir.as_os_str().is_empty() { Path::new(".") } else { dir })?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::free_bytes;
+
+    #[test]
+    fn free_space_is_found_for_a_directory_not_made_yet() {
+        let path = std::env::temp_dir().join("clv-no-such-dir").join("run");
+        assert!(free_bytes(&path).is_some_and(|b| b > 0));
+    }
 }
