@@ -678,14 +678,20 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     Ok(())
 }
 
+/// An inspection as one JSON object, or as its text.
+fn print_inspection<T: serde::Serialize>(found: &T, text: String, json: bool) -> Result<()> {
+    if json {
+        println!("{}", serde_json::to_string(found).map_err(|e| Error::Other(e.to_string()))?);
+    } else {
+        print!("{text}");
+    }
+    Ok(())
+}
+
 fn inspect_cmd(args: &InspectArgs) -> Result<()> {
     if args.dir.is_file() {
         let found = inspect::inspect_frames(&args.dir)?;
-        if args.json {
-            println!("{}", serde_json::to_string(&found).map_err(|e| Error::Other(e.to_string()))?);
-        } else {
-            print!("{}", found.text());
-        }
+        print_inspection(&found, found.text(), args.json)?;
         return match &found.damage {
             None => Ok(()),
             Some(_) => Err(Error::Other(format!(
@@ -696,11 +702,7 @@ fn inspect_cmd(args: &InspectArgs) -> Result<()> {
         };
     }
     let found = inspect::inspect(&args.dir)?;
-    if args.json {
-        println!("{}", serde_json::to_string(&found).map_err(|e| Error::Other(e.to_string()))?);
-    } else {
-        print!("{}", found.text());
-    }
+    print_inspection(&found, found.text(), args.json)?;
     if found.intact { Ok(()) } else { Err(Error::Other(format!("{}: damaged files found (see above); repair them with `clv forward --resume {}`", args.dir.display(), args.dir.display()))) }
 }
 
