@@ -17,15 +17,21 @@ fn read(path: &Path) -> String {
 
 const RUN: [&str; 14] = ["forward", "--quiet", "--n", "10", "--aspect", "1", "--steps", "2000", "--clv-steps", "400", "--transient", "300", "--relax-steps", "200"];
 
+/// A finished forward run of RUN in base/run.
+fn forward_in(base: &Path) -> PathBuf {
+    let run = base.join("run");
+    ok(clv(&[&RUN[..], &["--out", run.to_str().unwrap()]].concat()));
+    run
+}
+
 /// Tables every analysis writes whatever the system (compared byte for byte).
 const TABLES: [&str; 2] = ["spectrum.csv", "localization.csv"];
 
 #[test]
 fn shell_pipes_give_the_same_numbers_as_files_and_concurrency_changes_nothing() {
     let base = scratch("pipes");
-    let run = base.join("run");
+    let run = forward_in(&base);
     let r = run.to_str().unwrap();
-    ok(clv(&[&RUN[..], &["--out", r]].concat()));
     // Through real pipes: clv backward RUN --out - | clv analyze - --out DIR. The pipe
     // carries the frames newest first, the file gives them oldest first: with every 7th
     // frame sampled (by its step), both sample the same frames.
@@ -82,8 +88,7 @@ fn analyze_refuses_bad_sources_clearly() {
     // A directory without frames, and a run segment instead of frames: what to run instead.
     let err = common::stderr(&clv(&["analyze", base.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
     assert!(err.contains("a directory without a frame file") && err.contains("clv backward"), "{err}");
-    let run = base.join("run");
-    ok(clv(&[&RUN[..], &["--out", run.to_str().unwrap()]].concat()));
+    let run = forward_in(&base);
     let segment = clv::store::RunDir { path: run.clone() }.segments().unwrap().remove(0).path;
     let err = common::stderr(&clv(&["analyze", segment.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
     assert!(err.contains("is a segment of a run directory") && err.contains("clv backward"), "{err}");
@@ -144,9 +149,8 @@ fn clv_run_on_the_default_preset_writes_the_report() {
 #[test]
 fn vectors_for_every_mth_frame_give_the_analyses_of_the_full_stream() {
     let base = scratch("sparse");
-    let run = base.join("run");
+    let run = forward_in(&base);
     let r = run.to_str().unwrap();
-    ok(clv(&[&RUN[..], &["--out", r]].concat()));
     let (full, sparse) = (base.join("full.mcap"), base.join("sparse.mcap"));
     ok(clv(&["backward", r, "--out", full.to_str().unwrap(), "--with-gs", "--quiet"]));
     ok(clv(&["backward", r, "--out", sparse.to_str().unwrap(), "--with-gs", "--quiet", "--vectors-every", "3"]));
@@ -188,8 +192,7 @@ fn python_reads_frame_files() {
         return;
     }
     let base = scratch("python");
-    let run = base.join("run");
-    ok(clv(&[&RUN[..], &["--out", run.to_str().unwrap()]].concat()));
+    let run = forward_in(&base);
     let frames = base.join("f.mcap");
     let report: serde_json::Value = serde_json::from_slice(&ok(clv(&["backward", run.to_str().unwrap(), "--out", frames.to_str().unwrap(), "--with-gs", "--quiet", "--json"])).stdout).unwrap();
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/read_frames.py");
