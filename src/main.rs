@@ -564,12 +564,8 @@ fn spectrum(config: RunConfig, json: bool, quiet: bool) -> Result<()> {
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }
-    let report = SpectrumReport {
-        exponents: fwd.acc.exponents(config.tau),
-        stderr: fwd.acc.stderr(config.tau),
-        statistics: Statistics::new(&config, &start, &fwd.system.invariants(), started.elapsed().as_secs_f64()),
-        config,
-    };
+    let statistics = Statistics::new(&config, &start, &fwd.system.invariants(), started.elapsed().as_secs_f64());
+    let report = SpectrumReport::new(config, &fwd.acc, statistics);
     print_report(&report, json)
 }
 
@@ -672,6 +668,8 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
                 report.gs_stderr.get(i).copied().unwrap_or(f64::NAN)
             );
         }
+        let entropy = |h: Option<clv::stage::forward::Estimate>| h.map_or("not known".to_string(), |h| h.to_string());
+        println!("KS entropy (sum of the positive exponents): {} (CLV), {} (GS)", entropy(report.ks_entropy), entropy(report.gs_ks_entropy));
         let st = &report.statistics;
         println!("{} frames (steps {}..{}), {} steps recomputed in {} segments, {:.1} s", st.frames, st.first_frame_step, st.last_frame_step, st.recomputed_steps, st.segments, st.wall_seconds);
     }

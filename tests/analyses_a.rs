@@ -322,6 +322,24 @@ fn overlaps_show_the_triangular_structure() {
     }
 }
 
+/// The spectrum's caption gives h_KS (Pesin) for both spectra: the sums of the positive
+/// exponents of spectrum.csv, each with an error.
+#[test]
+fn ks_entropy_is_the_sum_of_the_positive_exponents() {
+    let s = summary();
+    let caption = s["produced"][0]["caption"].as_str().unwrap();
+    let stated = caption.split("Pesin's identity): ").nth(1).unwrap_or_else(|| panic!("no h_KS in {caption:?}"));
+    let spectrum = Table::read("spectrum.csv");
+    for (part, column) in stated.split(", ").zip(["lambda_gs", "lambda_clv"]) {
+        let (value, rest) = part.split_once(" ± ").unwrap_or_else(|| panic!("no error in {part:?}"));
+        let value: f64 = value.parse().unwrap();
+        let error: f64 = rest.split(' ').next().unwrap().parse().unwrap();
+        let positive: f64 = spectrum.col(column).iter().filter(|&&l| l > 0.0).sum();
+        assert!((value - positive).abs() < 1e-6 * positive, "{column}: h_KS {value}, positive exponents sum to {positive}");
+        assert!(error > 0.0 && error < 0.05 * value, "{column}: error {error} of h_KS {value}");
+    }
+}
+
 #[test]
 fn local_exponents_agree_with_the_spectrum_and_domination_improves() {
     let ts = Table::read("local_exponents.csv");

@@ -5,6 +5,7 @@ pub mod inspect;
 pub mod plot;
 
 use crate::config::RunConfig;
+use crate::stage::forward::{kaplan_yorke_dimension, Accumulator, Estimate};
 use crate::system::Invariants;
 use serde::Serialize;
 use std::fmt::Write;
@@ -51,10 +52,27 @@ pub struct SpectrumReport {
     pub exponents: Vec<f64>,
     /// Standard error of each exponent (block averages).
     pub stderr: Vec<f64>,
+    /// h_KS, the sum of the positive exponents (Pesin's identity); None when all k are positive.
+    pub ks_entropy: Option<Estimate>,
+    /// D_KY (Kaplan-Yorke); None when the k exponents do not decide it.
+    pub kaplan_yorke_dimension: Option<f64>,
     pub statistics: Statistics,
 }
 
 impl SpectrumReport {
+    /// The report of a forward pass whose exponents are accumulated in `acc`.
+    pub fn new(config: RunConfig, acc: &Accumulator, statistics: Statistics) -> Self {
+        let exponents = acc.exponents(config.tau);
+        SpectrumReport {
+            stderr: acc.stderr(config.tau),
+            ks_entropy: acc.ks_entropy(config.tau),
+            kaplan_yorke_dimension: kaplan_yorke_dimension(&exponents, config.system.dim()),
+            exponents,
+            statistics,
+            config,
+        }
+    }
+
     /// A plain-text table: index, exponent, error; then the sum and, for a full spectrum of a
     /// symplectic system, the conjugate-pair sums lambda_i + lambda_{D+1-i}.
     pub fn table(&self) -> String {
@@ -68,11 +86,22 @@ impl SpectrumReport {
         }
         let st = &self.statistics;
         let _ = writeln!(s, "sum of exponents: {:+.3e}", l.iter().sum::<f64>());
-        let _ = writeln!(
-            s,
-            "{} steps (t = {}), {} collisions, {:.1} s wall, energy drift {:.1e}",
-            st.steps, st.simulated_time, st.collisions, st.wall_seconds, st.energy_drift
-        );
+        if let Some(h) = self.ks_entropy {
+            let per = match self.config.system {
+                crate::config::SystemConfig::Disks { n, .. } => format!(", {:.6} per disk", h.value / n as f64),
+                _ => String::new(),
+            };
+            let _ = writeln!(s, "KS entropy (sum of the positive exponents): {h}{per}");
+        }
+        if let Some(d) = self.kaplan_yorke_dimension {
+            let _ = writeln!(s, "Kaplan-Yorke dimension: {d:.6} (of D = {})", self.config.system.dim());
+        }
+        let _ = write!(s, "{} steps (t = {}), ", st.steps, st.simulated_time);
+        if matches!(self.config.system, crate::config::SystemConfig::Disks { .. }) {
+            let _ = writeln!(s, "{} collisions, {:.1} s wall, energy drift {:.1e}", st.collisions, st.wall_seconds, st.energy_drift);
+        } else {
+            let _ = writeln!(s, "{:.1} s wall", st.wall_seconds);
+        }
         s
     }
 }
@@ -82,6 +111,9 @@ impl SpectrumReport {
 pub struct SpectrumSummary {
     pub exponents: Vec<f64>,
     pub stderr: Vec<f64>,
+    /// Absent from the files of builds before it was reported.
+    #[serde(default)]
+    pub ks_entropy: Option<Estimate>,
 }
 
 impl SpectrumSummary {

@@ -21,7 +21,7 @@
 //!   older end, the accumulated exponents, frames written) is saved: `--resume` continues
 //!   bit for bit from there.
 
-use super::forward::{Accumulator, Forward, ForwardState};
+use super::forward::{Accumulator, Estimate, Forward, ForwardState};
 use super::frame::{on_stride, Frame};
 use crate::config::RunConfig;
 use crate::error::{Error, Result};
@@ -121,6 +121,11 @@ pub struct BackwardReport {
     /// The forward Gram-Schmidt spectrum of the same run.
     pub gs_exponents: Vec<f64>,
     pub gs_stderr: Vec<f64>,
+    /// h_KS from the CLV and from the GS spectrum (absent from older reports).
+    #[serde(default)]
+    pub ks_entropy: Option<Estimate>,
+    #[serde(default)]
+    pub gs_ks_entropy: Option<Estimate>,
     pub options: BackwardOptions,
     pub statistics: BackwardStats,
     /// What the stage did that a person should know (not stored).
@@ -756,8 +761,10 @@ pub fn run(
     let report = BackwardReport {
         exponents: acc.exponents(1.0),
         stderr: acc.stderr(1.0),
+        ks_entropy: acc.ks_entropy(1.0),
         gs_exponents: gs.exponents,
         gs_stderr: gs.stderr,
+        gs_ks_entropy: gs.ks_entropy,
         options: opts.clone(),
         statistics: stats.clone(),
         notes,

@@ -57,20 +57,67 @@ impl Accumulator {
     /// Standard error of each exponent from the spread of the block averages (NaN with
     /// fewer than two completed blocks).
     pub fn stderr(&self, tau: f64) -> Vec<f64> {
-        let nb = self.blocks.len();
         let t = self.block_len as f64 * tau;
-        (0..self.sum.len())
-            .map(|i| {
-                if nb < 2 {
-                    return f64::NAN;
-                }
-                let e: Vec<f64> = self.blocks.iter().map(|b| b[i] / t).collect();
-                let mean = e.iter().sum::<f64>() / nb as f64;
-                let var = e.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (nb - 1) as f64;
-                (var / nb as f64).sqrt()
-            })
-            .collect()
+        (0..self.sum.len()).map(|i| standard_error(&self.blocks.iter().map(|b| b[i] / t).collect::<Vec<_>>())).collect()
     }
+
+    /// Kolmogorov-Sinai entropy by Pesin's identity, h_KS = sum of the positive lambda_i,
+    /// with its standard error from the block sums of the same exponents (NaN with fewer than
+    /// two completed blocks). None when every one of the k exponents is positive: the
+    /// positive part of the spectrum was then not all computed.
+    pub fn ks_entropy(&self, tau: f64) -> Option<Estimate> {
+        let lambda = self.exponents(tau);
+        if lambda.iter().all(|&l| l > 0.0) {
+            return None;
+        }
+        let positive = |sums: &[f64], t: f64| sums.iter().zip(&lambda).filter(|(_, l)| **l > 0.0).map(|(s, _)| s / t).sum::<f64>();
+        let value = positive(&self.sum, self.steps.max(1) as f64 * tau);
+        let t = self.block_len as f64 * tau;
+        let per_block: Vec<f64> = self.blocks.iter().map(|b| positive(b, t)).collect();
+        Some(Estimate { value, stderr: standard_error(&per_block) })
+    }
+}
+
+/// A time average with its standard error (batch means).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Estimate {
+    pub value: f64,
+    pub stderr: f64,
+}
+
+impl std::fmt::Display for Estimate {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "{:.6} ± {:.1e}", self.value, self.stderr)
+    }
+}
+
+/// Standard error of the mean of `x` (NaN with fewer than two values).
+fn standard_error(x: &[f64]) -> f64 {
+    let n = x.len();
+    if n < 2 {
+        return f64::NAN;
+    }
+    let mean = x.iter().sum::<f64>() / n as f64;
+    let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
+    (var / n as f64).sqrt()
+}
+
+/// Kaplan-Yorke (Lyapunov) dimension D_KY = j + (lambda_1 + ... + lambda_j) / |lambda_(j+1)|,
+/// j the largest index whose partial sum is not negative (Kaplan & Yorke 1979). For a
+/// system that preserves phase volume (hard disks) it is the dimension D of phase space.
+/// None when the k = `lambda.len()` exponents of a D-dimensional system stay non-negative
+/// in sum, so that the vectors not followed would decide it.
+pub fn kaplan_yorke_dimension(lambda: &[f64], d: usize) -> Option<f64> {
+    let mut sorted = lambda.to_vec();
+    sorted.sort_by(|a, b| b.total_cmp(a));
+    let mut partial = 0.0;
+    for (j, &l) in sorted.iter().enumerate() {
+        if partial + l < 0.0 {
+            return Some(j as f64 + partial / l.abs());
+        }
+        partial += l;
+    }
+    (sorted.len() == d).then_some(d as f64)
 }
 
 /// The complete state of a forward pass at a step boundary (what a checkpoint holds).
@@ -220,6 +267,36 @@ impl Forward {
 mod tests {
     use super::*;
     use crate::config::SystemConfig;
+
+    #[test]
+    fn kaplan_yorke_dimension_interpolates_where_the_partial_sums_turn_negative() {
+        let d_ky = |l: &[f64], d| kaplan_yorke_dimension(l, d);
+        assert_eq!(d_ky(&[0.4, -1.6], 2), Some(1.25));
+        assert_eq!(d_ky(&[-1.6, 0.4], 2), Some(1.25), "order of the input");
+        assert_eq!(d_ky(&[2.0, 1.0, -1.0, -4.0], 4), Some(3.5));
+        assert_eq!(d_ky(&[2.0, 1.0, -1.0, -2.0], 4), Some(4.0), "volume preserving");
+        assert_eq!(d_ky(&[-0.1, -0.2], 2), Some(0.0), "a stable fixed point");
+        assert_eq!(d_ky(&[2.0, 1.0, -1.0], 4), None, "lambda_4 not known");
+        assert_eq!(d_ky(&[2.0, 1.0, -4.0], 4), Some(2.75), "decided by the k leading exponents");
+    }
+
+    /// h_KS is the sum of the positive exponents; its error comes from the same blocks as
+    /// the exponents' errors, so with one positive exponent the two coincide.
+    #[test]
+    fn ks_entropy_sums_the_positive_exponents_with_their_block_error() {
+        let mut acc = Accumulator::new(3, 2);
+        for n in 0..20 {
+            let wobble = if n % 4 < 2 { 0.1 } else { -0.1 };
+            acc.add_logs([1.0 + wobble, -0.5 - 0.3 * wobble, -2.0].into_iter());
+        }
+        let h = acc.ks_entropy(0.5).unwrap();
+        assert_eq!(h.value, acc.exponents(0.5)[0]);
+        assert_eq!(h.stderr, acc.stderr(0.5)[0]);
+        assert!(h.stderr > 0.0);
+        let mut all_positive = Accumulator::new(2, 2);
+        all_positive.add_logs([1.0, 0.5].into_iter());
+        assert_eq!(all_positive.ks_entropy(1.0), None);
+    }
 
     /// A used pass restored to a saved state continues exactly as a fresh pass resumed from it.
     #[test]

@@ -195,12 +195,7 @@ fn read_last(path: &Path) -> Result<LastCheckpoint> {
 
 fn report_of(meta: &RunMeta, fwd: &Forward, energy0: f64, wall: f64) -> SpectrumReport {
     let start = Invariants { energy: energy0, ..Default::default() };
-    SpectrumReport {
-        config: meta.config.clone(),
-        exponents: fwd.acc.exponents(meta.config.tau),
-        stderr: fwd.acc.stderr(meta.config.tau),
-        statistics: Statistics::new(&meta.config, &start, &fwd.system.invariants(), wall),
-    }
+    SpectrumReport::new(meta.config.clone(), &fwd.acc, Statistics::new(&meta.config, &start, &fwd.system.invariants(), wall))
 }
 
 fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f64, write_first: bool, feedback: &mut Feedback) -> Result<SpectrumReport> {

@@ -5,7 +5,7 @@
 use super::{save_figure, write_csv, Analysis, Context, Produced};
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
-use crate::stage::forward::Accumulator;
+use crate::stage::forward::{Accumulator, Estimate};
 use crate::stage::frame::Frame;
 use std::path::Path;
 
@@ -48,10 +48,15 @@ impl Analysis for Spectrum {
         fig.series("CLV (backward)", &x, &clv, Marker::Line);
         fig.hline(0.0);
         save_figure(&fig, out, "fig2_spectrum")?;
+        let entropy = |h: Option<Estimate>| h.map_or("not known".to_string(), |h| h.to_string());
+        let gs_h = ctx.gs.as_ref().and_then(|g| g.ks_entropy);
         let mut produced = vec![Produced {
             title: "Lyapunov spectrum (Fig. 2)".into(),
             caption: format!(
-                "Forward Gram-Schmidt exponents (time average of ln R_ii) and backward covariant exponents (time average of the local CLV exponents over {frames} frames) against the reduced index i/4N."
+                "Forward Gram-Schmidt exponents (time average of ln R_ii) and backward covariant exponents (time average of the local CLV exponents over {frames} frames) against the reduced index i/4N. \
+                 Kolmogorov-Sinai entropy h_KS, the sum of the positive exponents (Pesin's identity): {} (GS), {} (CLV).",
+                entropy(gs_h),
+                entropy(self.acc.ks_entropy(1.0)),
             ),
             figures: vec!["fig2_spectrum".into()],
             tables: vec!["spectrum.csv".into()],
