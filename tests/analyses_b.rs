@@ -111,7 +111,7 @@ fn disk_modes_and_transversality() {
     assert!(theta_min.iter().all(|r| num(r, "min_theta") >= 0.0 && num(r, "min_theta") <= std::f64::consts::FRAC_PI_2));
 
     let t_stem = format!("fig10_T1_i{}", t1["last"]);
-    let mut stems = vec!["fig15_transversality".to_string(), "fig16_theta_distributions".into(), "fig17_theta_min".into()];
+    let mut stems = vec!["fig15_transversality".to_string(), "fig16_theta_distributions".into(), "fig17_theta_min".into(), "modes_dispersion".into()];
     if t1["side"] == "+" {
         stems.extend([format!("{t_stem}_dqy"), format!("{t_stem}_dpy")]);
     }
@@ -119,7 +119,7 @@ fn disk_modes_and_transversality() {
         check_figure(&report, stem);
     }
     let index = std::fs::read_to_string(report.join("index.html")).unwrap();
-    for table in ["modes.csv", "modes.json", "transversality.csv", "theta_histograms.csv", "theta_min.csv"] {
+    for table in ["modes.csv", "modes.json", "modes_dispersion.csv", "transversality.csv", "theta_histograms.csv", "theta_min.csv"] {
         assert!(index.contains(&format!("href=\"{table}\"")), "index.html does not link {table}");
     }
 }

@@ -433,8 +433,64 @@ impl Analysis for Modes {
         };
         produced.push(Produced { title: "Lyapunov modes (Table IV)".into(), caption, figures: vec![], tables });
         produced.extend(pattern_entries);
+        produced.extend(dispersion(ctx, &rows, out)?);
         Ok(produced)
     }
+}
+
+/// Least-squares line through the origin, y = c x: c and its standard error from the
+/// residuals (NaN with fewer than two points).
+fn fit_through_origin(x: &[f64], y: &[f64]) -> (f64, f64) {
+    let sxx: f64 = x.iter().map(|x| x * x).sum();
+    let c = x.iter().zip(y).map(|(x, y)| x * y).sum::<f64>() / sxx;
+    let m = x.len();
+    let se = if m < 2 { f64::NAN } else { (x.iter().zip(y).map(|(x, y)| (y - c * x).powi(2)).sum::<f64>() / (m - 1) as f64 / sxx).sqrt() };
+    (c, se)
+}
+
+/// The dispersion relation of the modes (beyond the paper): the exponent of each positive,
+/// consistently classified step against its wave number k = 2 pi n_x / L_x, per kind, with a
+/// line through the origin. The kinetic theory of Lyapunov modes (de Wijn & van Beijeren,
+/// Phys. Rev. E 70, 016207 (2004)) gives lambda proportional to k at small k; how far
+/// lambda / k drifts with n_x shows where that ends.
+fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Produced>> {
+    let modes: Vec<&ModeRow> = rows.iter().filter(|r| r.side == "+" && r.consistent && r.n_x > 0 && r.lambda.is_finite()).collect();
+    if modes.is_empty() {
+        return Ok(None);
+    }
+    let wave_number = |r: &ModeRow| std::f64::consts::TAU * r.n_x as f64 / ctx.lx;
+    let stderr = |r: &ModeRow| ctx.gs.as_ref().map_or(f64::NAN, |g| g.stderr[r.first - 1..r.last].iter().sum::<f64>() / r.degeneracy as f64);
+    let table: Vec<Vec<String>> = modes.iter().map(|r| vec![r.kind.clone(), r.name.clone(), r.n_x.to_string(), fmt(wave_number(r)), fmt(r.lambda), fmt(stderr(r)), fmt(r.lambda / wave_number(r))]).collect();
+    write_text_csv(&out.join("modes_dispersion.csv"), &["kind", "name", "n_x", "k", "lambda", "stderr", "lambda_over_k"], &table)?;
+    let mut kinds: Vec<&str> = modes.iter().map(|r| r.kind.as_str()).collect();
+    kinds.sort_unstable();
+    kinds.dedup();
+    let k_max = modes.iter().map(|r| wave_number(r)).fold(0.0, f64::max);
+    let mut fig = Figure::new("Dispersion of the Lyapunov modes").x_label("k = 2π n_x / L_x").y_label("λ");
+    let mut fits = Vec::new();
+    for kind in kinds {
+        let of_kind: Vec<&&ModeRow> = modes.iter().filter(|r| r.kind == kind).collect();
+        let k: Vec<f64> = of_kind.iter().map(|r| wave_number(r)).collect();
+        let lambda: Vec<f64> = of_kind.iter().map(|r| r.lambda).collect();
+        let (c, se) = fit_through_origin(&k, &lambda);
+        fig.series(&format!("{kind} modes"), &k, &lambda, Marker::Points);
+        fig.series(&format!("{kind}: λ = {c:.4} k"), &[0.0, k_max], &[0.0, c * k_max], Marker::Line);
+        let ratios: Vec<String> = of_kind.iter().map(|r| format!("{:.4}", r.lambda / wave_number(r))).collect();
+        let error = if se.is_finite() { format!(" ± {se:.1e}") } else { String::new() };
+        fits.push(format!("{kind}: c = {c:.4}{error} from {} step(s), λ/k = {} for n_x = {}", k.len(), ratios.join(", "), of_kind.iter().map(|r| r.n_x.to_string()).collect::<Vec<_>>().join(", ")));
+    }
+    save_figure(&fig, out, "modes_dispersion")?;
+    Ok(Some(Produced {
+        title: "Dispersion of the Lyapunov modes (beyond the paper)".into(),
+        caption: format!(
+            "Exponent λ of each positive mode step of the table above against its wave number k = 2π n_x / L_x (L_x = {:.4}), with a least-squares line λ = c k through the origin for each kind: {}. \
+             The kinetic theory of Lyapunov modes (de Wijn & van Beijeren 2004) gives λ proportional to k for small k; λ/k changing with n_x shows where that ends.",
+            ctx.lx,
+            fits.join("; ")
+        ),
+        figures: vec!["modes_dispersion".into()],
+        tables: vec!["modes_dispersion.csv".into()],
+    }))
 }
 
 /// q_x of every disk, wrapped into [0, L_x).
@@ -711,6 +767,27 @@ mod tests {
         assert!((plotted["amp_dqy"].parse::<f64>().unwrap() - expected[0][1]).abs() < 1e-12);
         assert!(produced.iter().any(|p| p.figures.contains(&format!("{stem}_dqy"))));
         assert!(produced[0].caption.contains("T(2,0)"), "{}", produced[0].caption);
+        // the dispersion point: the positive pair's exponent at k = 2 pi 2 / L_x
+        let dispersion = read_csv(&out.join("modes_dispersion.csv"));
+        assert_eq!(dispersion.len(), 1, "only the positive side: {dispersion:?}");
+        let lambda = ctx.gs.as_ref().unwrap().exponents[2 * N - 5..2 * N - 3].iter().sum::<f64>() / 2.0;
+        let row = &dispersion[0];
+        assert_eq!((row["kind"].as_str(), row["n_x"].as_str()), ("T", "2"));
+        assert!((row["k"].parse::<f64>().unwrap() - k).abs() < 1e-15 && (row["lambda"].parse::<f64>().unwrap() - lambda).abs() < 1e-15, "{row:?}");
+        assert!(produced.iter().any(|p| p.figures == ["modes_dispersion"] && p.caption.contains(&format!("c = {:.4}", lambda / k))));
+    }
+
+    #[test]
+    fn line_through_the_origin() {
+        let (c, se) = fit_through_origin(&[1.0, 2.0, 3.0], &[0.5, 1.0, 1.5]);
+        assert!((c - 0.5).abs() < 1e-15 && se.abs() < 1e-15);
+        // y = x + (1, -1, 1) e: c = 1 + (1 - 2 + 3) e / 14, residuals give the error
+        let e = 0.01;
+        let (c, se) = fit_through_origin(&[1.0, 2.0, 3.0], &[1.0 + e, 2.0 - e, 3.0 + e]);
+        assert!((c - (1.0 + 2.0 * e / 14.0)).abs() < 1e-15);
+        let resid: f64 = [(1.0, 1.0 + e), (2.0, 2.0 - e), (3.0, 3.0 + e)].iter().map(|(x, y)| (y - c * x).powi(2)).sum();
+        assert!((se - (resid / 2.0 / 14.0).sqrt()).abs() < 1e-15);
+        assert!(fit_through_origin(&[2.0], &[1.0]).1.is_nan(), "one point: no error");
     }
 
     #[test]
