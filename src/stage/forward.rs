@@ -67,15 +67,18 @@ impl Accumulator {
     /// positive part of the spectrum was then not all computed.
     pub fn ks_entropy(&self, tau: f64) -> Option<Estimate> {
         let lambda = self.exponents(tau);
-        if lambda.iter().all(|&l| l > 0.0) {
-            return None;
-        }
+        let value = ks_entropy(&lambda)?;
         let positive = |sums: &[f64], t: f64| sums.iter().zip(&lambda).filter(|(_, l)| **l > 0.0).map(|(s, _)| s / t).sum::<f64>();
-        let value = positive(&self.sum, self.steps.max(1) as f64 * tau);
         let t = self.block_len as f64 * tau;
         let per_block: Vec<f64> = self.blocks.iter().map(|b| positive(b, t)).collect();
         Some(Estimate { value, stderr: standard_error(&per_block) })
     }
+}
+
+/// h_KS = sum of the positive lambda_i (Pesin's identity); None when all are positive (the
+/// spectrum does not reach the non-positive part).
+pub fn ks_entropy(lambda: &[f64]) -> Option<f64> {
+    lambda.iter().any(|&l| l <= 0.0).then(|| lambda.iter().filter(|&&l| l > 0.0).sum())
 }
 
 /// A time average with its standard error (batch means).
@@ -87,7 +90,11 @@ pub struct Estimate {
 
 impl std::fmt::Display for Estimate {
     fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        write!(f, "{:.6} ± {:.1e}", self.value, self.stderr)
+        write!(f, "{:.6}", self.value)?;
+        if self.stderr.is_finite() {
+            write!(f, " ± {:.1e}", self.stderr)?;
+        }
+        Ok(())
     }
 }
 

@@ -106,6 +106,19 @@ fn parse_target(v: &str) -> Option<(String, u64)> {
     CRASH_POINTS.contains(&name).then_some(()).filter(|_| n >= 1).map(|_| (name.to_string(), n))
 }
 
+static REACHED: AtomicU64 = AtomicU64::new(0);
+
+/// Exit here if `CLV_FAULT_CRASH_AT` names this point (see the module doc).
+pub fn crash_point(name: &'static str) {
+    debug_assert!(CRASH_POINTS.contains(&name), "unlisted crash point {name}");
+    if let Some((target, n)) = crash_target()
+        && target == name
+        && REACHED.fetch_add(1, Ordering::SeqCst) + 1 == *n {
+            eprintln!("clv: crash point {name} reached (CLV_FAULT_CRASH_AT)");
+            std::process::exit(CRASH_STATUS);
+        }
+}
+
 #[cfg(test)]
 mod tests {
     use super::parse_target;
@@ -118,17 +131,4 @@ mod tests {
         assert_eq!(parse_target("segment-renamed#"), None);
         assert_eq!(parse_target("no-such-point"), None);
     }
-}
-
-static REACHED: AtomicU64 = AtomicU64::new(0);
-
-/// Exit here if `CLV_FAULT_CRASH_AT` names this point (see the module doc).
-pub fn crash_point(name: &'static str) {
-    debug_assert!(CRASH_POINTS.contains(&name), "unlisted crash point {name}");
-    if let Some((target, n)) = crash_target()
-        && target == name
-        && REACHED.fetch_add(1, Ordering::SeqCst) + 1 == *n {
-            eprintln!("clv: crash point {name} reached (CLV_FAULT_CRASH_AT)");
-            std::process::exit(CRASH_STATUS);
-        }
 }

@@ -454,7 +454,8 @@ fn fit_through_origin(x: &[f64], y: &[f64]) -> (f64, f64) {
 /// Phys. Rev. E 70, 016207 (2004)) gives lambda proportional to k at small k; how far
 /// lambda / k drifts with n_x shows where that ends.
 fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Produced>> {
-    let modes: Vec<&ModeRow> = rows.iter().filter(|r| r.side == "+" && r.consistent && r.n_x > 0 && r.lambda.is_finite()).collect();
+    let mut modes: Vec<&ModeRow> = rows.iter().filter(|r| r.side == "+" && r.consistent && r.n_x > 0 && r.lambda.is_finite()).collect();
+    modes.sort_by(|a, b| (&a.kind, a.n_x).cmp(&(&b.kind, b.n_x)));
     if modes.is_empty() {
         return Ok(None);
     }
@@ -463,9 +464,7 @@ fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Prod
     let table: Vec<Vec<String>> = modes.iter().map(|r| vec![r.kind.clone(), r.name.clone(), r.n_x.to_string(), fmt(wave_number(r)), fmt(r.lambda), fmt(stderr(r)), fmt(r.lambda / wave_number(r))]).collect();
     write_text_csv(&out.join("modes_dispersion.csv"), &["kind", "name", "n_x", "k", "lambda", "stderr", "lambda_over_k"], &table)?;
     let mut kinds: Vec<&str> = modes.iter().map(|r| r.kind.as_str()).collect();
-    kinds.sort_unstable();
     kinds.dedup();
-    let k_max = modes.iter().map(|r| wave_number(r)).fold(0.0, f64::max);
     let mut fig = Figure::new("Dispersion of the Lyapunov modes").x_label("k = 2π n_x / L_x").y_label("λ");
     let mut fits = Vec::new();
     for kind in kinds {
@@ -474,6 +473,7 @@ fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Prod
         let lambda: Vec<f64> = of_kind.iter().map(|r| r.lambda).collect();
         let (c, se) = fit_through_origin(&k, &lambda);
         fig.series(&format!("{kind} modes"), &k, &lambda, Marker::Points);
+        let k_max = k.iter().copied().fold(0.0, f64::max);
         fig.series(&format!("{kind}: λ = {c:.4} k"), &[0.0, k_max], &[0.0, c * k_max], Marker::Line);
         let ratios: Vec<String> = of_kind.iter().map(|r| format!("{:.4}", r.lambda / wave_number(r))).collect();
         let error = if se.is_finite() { format!(" ± {se:.1e}") } else { String::new() };

@@ -5,7 +5,7 @@
 use super::{save_figure, write_csv, Analysis, Context, Produced};
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
-use crate::stage::forward::{Accumulator, Estimate};
+use crate::stage::forward::{ks_entropy, Accumulator, Estimate};
 use crate::stage::frame::Frame;
 use std::path::Path;
 
@@ -49,7 +49,8 @@ impl Analysis for Spectrum {
         fig.hline(0.0);
         save_figure(&fig, out, "fig2_spectrum")?;
         let entropy = |h: Option<Estimate>| h.map_or("not known".to_string(), |h| h.to_string());
-        let gs_h = ctx.gs.as_ref().and_then(|g| g.ks_entropy);
+        // The spectrum.json of builds before h_KS was reported has the exponents but no error.
+        let gs_h = ctx.gs.as_ref().and_then(|g| g.ks_entropy.or_else(|| ks_entropy(&g.exponents).map(|value| Estimate { value, stderr: f64::NAN })));
         let mut produced = vec![Produced {
             title: "Lyapunov spectrum (Fig. 2)".into(),
             caption: format!(
@@ -82,5 +83,35 @@ impl Analysis for Spectrum {
             });
         }
         Ok(produced)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stage::analyze::testing::{context, frame, out_dir, spectrum};
+
+    /// h_KS of both spectra in the caption: the CLV one from the frames' local exponents with
+    /// its block error; the GS one from a spectrum.json of a build before h_KS was recorded,
+    /// summed from its exponents, without an error.
+    #[test]
+    fn caption_gives_h_ks_of_both_spectra() {
+        let n = 4;
+        let d = 4 * n;
+        let gs = spectrum(n, 2);
+        let want_gs: f64 = gs.exponents.iter().filter(|&&l| l > 0.0).sum();
+        let ctx = context("disks", n, d, 4.0, 4.0, Some(gs), false);
+        let mut a = new(&ctx).unwrap();
+        let mut want_clv = 0.0;
+        let frames = 200; // four blocks of the 50 frames a context without a run gets
+        for step in 0..frames {
+            let mut f = frame(step, vec![0.0; d], vec![0.0; d * d], None);
+            f.local = (0..d).map(|i| (d / 2) as f64 - i as f64 - 0.5 + if step / 50 % 2 == 0 { 0.25 } else { -0.25 }).collect();
+            want_clv += f.local.iter().filter(|&&l| l > 0.0).sum::<f64>() / frames as f64;
+            a.consume(&f).unwrap();
+        }
+        let produced = a.finish(&out_dir("spectrum-h"), frames).unwrap();
+        let caption = &produced[0].caption;
+        assert!(caption.contains(&format!("identity): {want_gs:.6} (GS), {want_clv:.6} ± ")), "{caption}");
     }
 }
