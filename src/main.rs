@@ -537,7 +537,10 @@ fn analyze(args: &AnalyzeArgs) -> Result<()> {
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }
-    let (produced, frames) = result?;
+    let clv::stage::analyze::Analysed { produced, frames, warnings } = result?;
+    for w in &warnings {
+        eprintln!("clv analyze: warning: {w}");
+    }
     if !args.quiet {
         let figures: usize = produced.iter().map(|p| p.figures.len()).sum();
         eprintln!("clv analyze: {frames} frames, {} analyses, {figures} figures; open {}", produced.len(), args.out.join("index.html").display());

@@ -139,6 +139,48 @@ fn clv_run_on_the_default_preset_writes_the_report() {
     drop(first);
 }
 
+/// A stream continued with `backward --resume` lacks the frames the interrupted stream's
+/// reader took: the backward stage says which, and the analyses of it say at the head of
+/// index.html, in summary.json and on stderr that they describe the rest only. A whole
+/// stream has no such warning.
+#[test]
+fn a_resumed_stream_is_reported_as_covering_part_of_the_window() {
+    let base = scratch("resumed-stream");
+    let run = forward_in(&base);
+    let r = run.to_str().unwrap();
+    // A reader that takes about half the stream (frames of 12.8 kB, segments of 100 frames)
+    // and closes it: the sweep has saved progress for at least one segment by then.
+    let mut producer = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", r, "--out", "-", "--quiet"]).stdout(Stdio::piped()).spawn().unwrap();
+    let mut head = producer.stdout.take().unwrap();
+    let mut buf = vec![0u8; 2_600_000];
+    std::io::Read::read_exact(&mut head, &mut buf).unwrap();
+    drop(head);
+    assert!(producer.wait().unwrap().success());
+    let report = base.join("report");
+    let pipe = format!("{} backward {r} --resume --out - | {} analyze - --out {}", env!("CARGO_BIN_EXE_clv"), env!("CARGO_BIN_EXE_clv"), report.display());
+    let out = Command::new("bash").args(["-c", &format!("set -o pipefail; {pipe}")]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let summary: serde_json::Value = serde_json::from_str(&read(&report.join("summary.json"))).unwrap();
+    let (first, last) = (summary["first_step"].as_u64().unwrap(), summary["last_step"].as_u64().unwrap());
+    // The window ends at step 1900: 200 + 2000 steps less the backward transient of 300.
+    assert!(last < 1900, "the newest frames went to the first reader: {summary}");
+    let not_sent = format!("frames of steps {}..1900 went to the reader of the interrupted stream", last + 1);
+    assert!(err.contains(&not_sent), "backward: {err}");
+    let warning = format!("covers steps {first}..{last} of the window {first}..1900");
+    assert!(err.contains(&format!("clv analyze: warning: This stream {warning}")), "analyze: {err}");
+    assert!(summary["warnings"][0].as_str().unwrap().contains(&warning), "{summary}");
+    assert!(read(&report.join("index.html")).contains("Incomplete stream"));
+    // The whole stream, started again: no warning.
+    let whole = base.join("whole");
+    let pipe = format!("{} backward {r} --out - --quiet | {} analyze - --out {}", env!("CARGO_BIN_EXE_clv"), env!("CARGO_BIN_EXE_clv"), whole.display());
+    let out = Command::new("bash").args(["-c", &format!("set -o pipefail; {pipe}")]).output().unwrap();
+    assert!(out.status.success() && !String::from_utf8_lossy(&out.stderr).contains("warning"));
+    let summary: serde_json::Value = serde_json::from_str(&read(&whole.join("summary.json"))).unwrap();
+    assert_eq!((summary["first_step"].as_u64(), summary["last_step"].as_u64(), summary["warnings"].as_array().map(Vec::len)), (Some(first), Some(1900), Some(0)));
+    assert!(!read(&whole.join("index.html")).contains("Incomplete stream"));
+}
+
 /// A Python user reads the frames with the mcap package, cbor2 and numpy and gets the same
 /// CLV spectrum as the backward stage.
 /// `--vectors-every m` forms V_n (and G_n) only for the steps n that are multiples of m: those frames are the

@@ -209,10 +209,32 @@ pub fn report_path(dir: &RunDir) -> PathBuf {
 }
 
 /// The window of a run: frames at steps first..=last (C starts at the run's last step).
-#[derive(Clone, Copy, Debug)]
-struct Window {
-    first: u64,
-    last: u64,
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    pub first: u64,
+    pub last: u64,
+}
+
+impl Window {
+    /// The window a sweep with `opts` emits frames for: the steps the forward run kept for
+    /// the backward stage, less the backward transient at the newer end.
+    pub fn of(meta: &RunMeta, opts: &BackwardOptions) -> Result<Self> {
+        let (config, store) = (&meta.config, &meta.store);
+        let total = config.relax_steps + config.steps;
+        let kept = store.clv_steps + store.transient;
+        if opts.transient >= kept {
+            return Err(Error::param("transient", format!("must be below the {kept} steps the run kept for the backward stage (--clv-steps + --transient of the forward run)")));
+        }
+        Ok(Window { first: total - kept, last: total - opts.transient })
+    }
+
+    /// The oldest and newest step of the frames a whole sweep with `opts` leaves: in its
+    /// frame file the multiples of --save-every, on a stream every step.
+    pub fn frame_steps(&self, opts: &BackwardOptions) -> Option<(u64, u64)> {
+        let m = if opts.frames_path.is_some() { opts.save_every } else { 1 };
+        let (oldest, newest) = (self.first.div_ceil(m.max(1)) * m.max(1), self.last / m.max(1) * m.max(1));
+        (m > 0 && oldest <= newest).then_some((oldest, newest))
+    }
 }
 
 /// Reads checkpoints (and stored R) of a run by step. Only the last checkpoint read is kept
@@ -538,11 +560,7 @@ pub fn run(
     if opts.vectors_every == 0 {
         return Err(Error::param("vectors-every", "must be at least 1 (1: every frame carries V_n)"));
     }
-    let kept = store.clv_steps + store.transient;
-    if opts.transient >= kept {
-        return Err(Error::param("transient", format!("must be below the {kept} steps the run kept for the backward stage (--clv-steps + --transient of the forward run)")));
-    }
-    let window = Window { first: total - kept, last: total - opts.transient };
+    let window = Window::of(&meta, opts)?;
     let c_every = store.checkpoint_every;
     let mut bounds: Vec<u64> = (window.first / c_every * c_every..total).step_by(c_every as usize).collect();
     bounds.push(total);
@@ -597,6 +615,16 @@ pub fn run(
         return serde_json::from_str(&text).map_err(|e| Error::corrupt(&path, e.to_string()));
     }
 
+    if let Some(p) = prior.as_ref().filter(|p| frames_path.is_none() && p.stats.frames > 0) {
+        let sent = window.last + 1 - p.stats.frames;
+        notes.push(format!(
+            "the frames of steps {sent}..{} went to the reader of the interrupted stream and are not sent again: this stream carries steps {}..{}, \
+             and analyses of it describe those steps only; for the whole window, start the stream again without --resume",
+            window.last,
+            window.first,
+            sent - 1
+        ));
+    }
     let mut frame_file = match (&frames_path, saving, &prior) {
         // The frames saved before the record: those of the steps that are multiples of
         // --save-every among the ones the sweep had emitted, window.last down.

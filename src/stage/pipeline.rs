@@ -81,7 +81,7 @@ pub fn run(config: &RunConfig, out: &Path, feedback: &mut Feedback, say: &mut dy
     };
     let clv = backward::run(&run_dir, &opts, false, 4096 << 20, &mut consumer, &mut on_progress)?;
     let produced = match analyzer {
-        Some(a) => a.finish()?,
+        Some(a) => a.finish()?.produced,
         None => Vec::new(),
     };
     Ok(PipelineResult { run_dir, report_dir, produced, clv })

@@ -24,7 +24,7 @@ pub mod spectrum;
 mod testing;
 pub mod transversality;
 
-use super::backward::BackwardOptions;
+use super::backward::{BackwardOptions, Window};
 use super::frame::{on_stride, Frame};
 use crate::error::{Error, Result};
 use crate::report::SpectrumSummary;
@@ -67,6 +67,9 @@ pub struct Context {
     pub options: Options,
     /// Where the frames came from, for captions.
     pub source: String,
+    /// The oldest and newest step of the frames a whole sweep leaves in this stream (when
+    /// its metadata says), to report a stream that covers less.
+    pub frame_steps: Option<(u64, u64)>,
 }
 
 /// How often the analyses that apply to this run read V_n, for the backward stage's
@@ -134,7 +137,6 @@ impl Context {
             return Err(Error::param("deltas", "window lengths must be at least 1 step"));
         }
         Ok(Context {
-            run,
             gs,
             system,
             d,
@@ -146,7 +148,26 @@ impl Context {
             with_gs,
             options: Options { every, j, deltas },
             source: source.to_string(),
+            frame_steps: run.as_ref().zip(backward.as_ref()).and_then(|(m, o)| Window::of(m, o).ok()?.frame_steps(o)),
+            run,
         })
+    }
+
+    /// What a person must know about a stream that covers less than the whole window: its
+    /// frames of steps `first..=last` against the window's.
+    pub fn coverage_warning(&self, first: u64, last: u64) -> Option<String> {
+        let (oldest, newest) = self.frame_steps?;
+        let mut missing = Vec::new();
+        if last < newest {
+            missing.push(format!(
+                "the frames of steps {}..{newest} are missing (a stream continued with `clv backward --resume` starts where the interrupted stream stopped; start it again without --resume for the whole window)",
+                last + 1
+            ));
+        }
+        if first > oldest {
+            missing.push(format!("the frames of steps {oldest}..{} are missing (the stream stopped before the end of the window)", first - 1));
+        }
+        (!missing.is_empty()).then(|| format!("This stream covers steps {first}..{last} of the window {oldest}..{newest}, and every result here describes those steps only: {}.", missing.join("; ")))
     }
 
     /// Which frames the vector statistics use, for captions.
@@ -299,7 +320,7 @@ impl Analyzer {
     }
 
     /// Wait for every analysis, then write index.html and summary.json.
-    pub fn finish(mut self) -> Result<Vec<Produced>> {
+    pub fn finish(mut self) -> Result<Analysed> {
         let mut produced = Vec::new();
         let mut errors = Vec::new();
         for w in &mut self.workers {
@@ -312,19 +333,28 @@ impl Analyzer {
                 Err(_) => errors.push(format!("analysis {} panicked", w.name)),
             }
         }
-        write_index(&self.ctx, &self.out, &produced, self.frames, self.first_step, self.last_step)?;
+        let warnings: Vec<String> = self.ctx.coverage_warning(self.first_step, self.last_step).into_iter().filter(|_| self.frames > 0).collect();
+        write_index(&self.ctx, &self.out, &produced, &warnings, self.frames, self.first_step, self.last_step)?;
         if !errors.is_empty() {
             return Err(Error::Other(errors.join("; ")));
         }
-        Ok(produced)
+        Ok(Analysed { produced, frames: self.frames, warnings })
     }
+}
+
+/// What the analyses of a stream produced.
+pub struct Analysed {
+    pub produced: Vec<Produced>,
+    pub frames: u64,
+    /// What limits the results as a whole (also at the head of index.html and in summary.json).
+    pub warnings: Vec<String>,
 }
 
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
-fn write_index(ctx: &Context, out: &Path, produced: &[Produced], frames: u64, first: u64, last: u64) -> Result<()> {
+fn write_index(ctx: &Context, out: &Path, produced: &[Produced], warnings: &[String], frames: u64, first: u64, last: u64) -> Result<()> {
     let run = ctx.run.as_ref().map(|m| serde_json::to_string(&m.config).unwrap_or_default()).unwrap_or_default();
     let mut html = String::from("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>clv analyses</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em} figure{margin:2em 0} img{max-width:100%} code{background:#eee}</style></head><body>\n");
     html += &format!(
@@ -339,6 +369,9 @@ fn write_index(ctx: &Context, out: &Path, produced: &[Produced], frames: u64, fi
         ctx.sample(),
         escape(&run)
     );
+    for w in warnings {
+        html += &format!("<p style=\"border:2px solid #c00;padding:0.5em\"><strong>Incomplete stream.</strong> {}</p>\n", escape(w));
+    }
     for p in produced {
         html += &format!("<section><h2>{}</h2>\n", escape(&p.title));
         for f in &p.figures {
@@ -356,7 +389,7 @@ fn write_index(ctx: &Context, out: &Path, produced: &[Produced], frames: u64, fi
     html += "</body></html>\n";
     let path = out.join("index.html");
     std::fs::write(&path, html).map_err(|e| Error::io(&path, e))?;
-    let summary = serde_json::json!({ "frames": frames, "first_step": first, "last_step": last, "options": ctx.options, "produced": produced });
+    let summary = serde_json::json!({ "frames": frames, "first_step": first, "last_step": last, "options": ctx.options, "warnings": warnings, "produced": produced });
     let path = out.join("summary.json");
     std::fs::write(&path, serde_json::to_vec_pretty(&summary).unwrap_or_default()).map_err(|e| Error::io(&path, e))
 }
@@ -446,7 +479,7 @@ pub fn analyze_source(
     deltas: Option<Vec<u64>>,
     only: &[String],
     on_frame: &mut dyn FnMut(u64),
-) -> Result<(Vec<Produced>, u64)> {
+) -> Result<Analysed> {
     let source = &frame_source(source)?;
     let info = std::cell::RefCell::new(StreamInfo::default());
     let mut analyzer: Option<Analyzer> = None;
@@ -477,13 +510,12 @@ pub fn analyze_source(
         }
         return Err(Error::Other(format!("{name}: no frames in the stream{}", damage.map(|d| format!(" ({d})")).unwrap_or_default())));
     };
-    let frames = analyzer.frames;
-    let produced = analyzer.finish()?;
+    let analysed = analyzer.finish()?;
     if let Some(d) = damage {
         return Err(Error::corrupt(
             &name,
-            format!("the stream ends early or is damaged ({d}); the {frames} complete frames before it were analysed into {}, but the results are incomplete", out.display()),
+            format!("the stream ends early or is damaged ({d}); the {} complete frames before it were analysed into {}, but the results are incomplete", analysed.frames, out.display()),
         ));
     }
-    Ok((produced, frames))
+    Ok(analysed)
 }
