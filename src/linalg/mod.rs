@@ -145,6 +145,85 @@ mod tests {
         }
     }
 
+    /// Forward QR steps and the Ginelli iteration on a constant 2 x 2 map A, with exactly
+    /// the kernels the stages use: the GS exponents (time averages of ln R_ii) and the CLV
+    /// exponents (of the renormalisation), each after a transient of 20 steps, and G and
+    /// V = G C at step `at` of `n`.
+    fn ginelli_constant(a: [[f64; 2]; 2], n: usize, at: usize) -> ([f64; 2], [f64; 2], Mat<f64>, Mat<f64>) {
+        let mut qr = Qr::new(2, 2, 1);
+        let mut g = crate::system::Tangent::zeros(2, 2);
+        g.set(0, 0, 1.0);
+        g.set(1, 1, 1.0);
+        let mut r = Mat::zeros(2, 2);
+        let (mut gs, mut rs) = (vec![], vec![]);
+        let mut sum = [0.0; 2];
+        for step in 1..=n {
+            let old = g.clone();
+            for i in 0..2 {
+                for j in 0..2 {
+                    g.set(i, j, a[i][0] * old.get(0, j) + a[i][1] * old.get(1, j));
+                }
+            }
+            qr.factor(&mut g, &mut r);
+            assert!(r[(0, 0)] > 0.0 && r[(1, 1)] > 0.0, "diag R > 0 (sign fix)");
+            for i in 0..2 {
+                if step > 20 {
+                    sum[i] += r[(i, i)].ln() / (n - 20) as f64;
+                }
+            }
+            gs.push(Mat::from_fn(2, 2, |i, j| g.get(i, j)));
+            rs.push(r.clone());
+        }
+        let mut c = Mat::<f64>::identity(2, 2);
+        let (mut norms, mut clv) = ([0.0; 2], [0.0; 2]);
+        // C converges from the identity within a few steps: the CLV exponents are averaged
+        // over the steps after a backward transient of 20.
+        for m in (at + 1..=n).rev() {
+            ginelli_step(rs[m - 1].as_ref(), c.as_mut(), &mut norms, Par::Seq);
+            for j in 0..2 {
+                if m <= n - 20 {
+                    clv[j] -= norms[j].ln() / (n - 20 - at) as f64;
+                }
+            }
+        }
+        let g_at = gs[at - 1].clone();
+        let mut v = Mat::zeros(2, 2);
+        mul_upper(v.as_mut(), g_at.as_ref(), c.as_ref(), Par::Seq);
+        (sum, clv, g_at, v)
+    }
+
+    /// |cos| of the angle between column j of `m` and the vector `u`.
+    fn parallel(m: &Mat<f64>, j: usize, u: [f64; 2]) -> f64 {
+        let dot = m[(0, j)] * u[0] + m[(1, j)] * u[1];
+        dot.abs() / (m[(0, j)].hypot(m[(1, j)]) * u[0].hypot(u[1]))
+    }
+
+    /// The exact tests of PHYSICS.md: the non-normal map [[2, 1], [0, 0.5]] has lambda =
+    /// +-ln 2, GS vectors e_1, e_2 and CLVs (1, 0), (1, -1.5) (the smallest case in which
+    /// they differ); the Henon Jacobian at its fixed point x* = y* = 0.883896268 has
+    /// ln |mu| = 0.65427061, -1.85824342 for mu = -1.92373886, 0.15594632, and its
+    /// eigenvectors (mu, 1) as CLVs, but not as GS vectors.
+    #[test]
+    fn ginelli_on_constant_maps_gives_their_eigenvectors() {
+        let (gs, clv, g, v) = ginelli_constant([[2.0, 1.0], [0.0, 0.5]], 80, 40);
+        for (got, want) in [(gs, [2f64.ln(), -(2f64.ln())]), (clv, [2f64.ln(), -(2f64.ln())])] {
+            assert!((got[0] - want[0]).abs() < 1e-12 && (got[1] - want[1]).abs() < 1e-12, "{got:?}");
+        }
+        assert!(parallel(&g, 0, [1.0, 0.0]) > 1.0 - 1e-14 && parallel(&g, 1, [0.0, 1.0]) > 1.0 - 1e-14);
+        assert!(parallel(&v, 0, [1.0, 0.0]) > 1.0 - 1e-14 && parallel(&v, 1, [1.0, -1.5]) > 1.0 - 1e-14, "V = {v:?}");
+
+        let (x, b) = (0.883896268, 0.3);
+        let mu = [-1.92373886, 0.15594632];
+        let (gs, clv, g, v) = ginelli_constant([[-2.0 * x, b], [1.0, 0.0]], 80, 40);
+        for (got, want) in [(gs, [0.65427061, -1.85824342]), (clv, [0.65427061, -1.85824342])] {
+            assert!((got[0] - want[0]).abs() < 1e-7 && (got[1] - want[1]).abs() < 1e-7, "{got:?}");
+        }
+        for j in 0..2 {
+            assert!(parallel(&v, j, [mu[j], 1.0]) > 1.0 - 1e-14, "v^{}: {v:?}", j + 1);
+        }
+        assert!(parallel(&g, 1, [mu[1], 1.0]) < 0.99, "g^2 is not an eigenvector");
+    }
+
     #[test]
     fn packing_round_trips() {
         let mut r = Mat::zeros(5, 5);
