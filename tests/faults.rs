@@ -211,6 +211,21 @@ fn a_second_writer_is_refused_and_a_killed_one_leaves_no_stale_lock() {
     assert!(still_running, "resume after a killed writer failed: {}", String::from_utf8_lossy(&out.stderr));
 }
 
+/// On a file system without locks (Lustre without flock, NFS without a lock manager) a run
+/// is still possible: the stages warn that they cannot refuse a second writer, and work.
+#[test]
+fn a_file_system_without_locks_gets_a_warning_not_a_refusal() {
+    let dir = scratch("faults", "no-locks").join("run");
+    let d = dir.to_str().unwrap();
+    let no_locks = [("CLV_FAULT_NO_LOCKS", "1")];
+    for args in [&["forward", "--n", "8", "--steps", "300", "--clv-steps", "100", "--transient", "50", "--out", d][..], &["backward", d, "--out", "-"][..]] {
+        let out = common::clv_env(&[args, &["--quiet"][..]].concat(), &no_locks);
+        let err = stderr(&out);
+        assert!(out.status.success(), "{err}");
+        assert!(err.contains("cannot lock files") && err.contains("make sure only one runs"), "{err}");
+    }
+}
+
 #[test]
 fn numerical_faults_stop_the_run_naming_the_step() {
     // NaN in the tangent vectors of a checkpoint the run resumes from.

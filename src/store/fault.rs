@@ -9,6 +9,9 @@
 //! destructor and flushing no buffer: what is on disk then is what a SIGKILL or a power cut
 //! between two steps of the store's protocol leaves. Random kills rarely land in the short
 //! windows between those steps; the crash points name every one of them.
+//!
+//! `CLV_FAULT_DISK_FREE=BYTES` fakes the free space of every file system, and
+//! `CLV_FAULT_NO_LOCKS` a file system that cannot lock files.
 
 use std::fs::File;
 use std::io::{self, Seek, SeekFrom, Write};
@@ -60,6 +63,12 @@ impl Seek for Output {
 /// (so that tests can see the warning a too-small disk gets without filling one).
 pub fn fake_free_bytes() -> Option<u64> {
     std::env::var("CLV_FAULT_DISK_FREE").ok().and_then(|v| v.parse().ok())
+}
+
+/// With `CLV_FAULT_NO_LOCKS=1`, locking a file fails as on a file system without locks
+/// (ENOLCK; Lustre mounted without flock, NFS without a lock manager).
+pub fn locks_unsupported() -> bool {
+    std::env::var_os("CLV_FAULT_NO_LOCKS").is_some()
 }
 
 /// Every point between two durable steps of the store, in the order a run meets them.

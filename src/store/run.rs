@@ -312,13 +312,23 @@ impl RunDir {
     pub fn lock(&self, what: &str) -> Result<RunLock> {
         let path = self.path.join(".lock");
         let file = fs::OpenOptions::new().create(true).truncate(false).write(true).open(&path).map_err(|e| Error::io(&path, e))?;
-        match file.try_lock() {
+        let locked = if super::fault::locks_unsupported() { Err(fs::TryLockError::Error(std::io::Error::from_raw_os_error(libc::ENOLCK))) } else { file.try_lock() };
+        match locked {
             Ok(()) => Ok(RunLock { _file: file }),
             Err(fs::TryLockError::WouldBlock) => Err(Error::Other(format!(
                 "another clv process is writing {} (it holds {}); wait for it to finish or stop it before the {what}",
                 self.path.display(),
                 path.display()
             ))),
+            // Cluster file systems may have no locks (Lustre without flock, NFS without a
+            // lock manager): the run must still be possible there.
+            Err(fs::TryLockError::Error(e)) if matches!(e.raw_os_error(), Some(libc::ENOLCK | libc::EOPNOTSUPP | libc::ENOSYS)) => {
+                eprintln!(
+                    "clv: warning: the file system of {} cannot lock files ({e}), so clv cannot refuse a second process writing this run; make sure only one runs the {what}",
+                    self.path.display()
+                );
+                Ok(RunLock { _file: file })
+            }
             Err(fs::TryLockError::Error(e)) => Err(Error::io(&path, e)),
         }
     }
