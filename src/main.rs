@@ -8,7 +8,7 @@ use clv::stage::forward::Forward;
 use clv::stage::forward_run::{self, Feedback};
 use clv::store::run::{BuildInfo, RunMeta, StoreConfig, StoreR, FORMAT};
 use clv::{Error, Result};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -392,13 +392,7 @@ fn progress(what: &str, quiet: bool) -> Option<ProgressBar> {
     if quiet {
         return None;
     }
-    let bar = ProgressBar::new(0);
-    bar.set_style(
-        ProgressStyle::with_template("{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} steps, {per_sec} ({eta} left)")
-            .expect("static template"),
-    );
-    bar.set_message(what.to_string());
-    Some(bar)
+    Some(clv::report::progress::steps(what))
 }
 
 fn print_report(report: &SpectrumReport, json: bool) -> Result<()> {
@@ -522,12 +516,7 @@ fn analyze(args: &AnalyzeArgs) -> Result<()> {
         ));
     }
     // The number of frames is not known ahead (a stream on stdin): count and rate only.
-    let bar = (!args.quiet).then(|| {
-        let bar = ProgressBar::new_spinner();
-        bar.set_style(ProgressStyle::with_template("{msg} [{elapsed_precise}] {pos} frames, {per_sec}").expect("static template"));
-        bar.set_message("analyze");
-        bar
-    });
+    let bar = (!args.quiet).then(|| clv::report::progress::frames("analyze"));
     let mut on_frame = |frames: u64| {
         if let Some(bar) = &bar {
             bar.set_position(frames);
@@ -623,7 +612,7 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
     // Two bars: segments recomputed (from the checkpoints) and frames emitted by the sweep.
     let bars = (!args.quiet).then(|| {
-        let multi = indicatif::MultiProgress::new();
+        let multi = clv::report::progress::multi();
         let recompute = multi.add(progress("recompute", false).expect("not quiet"));
         recompute.set_length(meta.store.clv_steps + meta.store.transient);
         let sweep = multi.add(progress("sweep (frames)", false).expect("not quiet"));

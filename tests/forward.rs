@@ -116,6 +116,28 @@ fn cli_json_reports_spectrum_configuration_and_statistics() {
     assert!((st["simulated_time"].as_f64().unwrap() - 120.0).abs() < 1e-9);
 }
 
+/// With standard error in a file (a batch job), progress comes as timestamped log lines,
+/// one per `CLV_LOG_SECONDS` (here every update, at most one a second); a run shorter than
+/// the default five minutes writes none.
+#[test]
+fn a_batch_job_logs_its_progress() {
+    let args = ["forward", "--n", "30", "--steps", "4000", "--relax-steps", "10"];
+    let out = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).env("CLV_LOG_SECONDS", "0").output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let lines: Vec<&str> = err.lines().filter(|l| l.contains(" forward: step ")).collect();
+    assert!(!lines.is_empty(), "no progress line in {err:?}");
+    for line in &lines {
+        // clv: 2026-11-24T06:27:40Z forward: step 1849 of 4010 (46%), 1810.9 a second, 1s elapsed, about 1s left
+        let stamp = line.strip_prefix("clv: ").and_then(|l| l.split(' ').next()).unwrap_or_default();
+        let shape: String = stamp.chars().map(|c| if c.is_ascii_digit() { '9' } else { c }).collect();
+        assert_eq!(shape, "9999-99-99T99:99:99Z", "{line}");
+        assert!(line.contains(" of 4010 (") && line.contains(" elapsed, about "), "{line}");
+    }
+    let quiet = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).env_remove("CLV_LOG_SECONDS").output().unwrap();
+    assert!(!String::from_utf8_lossy(&quiet.stderr).contains(" forward: step "));
+}
+
 #[test]
 fn cli_refuses_bad_input_with_a_clear_message() {
     for (args, needle) in [

@@ -3,6 +3,7 @@
 pub mod config_file;
 pub mod inspect;
 pub mod plot;
+pub mod progress;
 
 use crate::config::RunConfig;
 use crate::stage::forward::{kaplan_yorke_dimension, Accumulator, Estimate};
