@@ -181,6 +181,42 @@ fn a_resumed_stream_is_reported_as_covering_part_of_the_window() {
     assert!(!read(&whole.join("index.html")).contains("Incomplete stream"));
 }
 
+/// scripts/scaling.py: one row per N with the run's lambda_1 and the report's W_1, h_KS per
+/// disk for the full spectra, and eta the slope of ln W_1 against ln N (recomputed here);
+/// a second study into the same directory is refused.
+#[test]
+fn the_scaling_study_tabulates_and_fits_its_runs() {
+    let has = Command::new("python3").args(["-c", "import numpy"]).output().map(|o| o.status.success()).unwrap_or(false);
+    if !has {
+        eprintln!("SKIPPED: python3 with numpy is not available (.ci/run installs it)");
+        return;
+    }
+    let base = scratch("scaling");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/scaling.py");
+    let args = ["--n", "8,12,16", "--steps", "600", "--clv-steps", "200", "--full-up-to", "12", "--clv-bin", env!("CARGO_BIN_EXE_clv"), "--out", base.to_str().unwrap()];
+    ok(Command::new("python3").arg(&script).args(args).output().unwrap());
+    let table = read(&base.join("scaling.csv"));
+    let rows: Vec<Vec<f64>> = table.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.iter().map(|r| r[0]).collect::<Vec<_>>(), [8.0, 12.0, 16.0]);
+    for r in &rows {
+        let n = r[0] as usize;
+        let spectrum: serde_json::Value = serde_json::from_str(&read(&base.join(format!("runs/n{n}-run/spectrum.json")))).unwrap();
+        assert_eq!(r[1], spectrum["exponents"][0].as_f64().unwrap());
+        let w: f64 = read(&base.join(format!("runs/n{n}-report/localization.csv"))).lines().nth(1).unwrap().split(',').nth(3).unwrap().parse().unwrap();
+        assert_eq!(r[3], w);
+        assert!(w > 0.0 && w <= 1.0);
+        assert_eq!(r[4].is_finite(), n <= 12, "h_KS / N only for the full spectra: {r:?}");
+    }
+    let (x, y): (Vec<f64>, Vec<f64>) = rows.iter().map(|r| (r[0].ln(), r[3].ln())).unzip();
+    let (mx, my) = (x.iter().sum::<f64>() / 3.0, y.iter().sum::<f64>() / 3.0);
+    let slope = x.iter().zip(&y).map(|(a, b)| (a - mx) * (b - my)).sum::<f64>() / x.iter().map(|a| (a - mx).powi(2)).sum::<f64>();
+    let fit: serde_json::Value = serde_json::from_str(&read(&base.join("fit.json"))).unwrap();
+    assert!((fit["eta"].as_f64().unwrap() + slope).abs() < 1e-9, "{fit} against slope {slope}");
+    assert!(fit["eta_stderr"].as_f64().unwrap() >= 0.0);
+    let again = Command::new("python3").arg(&script).args(args).output().unwrap();
+    assert!(!again.status.success() && String::from_utf8_lossy(&again.stderr).contains("exists"));
+}
+
 /// A Python user reads the frames with the mcap package, cbor2 and numpy and gets the same
 /// CLV spectrum as the backward stage.
 /// `--vectors-every m` forms V_n (and G_n) only for the steps n that are multiples of m: those frames are the

@@ -1,0 +1,98 @@
+#!/usr/bin/env python3
+"""How the leading Lyapunov instability of hard disks scales with the number of disks N.
+
+Beyond the paper, which cites the results (its Sec. 5.2): at fixed density, the fraction of
+disks that carry the maximal perturbation, W_1 = exp(<S>)/N of v^1 = g^1, falls like
+N^-eta (strong localisation), and lambda_1 approaches its thermodynamic limit slowly. For
+each N this script runs the whole pipeline with one vector (a step costs O(collisions), so
+N = 1024 takes under a minute), and for the smaller N the full spectrum for the
+Kolmogorov-Sinai entropy per disk, h_KS / N, which has a thermodynamic limit too.
+
+    python3 scripts/scaling.py --out scaling                   # N = 16 .. 1024, about 3 min
+    python3 scripts/scaling.py --out s --n 8,16 --steps 600 --clv-steps 200
+
+Writes OUT/scaling.csv (N, lambda_1 and its error, W_1, h_KS / N and its error where the
+full spectrum was computed) and OUT/fit.json (eta from a least-squares line of ln W_1
+against ln N, with its standard error), and prints both. The runs stay in OUT/runs.
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+
+def run(cmd, **kw):
+    return subprocess.run(cmd, check=True, **kw)
+
+
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", required=True, help="directory for the runs and the tables (must not hold scaling.csv)")
+    ap.add_argument("--n", default="16,32,64,128,256,512,1024", help="numbers of disks, comma-separated")
+    ap.add_argument("--density", type=float, default=0.7)
+    ap.add_argument("--steps", type=int, default=20000, help="forward steps of tau = 0.6 after the relaxation")
+    ap.add_argument("--clv-steps", type=int, default=2000, help="frames of the backward window (W_1 is averaged over them)")
+    ap.add_argument("--full-up-to", type=int, default=64, help="compute the full spectrum (h_KS) for N up to this")
+    ap.add_argument("--clv-bin", default=os.path.join(here, "..", "target", "release", "clv"))
+    a = ap.parse_args()
+    ns = sorted({int(x) for x in a.n.split(",") if x.strip()})
+    if len(ns) < 2 or ns[0] < 2:
+        sys.exit("scaling.py: --n needs at least two numbers of disks, each at least 2")
+    table_path = os.path.join(a.out, "scaling.csv")
+    if os.path.exists(table_path):
+        sys.exit(f"scaling.py: {table_path} exists; choose another --out (the runs of a study are not replaced)")
+    os.makedirs(os.path.join(a.out, "runs"), exist_ok=True)
+    common = ["--density", str(a.density), "--aspect", "1", "--quiet"]
+
+    rows = []
+    for n in ns:
+        base = os.path.join(a.out, "runs", f"n{n}")
+        run_dir = base + "-run"
+        run([a.clv_bin, "forward", "--n", str(n), "--vectors", "1", "--steps", str(a.steps), "--clv-steps", str(a.clv_steps), "--out", run_dir] + common, stdout=subprocess.DEVNULL)
+        with open(os.path.join(run_dir, "spectrum.json")) as f:
+            spectrum = json.load(f)
+        report = base + "-report"
+        backward = subprocess.Popen([a.clv_bin, "backward", run_dir, "--out", "-", "--quiet"], stdout=subprocess.PIPE)
+        run([a.clv_bin, "analyze", "-", "--out", report, "--only", "localization", "--overwrite", "--quiet"], stdin=backward.stdout)
+        backward.stdout.close()
+        if backward.wait() != 0:
+            sys.exit(f"scaling.py: clv backward {run_dir} failed")
+        with open(os.path.join(report, "localization.csv")) as f:
+            w1 = float(next(csv.DictReader(f))["W_clv"])
+        row = {"N": n, "lambda_1": spectrum["exponents"][0], "lambda_1_stderr": spectrum["stderr"][0], "W_1": w1, "h_KS_per_disk": math.nan, "h_KS_per_disk_stderr": math.nan}
+        if n <= a.full_up_to:
+            out = run([a.clv_bin, "forward", "--n", str(n), "--steps", str(a.steps), "--json"] + common, stdout=subprocess.PIPE).stdout
+            h = json.loads(out)["ks_entropy"]
+            row["h_KS_per_disk"], row["h_KS_per_disk_stderr"] = h["value"] / n, h["stderr"] / n
+        rows.append(row)
+        print(f"N = {n:5d}: lambda_1 = {row['lambda_1']:.4f} +- {row['lambda_1_stderr']:.1e}, W_1 = {w1:.4f}, h_KS/N = {row['h_KS_per_disk']:.4f}", file=sys.stderr)
+
+    with open(table_path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    # ln W_1 = c - eta ln N: least squares, with the standard error of the slope.
+    x = np.log([r["N"] for r in rows])
+    y = np.log([r["W_1"] for r in rows])
+    A = np.vstack([np.ones_like(x), x]).T
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    resid = y - A @ coef
+    dof = len(x) - 2
+    se = math.sqrt(resid @ resid / dof / np.sum((x - x.mean()) ** 2)) if dof > 0 else math.nan
+    # The slope between neighbouring N: constant for a pure power law.
+    local = [{"from": int(ns[i]), "to": int(ns[i + 1]), "eta": -(y[i + 1] - y[i]) / (x[i + 1] - x[i])} for i in range(len(ns) - 1)]
+    fit = {"eta": -coef[1], "eta_stderr": se if dof > 0 else None, "points": len(x), "local_eta": local, "density": a.density, "steps": a.steps, "clv_steps": a.clv_steps}
+    with open(os.path.join(a.out, "fit.json"), "w") as f:
+        json.dump(fit, f, indent=2)
+    between = ", ".join(f"{l['eta']:.3f} ({l['from']}-{l['to']})" for l in local)
+    print(f"W_1 ~ N^-eta: eta = {fit['eta']:.3f} +- {se:.3f} from N = {ns[0]}..{ns[-1]}; between neighbours {between}; table {table_path}")
+
+
+if __name__ == "__main__":
+    main()
