@@ -30,6 +30,11 @@ impl SystemConfig {
         if !(density > 0.0 && density.is_finite()) {
             return Err(Error::param("density", format!("must be positive, got {density}")));
         }
+        // Hexagonal close packing of unit disks: 2/sqrt(3) disks per unit area.
+        let close_packed = 2.0 / 3f64.sqrt();
+        if density >= close_packed {
+            return Err(Error::param("density", format!("{density} is at or above the close packing of disks, 2/sqrt(3) = {close_packed:.4}: no box holds disks that dense")));
+        }
         if !(aspect > 0.0 && aspect.is_finite()) {
             return Err(Error::param("aspect", format!("must be positive, got {aspect}")));
         }

@@ -70,7 +70,7 @@ struct BenchArgs {
     json: bool,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum SystemKind {
     Henon,
     Disks,
@@ -95,19 +95,19 @@ struct ForwardArgs {
     #[arg(long, default_value_t = 198)]
     n: usize,
     /// Number density rho = N/(Lx Ly).
-    #[arg(long, default_value_t = 0.7)]
+    #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
     density: f64,
     /// Aspect ratio Ly/Lx, as a number or a fraction such as 2/11.
-    #[arg(long, default_value = "2/11", value_parser = parse_ratio)]
+    #[arg(long, default_value = "2/11", value_parser = parse_ratio, allow_negative_numbers = true)]
     aspect: f64,
     /// Box side Lx (with --ly, instead of --density and --aspect).
-    #[arg(long, requires = "ly")]
+    #[arg(long, requires = "ly", allow_negative_numbers = true)]
     lx: Option<f64>,
     /// Box side Ly (with --lx).
-    #[arg(long, requires = "lx")]
+    #[arg(long, requires = "lx", allow_negative_numbers = true)]
     ly: Option<f64>,
     /// Time between re-orthonormalisations (default 0.6 for disks, 1 for Henon).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     tau: Option<f64>,
     /// Relaxation steps before accumulation.
     #[arg(long, default_value_t = 100)]
@@ -405,6 +405,11 @@ fn print_report(report: &SpectrumReport, json: bool) -> Result<()> {
 }
 
 fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
+    if args.system == SystemKind::Henon
+        && let Some(flag) = ["n", "density", "aspect", "lx", "ly"].into_iter().find(|id| matches.value_source(id) == Some(ValueSource::CommandLine))
+    {
+        return Err(Error::param(flag, "sets up hard disks; the Henon map (--system henon) has no such setting"));
+    }
     if let Some(dir) = &args.resume {
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
         forward_run::complete_creation(dir, &mut feedback)?;

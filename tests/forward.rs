@@ -145,7 +145,10 @@ fn cli_refuses_bad_input_with_a_clear_message() {
         (vec!["forward", "--n", "4", "--vectors", "17"], "--vectors"),
         (vec!["forward", "--system", "henon", "--tau", "0.5"], "--tau"),
         (vec!["forward", "--aspect", "2/0"], "--aspect"),
-        (vec!["forward", "--n", "4", "--density", "5"], "--"),
+        (vec!["forward", "--n", "4", "--density", "5"], "close packing"),
+        (vec!["forward", "--tau", "-1"], "--tau: must be a positive number, got -1"),
+        (vec!["forward", "--density", "-0.5"], "--density: must be positive"),
+        (vec!["forward", "--system", "henon", "--n", "40"], "--n: sets up hard disks"),
     ] {
         let out = clv(&args);
         let err = String::from_utf8_lossy(&out.stderr);
