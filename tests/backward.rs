@@ -138,6 +138,18 @@ fn check_disks(n: usize, steps: &str) {
         let tol = 4.0 * (e[i].powi(2) + ge[i].powi(2)).sqrt() + 0.02 * g[i].abs();
         assert!((l[i] - g[i]).abs() < tol, "N = {n}: lambda_{} CLV {} vs GS {}", i + 1, l[i], g[i]);
     }
+    // The null space: translations e_1..e_3 are invariant (exponent 0), but e_(k+3) grows
+    // like e_(k+3) - s e_k under backward iteration (s the backward time), so the last three
+    // average -ln((1 + s2^2) / (1 + s1^2)) / (2 (s2 - s1)) over the window: with a
+    // backward transient of 600 steps and 601 frames, s runs from 599 tau to 1200 tau.
+    let (s1, s2) = (599.0 * 0.6, 1200.0 * 0.6);
+    let shear = -((1.0 + s2 * s2 as f64).ln() - (1.0 + s1 * s1 as f64).ln()) / (2.0 * (s2 - s1));
+    for i in 2 * n - 3..2 * n {
+        assert!(l[i].abs() < 1e-10, "N = {n}: lambda_{} = {}", i + 1, l[i]);
+    }
+    for i in 2 * n..2 * n + 3 {
+        assert!((l[i] / shear - 1.0).abs() < 1e-3, "N = {n}: lambda_{} = {} against {shear}", i + 1, l[i]);
+    }
     for f in fs.iter().step_by(50) {
         // v^1 = g^1 and v^{2N-2} = g^{2N-2} up to sign (C starts as the identity).
         assert!(dot(f.v(0), f.g(0).unwrap()).abs() > 1.0 - 1e-10);

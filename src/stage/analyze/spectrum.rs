@@ -12,12 +12,23 @@ use std::path::Path;
 pub struct Spectrum {
     ctx: Context,
     acc: Accumulator,
+    /// Oldest and newest step consumed.
+    steps: Option<(u64, u64)>,
+}
+
+/// The CLV exponent a finite window gives the three trailing null-space vectors: backward
+/// iteration from t_omega turns e_(k+3) into e_(k+3) - s e_k after the backward time s (the
+/// exact identity D phi^t e_(k+3) = t e_k + e_(k+3), PHYSICS.md), a growth of sqrt(1 + s^2)
+/// and not exponential; the time average over s1..s2 is
+/// -ln((1 + s2^2) / (1 + s1^2)) / (2 (s2 - s1)), which vanishes only like ln t / t.
+pub fn null_shear_exponent(s1: f64, s2: f64) -> f64 {
+    -((1.0 + s2 * s2).ln() - (1.0 + s1 * s1).ln()) / (2.0 * (s2 - s1))
 }
 
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     let expected = ctx.run.as_ref().map_or(1000, |m| m.store.clv_steps);
     let blocks = ctx.run.as_ref().map_or(20, |m| m.config.blocks as u64);
-    Some(Box::new(Spectrum { ctx: ctx.clone(), acc: Accumulator::new(ctx.k, (expected / blocks).max(1)) }))
+    Some(Box::new(Spectrum { ctx: ctx.clone(), acc: Accumulator::new(ctx.k, (expected / blocks).max(1)), steps: None }))
 }
 
 impl Analysis for Spectrum {
@@ -29,6 +40,7 @@ impl Analysis for Spectrum {
     }
     fn consume(&mut self, frame: &Frame) -> Result<()> {
         self.acc.add_logs(frame.local.iter().copied());
+        self.steps = Some(self.steps.map_or((frame.step, frame.step), |(a, b)| (a.min(frame.step), b.max(frame.step))));
         Ok(())
     }
 
@@ -62,6 +74,19 @@ impl Analysis for Spectrum {
             figures: vec!["fig2_spectrum".into()],
             tables: vec!["spectrum.csv".into()],
         }];
+        if let (true, Some(run), Some((first, last))) = (ctx.is_disks() && ctx.k == ctx.d && ctx.n >= 2, ctx.run.as_ref(), self.steps) {
+            // Frame m carries the exponent over [t_m, t_(m+1)], at backward times
+            // (total - m - 1) tau .. (total - m) tau from the window's end.
+            let total = run.config.relax_steps + run.config.steps;
+            let (s1, s2) = ((total - last - 1) as f64 * ctx.tau, (total - first) as f64 * ctx.tau);
+            let measured: Vec<String> = (2 * ctx.n..2 * ctx.n + 3).map(|i| format!("{:.4e}", clv[i])).collect();
+            produced[0].caption += &format!(
+                " The last three null-space CLV exponents (i = 2N+1..2N+3) are not zero in a finite window: backward iteration turns e_(k+3) into e_(k+3) - s e_k, \
+                 a growth like the backward time s, not exponential, so over s = {s1:.1}..{s2:.1} they average -ln((1 + s2²)/(1 + s1²)) / (2 (s2 - s1)) = {:.4e}; measured {}.",
+                null_shear_exponent(s1, s2),
+                measured.join(", ")
+            );
+        }
         if ctx.is_disks() && ctx.k == ctx.d {
             // The mode region: positive exponents next to the null space, with the negated
             // conjugate exponents at the same index (conjugate pairing: lambda_i = -lambda_{4N+1-i}).
