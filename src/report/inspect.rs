@@ -127,7 +127,8 @@ impl Inspection {
         let _ = writeln!(s, "files: {} segments, {} checkpoints, {} on disk", self.segments.len(), self.checkpoints, human(self.disk_bytes));
         for seg in &self.segments {
             let state = seg.damage.as_deref().unwrap_or("intact");
-            let _ = writeln!(s, "  {}  steps {}..{}  {} checkpoints, {} R  {}  {state}", seg.file, seg.first_step, seg.last_step, seg.checkpoints, seg.r_matrices, human(seg.bytes));
+            let plural = if seg.checkpoints == 1 { "" } else { "s" };
+            let _ = writeln!(s, "  {}  steps {}..{}  {} checkpoint{plural}, {} R  {}  {state}", seg.file, seg.first_step, seg.last_step, seg.checkpoints, seg.r_matrices, human(seg.bytes));
         }
         for p in &self.partial_segments {
             let _ = writeln!(s, "  {p}  interrupted (discarded on --resume)");
