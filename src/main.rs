@@ -26,7 +26,7 @@ enum Command {
     Forward(ForwardArgs),
     /// Backward Ginelli pass over a finished run: covariant Lyapunov vectors, frame by frame.
     Backward(BackwardArgs),
-    /// What a run directory holds, and whether every file is intact.
+    /// What a run directory or a frame file holds, and whether every file is intact.
     Inspect(InspectArgs),
     /// Every analysis of the paper over a frame stream (a file written by `clv backward`, or -).
     Analyze(AnalyzeArgs),
@@ -237,7 +237,7 @@ struct AnalyzeArgs {
     /// 5, ... up to a quarter of the CLV window).
     #[arg(long, value_delimiter = ',')]
     deltas: Option<Vec<u64>>,
-    /// Run only these analyses (comma-separated names, e.g. spectrum,localization).
+    /// Run only these analyses (comma-separated names, e.g. spectrum,localization; an unknown name lists those that apply).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
     /// Replace the files of an earlier report in --out (without it, a directory that holds
