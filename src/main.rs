@@ -483,6 +483,16 @@ fn run(args: &RunArgs) -> Result<()> {
     if let Some(bar) = &feedback.bar {
         bar.finish_and_clear();
     }
+    let clv_report = &result.clv;
+    let shown = |h: Option<clv::stage::forward::Estimate>| h.map_or("not known".to_string(), |h| h.to_string());
+    let first = |v: &[f64], e: &[f64]| shown(v.first().zip(e.first()).map(|(&value, &stderr)| clv::stage::forward::Estimate { value, stderr }));
+    say(format!(
+        "lambda_1 = {} (GS), {} (CLV); h_KS = {} (GS), {} (CLV)",
+        first(&clv_report.gs_exponents, &clv_report.gs_stderr),
+        first(&clv_report.exponents, &clv_report.stderr),
+        shown(clv_report.gs_ks_entropy),
+        shown(clv_report.ks_entropy)
+    ));
     let figures: usize = result.produced.iter().map(|p| p.figures.len()).sum();
     say(format!(
         "done in {:.0} s: {} frames analysed, {figures} figures; open {}",
