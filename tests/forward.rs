@@ -136,6 +136,14 @@ fn a_batch_job_logs_its_progress() {
     }
     let quiet = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).env_remove("CLV_LOG_SECONDS").output().unwrap();
     assert!(!String::from_utf8_lossy(&quiet.stderr).contains(" forward: step "));
+    // The backward stage logs both of its bars.
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("forward-batch-log");
+    let _ = std::fs::remove_dir_all(&dir);
+    let d = dir.to_str().unwrap();
+    assert!(Command::new(env!("CARGO_BIN_EXE_clv")).args(["forward", "--quiet", "--n", "30", "--steps", "3000", "--clv-steps", "1000", "--out", d]).status().unwrap().success());
+    let out = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", d, "--out", "-"]).env("CLV_LOG_SECONDS", "0").output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && err.contains(" recompute: step ") && err.contains(" sweep (frames): step "), "{err}");
 }
 
 #[test]
