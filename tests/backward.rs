@@ -142,13 +142,13 @@ fn check_disks(n: usize, steps: &str) {
     // like e_(k+3) - s e_k under backward iteration (s the backward time), so the last three
     // average -ln((1 + s2^2) / (1 + s1^2)) / (2 (s2 - s1)) over the window: with a
     // backward transient of 600 steps and 601 frames, s runs from 599 tau to 1200 tau.
-    let (s1, s2) = (599.0 * 0.6, 1200.0 * 0.6);
-    let shear = -((1.0 + s2 * s2 as f64).ln() - (1.0 + s1 * s1 as f64).ln()) / (2.0 * (s2 - s1));
-    for i in 2 * n - 3..2 * n {
-        assert!(l[i].abs() < 1e-10, "N = {n}: lambda_{} = {}", i + 1, l[i]);
+    let (s1, s2): (f64, f64) = (599.0 * 0.6, 1200.0 * 0.6);
+    let shear = -((1.0 + s2 * s2).ln() - (1.0 + s1 * s1).ln()) / (2.0 * (s2 - s1));
+    for (i, l) in l.iter().enumerate().skip(2 * n - 3).take(3) {
+        assert!(l.abs() < 1e-10, "N = {n}: lambda_{} = {l}", i + 1);
     }
-    for i in 2 * n..2 * n + 3 {
-        assert!((l[i] / shear - 1.0).abs() < 1e-3, "N = {n}: lambda_{} = {} against {shear}", i + 1, l[i]);
+    for (i, l) in l.iter().enumerate().skip(2 * n).take(3) {
+        assert!((l / shear - 1.0).abs() < 1e-3, "N = {n}: lambda_{} = {l} against {shear}", i + 1);
     }
     for f in fs.iter().step_by(50) {
         // v^1 = g^1 and v^{2N-2} = g^{2N-2} up to sign (C starts as the identity).

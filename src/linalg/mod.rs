@@ -159,9 +159,9 @@ mod tests {
         let mut sum = [0.0; 2];
         for step in 1..=n {
             let old = g.clone();
-            for i in 0..2 {
+            for (i, row) in a.iter().enumerate() {
                 for j in 0..2 {
-                    g.set(i, j, a[i][0] * old.get(0, j) + a[i][1] * old.get(1, j));
+                    g.set(i, j, row[0] * old.get(0, j) + row[1] * old.get(1, j));
                 }
             }
             qr.factor(&mut g, &mut r);
@@ -218,8 +218,8 @@ mod tests {
         for (got, want) in [(gs, [0.65427061, -1.85824342]), (clv, [0.65427061, -1.85824342])] {
             assert!((got[0] - want[0]).abs() < 1e-7 && (got[1] - want[1]).abs() < 1e-7, "{got:?}");
         }
-        for j in 0..2 {
-            assert!(parallel(&v, j, [mu[j], 1.0]) > 1.0 - 1e-14, "v^{}: {v:?}", j + 1);
+        for (j, mu) in mu.into_iter().enumerate() {
+            assert!(parallel(&v, j, [mu, 1.0]) > 1.0 - 1e-14, "v^{}: {v:?}", j + 1);
         }
         assert!(parallel(&g, 1, [mu[1], 1.0]) < 0.99, "g^2 is not an eigenvector");
     }
