@@ -484,14 +484,14 @@ fn run(args: &RunArgs) -> Result<()> {
         bar.finish_and_clear();
     }
     let clv_report = &result.clv;
-    let shown = |h: Option<clv::stage::forward::Estimate>| h.map_or("not known".to_string(), |h| h.to_string());
-    let first = |v: &[f64], e: &[f64]| shown(v.first().zip(e.first()).map(|(&value, &stderr)| clv::stage::forward::Estimate { value, stderr }));
+    use clv::stage::forward::Estimate;
+    let first = |v: &[f64], e: &[f64]| Estimate::or_unknown(v.first().zip(e.first()).map(|(&value, &stderr)| Estimate { value, stderr }));
     say(format!(
         "lambda_1 = {} (GS), {} (CLV); h_KS = {} (GS), {} (CLV)",
         first(&clv_report.gs_exponents, &clv_report.gs_stderr),
         first(&clv_report.exponents, &clv_report.stderr),
-        shown(clv_report.gs_ks_entropy),
-        shown(clv_report.ks_entropy)
+        Estimate::or_unknown(clv_report.gs_ks_entropy),
+        Estimate::or_unknown(clv_report.ks_entropy)
     ));
     let figures: usize = result.produced.iter().map(|p| p.figures.len()).sum();
     say(format!(
@@ -675,8 +675,8 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
                 report.gs_stderr.get(i).copied().unwrap_or(f64::NAN)
             );
         }
-        let entropy = |h: Option<clv::stage::forward::Estimate>| h.map_or("not known".to_string(), |h| h.to_string());
-        println!("KS entropy (sum of the positive exponents): {} (CLV), {} (GS)", entropy(report.ks_entropy), entropy(report.gs_ks_entropy));
+        use clv::stage::forward::Estimate;
+        println!("KS entropy (sum of the positive exponents): {} (CLV), {} (GS)", Estimate::or_unknown(report.ks_entropy), Estimate::or_unknown(report.gs_ks_entropy));
         let st = &report.statistics;
         println!("{} frames (steps {}..{}), {} steps recomputed in {} segments, {:.1} s", st.frames, st.first_frame_step, st.last_frame_step, st.recomputed_steps, st.segments, st.wall_seconds);
     }

@@ -88,6 +88,13 @@ pub struct Estimate {
     pub stderr: f64,
 }
 
+impl Estimate {
+    /// `x` as text, "not known" where there is none.
+    pub fn or_unknown(x: Option<Estimate>) -> String {
+        x.map_or("not known".to_string(), |x| x.to_string())
+    }
+}
+
 impl std::fmt::Display for Estimate {
     fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
         write!(f, "{:.6}", self.value)?;

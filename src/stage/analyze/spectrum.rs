@@ -60,7 +60,6 @@ impl Analysis for Spectrum {
         fig.series("CLV (backward)", &x, &clv, Marker::Line);
         fig.hline(0.0);
         save_figure(&fig, out, "fig2_spectrum")?;
-        let entropy = |h: Option<Estimate>| h.map_or("not known".to_string(), |h| h.to_string());
         // The spectrum.json of builds before h_KS was reported has the exponents but no error.
         let gs_h = ctx.gs.as_ref().and_then(|g| g.ks_entropy.or_else(|| ks_entropy(&g.exponents).map(|value| Estimate { value, stderr: f64::NAN })));
         let mut produced = vec![Produced {
@@ -68,8 +67,8 @@ impl Analysis for Spectrum {
             caption: format!(
                 "Forward Gram-Schmidt exponents (time average of ln R_ii) and backward covariant exponents (time average of the local CLV exponents over {frames} frames) against the reduced index i/4N. \
                  Kolmogorov-Sinai entropy h_KS, the sum of the positive exponents (Pesin's identity): {} (GS), {} (CLV).",
-                entropy(gs_h),
-                entropy(self.acc.ks_entropy(1.0)),
+                Estimate::or_unknown(gs_h),
+                Estimate::or_unknown(self.acc.ks_entropy(1.0)),
             ),
             figures: vec!["fig2_spectrum".into()],
             tables: vec!["spectrum.csv".into()],
