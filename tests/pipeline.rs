@@ -189,9 +189,7 @@ fn a_resumed_stream_is_reported_as_covering_part_of_the_window() {
 /// a second study into the same directory is refused.
 #[test]
 fn the_scaling_study_tabulates_and_fits_its_runs() {
-    let has = Command::new("python3").args(["-c", "import numpy"]).output().map(|o| o.status.success()).unwrap_or(false);
-    if !has {
-        eprintln!("SKIPPED: python3 with numpy is not available (.ci/run installs it)");
+    if !common::python_has("numpy") {
         return;
     }
     let base = scratch("scaling");
@@ -267,9 +265,7 @@ fn vectors_for_every_mth_frame_give_the_analyses_of_the_full_stream() {
 
 #[test]
 fn python_reads_frame_files() {
-    let has = Command::new("python3").args(["-c", "import mcap, cbor2, numpy"]).output().map(|o| o.status.success()).unwrap_or(false);
-    if !has {
-        eprintln!("SKIPPED: python3 with mcap, cbor2 and numpy is not available (.ci/run installs them)");
+    if !common::python_has("mcap, cbor2, numpy") {
         return;
     }
     let base = scratch("python");

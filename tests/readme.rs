@@ -33,7 +33,7 @@ fn every_readme_command_runs() {
     assert!(commands.len() >= 10, "README has {} commands", commands.len());
     let bin_dir = Path::new(env!("CARGO_BIN_EXE_clv")).parent().unwrap().to_path_buf();
     let work = common::scratch("readme", "work");
-    let python = Command::new("python3").args(["-c", "import mcap, cbor2, numpy"]).output().map(|o| o.status.success()).unwrap_or(false);
+    let python = common::python_has("mcap, cbor2, numpy");
     let mut ran = 0;
     for cmd in &commands {
         if cmd.starts_with("cargo ") || cmd.contains("pip install") || (cmd.starts_with("python3 ") && !python) {

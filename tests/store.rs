@@ -254,9 +254,7 @@ fn files_are_valid_mcap_for_the_crate_reader_with_embedded_schemas() {
 
 #[test]
 fn python_reader_reads_every_channel() {
-    let ok = Command::new("python3").args(["-c", "import mcap, cbor2, numpy"]).output().map(|o| o.status.success()).unwrap_or(false);
-    if !ok {
-        eprintln!("SKIPPED: python3 with mcap, cbor2 and numpy is not available (.ci/run installs them)");
+    if !common::python_has("mcap, cbor2, numpy") {
         return;
     }
     let (dir, want) = reference();

@@ -22,6 +22,16 @@ pub fn clv_env(args: &[&str], env: &[(&str, &str)]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_clv")).args(args).envs(env.iter().copied()).output().unwrap()
 }
 
+/// Whether python3 can import `modules` (comma-separated); says so on stderr when it cannot
+/// (.ci/run installs mcap, cbor2 and numpy, so CI runs every Python test).
+pub fn python_has(modules: &str) -> bool {
+    let has = Command::new("python3").args(["-c", &format!("import {modules}")]).output().map(|o| o.status.success()).unwrap_or(false);
+    if !has {
+        eprintln!("SKIPPED: python3 with {modules} is not available (.ci/run installs them)");
+    }
+    has
+}
+
 pub fn ok(out: Output) -> Output {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     out
