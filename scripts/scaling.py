@@ -11,7 +11,7 @@ Kolmogorov-Sinai entropy per disk, h_KS / N, which has a thermodynamic limit too
     python3 scripts/scaling.py --out scaling                   # N = 16 .. 1024, about 3 min
     python3 scripts/scaling.py --out s --n 8,16 --steps 600 --clv-steps 200
 
-Writes OUT/scaling.csv (N, lambda_1 and its error, W_1, h_KS / N and its error where the
+Writes OUT/scaling.csv (N, lambda_1, W_1 and h_KS / N with their errors, h_KS where the
 full spectrum was computed) and OUT/fit.json (eta from a least-squares line of ln W_1
 against ln N, with its standard error), and prints both. The runs stay in OUT/runs.
 """
@@ -64,14 +64,15 @@ def main():
         if backward.wait() != 0:
             sys.exit(f"scaling.py: clv backward {run_dir} failed")
         with open(os.path.join(report, "localization.csv")) as f:
-            w1 = float(next(csv.DictReader(f))["W_clv"])
-        row = {"N": n, "lambda_1": spectrum["exponents"][0], "lambda_1_stderr": spectrum["stderr"][0], "W_1": w1, "h_KS_per_disk": math.nan, "h_KS_per_disk_stderr": math.nan}
+            first = next(csv.DictReader(f))
+        w1 = float(first["W_clv"])
+        row = {"N": n, "lambda_1": spectrum["exponents"][0], "lambda_1_stderr": spectrum["stderr"][0], "W_1": w1, "W_1_stderr": float(first["stderr_clv"]), "h_KS_per_disk": math.nan, "h_KS_per_disk_stderr": math.nan}
         if n <= a.full_up_to:
             out = run([a.clv_bin, "forward", "--n", str(n), "--steps", str(a.steps), "--json"] + common, stdout=subprocess.PIPE).stdout
             h = json.loads(out)["ks_entropy"]
             row["h_KS_per_disk"], row["h_KS_per_disk_stderr"] = h["value"] / n, h["stderr"] / n
         rows.append(row)
-        print(f"N = {n:5d}: lambda_1 = {row['lambda_1']:.4f} +- {row['lambda_1_stderr']:.1e}, W_1 = {w1:.4f}, h_KS/N = {row['h_KS_per_disk']:.4f}", file=sys.stderr)
+        print(f"N = {n:5d}: lambda_1 = {row['lambda_1']:.4f} +- {row['lambda_1_stderr']:.1e}, W_1 = {w1:.4f} +- {row['W_1_stderr']:.1e}, h_KS/N = {row['h_KS_per_disk']:.4f}", file=sys.stderr)
 
     with open(table_path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))

@@ -188,6 +188,16 @@ fn clv_localization_is_conjugate_symmetric() {
     // v^(2N-2..2N) (= GS vectors for C = identity) and of v^(2N+1..2N+3) need not pair up.
     let nw: Vec<String> = null().iter().map(|&i| format!("{:.4}", w[i])).collect();
     eprintln!("CLV W in the null space (not paired): {}", nw.join(" "));
+    // The errors of W: W times the batch-means error of <S> over 20 blocks of the 601 frames
+    // in the order the stream carries them, newest first (30 frames each; the oldest frame is
+    // in no block), recomputed here.
+    let e = t.col("stderr_clv");
+    assert_eq!(frames(), (601.0, 601.0));
+    for i in [0, N, 2 * N - 4, D - 1] {
+        let s: Vec<f64> = all_frames().iter().rev().map(|f| entropy(f.v(i))).collect();
+        let want = w[i] * block_stderr(&s, 20);
+        assert!((e[i] - want).abs() < 1e-12 * want, "W_{} error {} against {want}", i + 1, e[i]);
+    }
 }
 
 #[test]

@@ -203,10 +203,11 @@ fn the_scaling_study_tabulates_and_fits_its_runs() {
         let n = r[0] as usize;
         let spectrum: serde_json::Value = serde_json::from_str(&read(&base.join(format!("runs/n{n}-run/spectrum.json")))).unwrap();
         assert_eq!(r[1], spectrum["exponents"][0].as_f64().unwrap());
-        let w: f64 = read(&base.join(format!("runs/n{n}-report/localization.csv"))).lines().nth(1).unwrap().split(',').nth(3).unwrap().parse().unwrap();
-        assert_eq!(r[3], w);
-        assert!(w > 0.0 && w <= 1.0);
-        assert_eq!(r[4].is_finite(), n <= 12, "h_KS / N only for the full spectra: {r:?}");
+        // localization.csv: i, i_over_D, W_gs, W_clv, stderr_gs, stderr_clv
+        let first: Vec<f64> = read(&base.join(format!("runs/n{n}-report/localization.csv"))).lines().nth(1).unwrap().split(',').map(|x| x.parse().unwrap()).collect();
+        assert_eq!((r[3], r[4]), (first[3], first[5]));
+        assert!(r[3] > 0.0 && r[3] <= 1.0 && r[4] > 0.0 && r[4] < 0.2 * r[3], "W_1 and its error: {r:?}");
+        assert_eq!(r[5].is_finite(), n <= 12, "h_KS / N only for the full spectra: {r:?}");
     }
     let (x, y): (Vec<f64>, Vec<f64>) = rows.iter().map(|r| (r[0].ln(), r[3].ln())).unzip();
     let (mx, my) = (x.iter().sum::<f64>() / 3.0, y.iter().sum::<f64>() / 3.0);

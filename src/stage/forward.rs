@@ -106,7 +106,7 @@ impl std::fmt::Display for Estimate {
 }
 
 /// Standard error of the mean of `x` (NaN with fewer than two values).
-fn standard_error(x: &[f64]) -> f64 {
+pub fn standard_error(x: &[f64]) -> f64 {
     let n = x.len();
     if n < 2 {
         return f64::NAN;

@@ -20,8 +20,8 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     ctx.is_disks().then(|| {
         Box::new(Localization {
             ctx: ctx.clone(),
-            clv: LocalizationAverage::new(ctx.n, ctx.k),
-            gs: ctx.with_gs.then(|| LocalizationAverage::new(ctx.n, ctx.k)),
+            clv: LocalizationAverage::new(ctx.n, ctx.k, ctx.block_len(true)),
+            gs: ctx.with_gs.then(|| LocalizationAverage::new(ctx.n, ctx.k, ctx.block_len(true))),
         }) as Box<dyn Analysis>
     })
 }
@@ -41,9 +41,15 @@ impl Analysis for Localization {
     fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
         let ctx = &self.ctx;
         let w_clv = self.clv.widths();
-        let w_gs = self.gs.as_ref().map(|g| g.widths()).unwrap_or_else(|| vec![f64::NAN; ctx.k]);
+        let e_clv = self.clv.width_stderr();
+        let nan = vec![f64::NAN; ctx.k];
+        let (w_gs, e_gs) = self.gs.as_ref().map_or((nan.clone(), nan), |g| (g.widths(), g.width_stderr()));
         let x: Vec<f64> = (0..ctx.k).map(|i| ctx.reduced(i)).collect();
-        write_csv(&out.join("localization.csv"), &["i", "i_over_D", "W_gs", "W_clv"], (0..ctx.k).map(|i| vec![(i + 1) as f64, x[i], w_gs[i], w_clv[i]]))?;
+        write_csv(
+            &out.join("localization.csv"),
+            &["i", "i_over_D", "W_gs", "W_clv", "stderr_gs", "stderr_clv"],
+            (0..ctx.k).map(|i| vec![(i + 1) as f64, x[i], w_gs[i], w_clv[i], e_gs[i], e_clv[i]]),
+        )?;
         let mut fig = Figure::new("Localization W = exp(<S>)/N").x_label("i/4N").y_label("W");
         if self.gs.is_some() {
             fig.series("GS vectors", &x, &w_gs, Marker::Line);
@@ -53,8 +59,9 @@ impl Analysis for Localization {
         Ok(vec![Produced {
             title: "Localization (Fig. 5)".into(),
             caption: format!(
-                "W = exp(<S>)/N, S = -sum_n mu_n ln mu_n, mu_n = |dq_n|^2 + |dp_n|^2, averaged over {frames} frames{}. Small W: the perturbation lives on few disks.",
-                if self.gs.is_some() { " for GS and covariant vectors" } else { " for covariant vectors (run the backward stage with --with-gs for GS vectors)" }
+                "W = exp(<S>)/N, S = -sum_n mu_n ln mu_n, mu_n = |dq_n|^2 + |dp_n|^2, averaged over {frames} frames{}; standard errors from blocks of {} frames. Small W: the perturbation lives on few disks.",
+                if self.gs.is_some() { " for GS and covariant vectors" } else { " for covariant vectors (run the backward stage with --with-gs for GS vectors)" },
+                ctx.block_len(true)
             ),
             figures: vec!["fig5_localization".into()],
             tables: vec!["localization.csv".into()],

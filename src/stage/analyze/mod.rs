@@ -170,6 +170,16 @@ impl Context {
         (!missing.is_empty()).then(|| format!("This stream covers steps {first}..{last} of the window {oldest}..{newest}, and every result here describes those steps only: {}.", missing.join("; ")))
     }
 
+    /// Frames per block for standard errors by batch means: the run's `blocks` blocks over
+    /// the frames an analysis reads (every frame of the window, or with `sampled` those on
+    /// the stride `every`); 20 blocks of 1000 frames without a run description.
+    pub fn block_len(&self, sampled: bool) -> u64 {
+        let frames = self.run.as_ref().map_or(1000, |m| m.store.clv_steps);
+        let frames = if sampled { frames / self.options.every.max(1) } else { frames };
+        let blocks = self.run.as_ref().map_or(20, |m| m.config.blocks as u64);
+        (frames / blocks.max(1)).max(1)
+    }
+
     /// Which frames the vector statistics use, for captions.
     pub fn sample(&self) -> String {
         match self.options.every {

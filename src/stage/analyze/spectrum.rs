@@ -26,9 +26,7 @@ pub fn null_shear_exponent(s1: f64, s2: f64) -> f64 {
 }
 
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
-    let expected = ctx.run.as_ref().map_or(1000, |m| m.store.clv_steps);
-    let blocks = ctx.run.as_ref().map_or(20, |m| m.config.blocks as u64);
-    Some(Box::new(Spectrum { ctx: ctx.clone(), acc: Accumulator::new(ctx.k, (expected / blocks).max(1)), steps: None }))
+    Some(Box::new(Spectrum { ctx: ctx.clone(), acc: Accumulator::new(ctx.k, ctx.block_len(false)), steps: None }))
 }
 
 impl Analysis for Spectrum {

@@ -42,18 +42,36 @@ pub fn localization_width(mean_entropy: f64, n_particles: usize) -> f64 {
 }
 
 /// Time average of the entropy S for each vector index of a stream of frames (paper Fig. 5:
-/// W_i = exp(<S_i>) / N). Non-finite entropies (NaN vectors) are skipped.
+/// W_i = exp(<S_i>) / N), with its standard error from the means of consecutive blocks of
+/// frames (batch means). Non-finite entropies (NaN vectors) are skipped.
 #[derive(Clone, Debug)]
 pub struct LocalizationAverage {
     n_particles: usize,
     sum: Vec<f64>,
     count: Vec<u64>,
+    /// Frames per block, frames in the current block, its sums and counts.
+    block_len: u64,
+    in_block: u64,
+    block_sum: Vec<f64>,
+    block_count: Vec<u64>,
+    /// Mean entropy of every completed block, per index.
+    block_means: Vec<Vec<f64>>,
 }
 
 impl LocalizationAverage {
-    /// Accumulator for frames of `n_vectors` tangent vectors of N = `n_particles` disks.
-    pub fn new(n_particles: usize, n_vectors: usize) -> Self {
-        LocalizationAverage { n_particles, sum: vec![0.0; n_vectors], count: vec![0; n_vectors] }
+    /// Accumulator for frames of `n_vectors` tangent vectors of N = `n_particles` disks, with
+    /// blocks of `block_len` frames for the errors.
+    pub fn new(n_particles: usize, n_vectors: usize, block_len: u64) -> Self {
+        LocalizationAverage {
+            n_particles,
+            sum: vec![0.0; n_vectors],
+            count: vec![0; n_vectors],
+            block_len: block_len.max(1),
+            in_block: 0,
+            block_sum: vec![0.0; n_vectors],
+            block_count: vec![0; n_vectors],
+            block_means: Vec::new(),
+        }
     }
 
     /// Add the entropy of vector `index` (0-based; paper index `index + 1`).
@@ -63,6 +81,8 @@ impl LocalizationAverage {
         if s.is_finite() {
             self.sum[index] += s;
             self.count[index] += 1;
+            self.block_sum[index] += s;
+            self.block_count[index] += 1;
         }
     }
 
@@ -72,6 +92,30 @@ impl LocalizationAverage {
         for j in 0..vecset::count(vectors, d) {
             self.add_vector(j, vecset::col(vectors, d, j));
         }
+        self.in_block += 1;
+        if self.in_block == self.block_len {
+            let means = self.block_sum.iter().zip(&self.block_count).map(|(&s, &c)| if c > 0 { s / c as f64 } else { f64::NAN }).collect();
+            self.block_means.push(means);
+            self.block_sum.iter_mut().for_each(|s| *s = 0.0);
+            self.block_count.iter_mut().for_each(|c| *c = 0);
+            self.in_block = 0;
+        }
+    }
+
+    /// Standard error of <S_i> from the spread of the block means (NaN with fewer than two
+    /// blocks that saw the index).
+    pub fn entropy_stderr(&self) -> Vec<f64> {
+        (0..self.sum.len())
+            .map(|i| {
+                let means: Vec<f64> = self.block_means.iter().map(|b| b[i]).filter(|m| m.is_finite()).collect();
+                crate::stage::forward::standard_error(&means)
+            })
+            .collect()
+    }
+
+    /// Standard error of W_i = exp(<S_i>) / N: W_i times that of <S_i>.
+    pub fn width_stderr(&self) -> Vec<f64> {
+        self.widths().iter().zip(self.entropy_stderr()).map(|(w, e)| w * e).collect()
     }
 
     /// Time-averaged entropy <S_i> per index (NaN where nothing was added).
@@ -147,7 +191,7 @@ mod tests {
         frame_a.extend_from_slice(&spread);
         let mut frame_b = spread.clone();
         frame_b.extend_from_slice(&spread);
-        let mut acc = LocalizationAverage::new(n, 2);
+        let mut acc = LocalizationAverage::new(n, 2, 10);
         acc.add_frame(&frame_a);
         acc.add_frame(&frame_b);
         acc.add_vector(0, &vec![f64::NAN; d]); // skipped
@@ -157,5 +201,29 @@ mod tests {
         assert!((w[1] - 1.0).abs() < 1e-14);
         assert_eq!(acc.counts(), &[2, 2]);
         assert!(entropy(&vec![0.0; d]).is_nan());
+    }
+
+    /// The error of <S> comes from the means of blocks of frames: four blocks whose means are
+    /// 0, ln 4, 0, ln 4 (two frames each) give the standard error of those four numbers.
+    #[test]
+    fn errors_come_from_block_means() {
+        let n = 4;
+        let d = 4 * n;
+        let mut local = vec![0.0; d];
+        local[1] = 1.0; // S = 0
+        let spread = vec![0.5; d]; // S = ln 4
+        let mut acc = LocalizationAverage::new(n, 1, 2);
+        for block in 0..4 {
+            for _ in 0..2 {
+                acc.add_frame(if block % 2 == 0 { &local } else { &spread });
+            }
+        }
+        acc.add_frame(&local); // an incomplete block counts in the mean, not in the error
+        let ln4 = 4f64.ln();
+        let want = (4.0 * (ln4 / 2.0).powi(2) / 3.0 / 4.0).sqrt();
+        assert!((acc.entropy_stderr()[0] - want).abs() < 1e-15, "{:?} against {want}", acc.entropy_stderr());
+        assert!((acc.mean_entropy()[0] - 4.0 * ln4 / 9.0).abs() < 1e-15);
+        assert!((acc.width_stderr()[0] - acc.widths()[0] * want).abs() < 1e-15);
+        assert!(LocalizationAverage::new(n, 1, 100).entropy_stderr()[0].is_nan(), "no complete block");
     }
 }
