@@ -10,6 +10,10 @@
 //!
 //! The pure numerics live in [`kernels`]; the files next to this one turn them into
 //! consumers, tables (CSV, JSON) and figures (PNG, SVG).
+//!
+//! What limits a report as a whole is said once, at its head (index.html, summary.json): a
+//! stream that covers less than the window its metadata describes, such as one continued
+//! with `clv backward --resume`, would otherwise give a report that looks complete.
 
 pub mod henon;
 pub mod kernels;
