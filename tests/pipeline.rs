@@ -182,6 +182,13 @@ fn a_resumed_stream_is_reported_as_covering_part_of_the_window() {
     let summary: serde_json::Value = serde_json::from_str(&read(&whole.join("summary.json"))).unwrap();
     assert_eq!((summary["first_step"].as_u64(), summary["last_step"].as_u64(), summary["warnings"].as_array().map(Vec::len)), (Some(first), Some(1900), Some(0)));
     assert!(!read(&whole.join("index.html")).contains("Incomplete stream"));
+    // --resume of the finished sweep: no frames, and both ends say why.
+    let pipe = format!("{} backward {r} --resume --out - | {} analyze - --out {}", env!("CARGO_BIN_EXE_clv"), env!("CARGO_BIN_EXE_clv"), base.join("none").display());
+    let out = Command::new("bash").args(["-c", &pipe]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("finished earlier") && err.contains("this stream carries none"), "backward: {err}");
+    assert!(err.contains("no frames in the stream") && err.contains("without --resume"), "analyze: {err}");
 }
 
 /// scripts/scaling.py: one row per N with the run's lambda_1 and the report's W_1, h_KS per

@@ -612,7 +612,16 @@ pub fn run(
         // The sweep finished earlier: its report is the answer.
         let path = report_path(&dir);
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-        return serde_json::from_str(&text).map_err(|e| Error::corrupt(&path, e.to_string()));
+        let mut report: BackwardReport = serde_json::from_str(&text).map_err(|e| Error::corrupt(&path, e.to_string()))?;
+        report.notes = notes;
+        if frames_path.is_none() {
+            report.notes.push(format!(
+                "the backward sweep of {} finished earlier and its frames went to the reader of that stream: this stream carries none; \
+                 start it again without --resume for the frames",
+                dir.path.display()
+            ));
+        }
+        return Ok(report);
     }
 
     if let Some(p) = prior.as_ref().filter(|p| frames_path.is_none() && p.stats.frames > 0) {
