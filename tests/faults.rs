@@ -211,6 +211,30 @@ fn a_second_writer_is_refused_and_a_killed_one_leaves_no_stale_lock() {
     assert!(still_running, "resume after a killed writer failed: {}", String::from_utf8_lossy(&out.stderr));
 }
 
+/// A new sweep must not strand the frames of an interrupted one: while RUN/backward.json
+/// records an interrupted sweep into a file whose FILE.tmp exists, a sweep with other options
+/// (a stream, or another file) is refused, naming the file and how to finish it; finished,
+/// the file has the uninterrupted sweep's frames, and the stream runs.
+#[test]
+fn a_new_sweep_does_not_strand_an_interrupted_one() {
+    let (dir, _) = reference("strand");
+    let d = dir.to_str().unwrap();
+    let whole = dir.join("whole.mcap");
+    ok(clv(&["backward", d, "--quiet", "--out", whole.to_str().unwrap()]));
+    let part = dir.join("part.mcap");
+    let p = part.to_str().unwrap();
+    assert!(crashed(&clv_env(&["backward", d, "--quiet", "--out", p], &[("CLV_FAULT_CRASH_AT", "frames-synced#8")]), "frames-synced#8"));
+    for other in [vec!["backward", d, "--out", "-"], vec!["backward", d, "--out", dir.join("other.mcap").to_str().unwrap()]] {
+        let out = clv(&other);
+        let err = stderr(&out);
+        assert!(!out.status.success(), "{other:?}: {err}");
+        assert!(err.contains("interrupted backward sweep into") && err.contains(p) && err.contains("--resume"), "{err}");
+    }
+    ok(clv(&["backward", d, "--quiet", "--out", p, "--resume"]));
+    assert!(frames(&part) == frames(&whole));
+    ok(clv(&["backward", d, "--quiet", "--out", "-"]));
+}
+
 /// On a file system without locks (Lustre without flock, NFS without a lock manager) a run
 /// is still possible: the stages warn that they cannot refuse a second writer, and work.
 #[test]

@@ -583,6 +583,28 @@ pub fn run(
             None
         }
         Err(e) if resume => return Err(Error::io(&progress_file, e)),
+        // A new sweep replaces the progress record: refuse where that would strand the
+        // frames an interrupted sweep with other options left in its file.
+        Ok(text) => {
+            if let Ok(p) = serde_json::from_str::<Progress>(&text)
+                && !p.done
+                && p.options != *opts
+                && let Some(stranded) = p.options.frames_path.as_ref().map(|f| tmp_path(f)).filter(|t| t.exists())
+            {
+                let file = p.options.frames_path.as_ref().map(|f| f.display().to_string()).unwrap_or_default();
+                return Err(Error::Other(format!(
+                    "{} holds the progress of an interrupted backward sweep into {file} (down to step {}, {} frames in {}), which a new sweep would make impossible to resume; \
+                     finish it first with `clv backward {} --out {file} --resume`, or delete {} to give it up",
+                    progress_file.display(),
+                    p.at,
+                    p.stats.frames,
+                    stranded.display(),
+                    dir.path.display(),
+                    stranded.display()
+                )));
+            }
+            None
+        }
         _ => None,
     };
     let prior: Option<Progress> = match record {

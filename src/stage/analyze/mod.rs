@@ -523,7 +523,7 @@ pub fn analyze_source(
             )));
         }
         return Err(Error::Other(format!(
-            "{name}: no frames in the stream{} (`clv backward --resume` of a sweep that had finished sends none: start it without --resume)",
+            "{name}: no frames in the stream{}: its writer sent none (if it failed, its own error says why; `clv backward --resume` of a sweep that had finished sends none, start it without --resume)",
             damage.map(|d| format!(" ({d})")).unwrap_or_default()
         )));
     };
