@@ -522,6 +522,14 @@ fn bench(args: &BenchArgs) -> Result<()> {
 }
 
 fn analyze(args: &AnalyzeArgs) -> Result<()> {
+    if args.source == std::path::Path::new("-") && std::io::IsTerminal::is_terminal(&std::io::stdin()) {
+        return Err(Error::Other(
+            "- reads a frame stream from standard input, which is a terminal; pipe one in (`clv backward RUN_DIR --out - | clv analyze - --out REPORT`) or give a frame file".into(),
+        ));
+    }
+    if args.out.is_file() {
+        return Err(Error::param("out", format!("{} is a file; the report needs a directory", args.out.display())));
+    }
     // A report can be all that is left of a long run: never replace one by accident.
     let holds_files = std::fs::read_dir(&args.out).is_ok_and(|mut entries| entries.next().is_some());
     if holds_files && !args.overwrite {

@@ -106,6 +106,18 @@ fn analyze_refuses_bad_sources_clearly() {
     let out = Command::new(env!("CARGO_BIN_EXE_clv")).args(["analyze", "-", "--out", base.join("o").to_str().unwrap()]).stdin(Stdio::null()).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("<stdin>") && err.contains("it is empty") && !err.contains("panicked"), "{err}");
+    // --out a file: refused, the file left as it is.
+    let file = base.join("a-file");
+    std::fs::write(&file, b"kept").unwrap();
+    let out = clv(&["analyze", junk.to_str().unwrap(), "--out", file.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--out") && err.contains("is a file"), "{err}");
+    assert_eq!(std::fs::read(&file).unwrap(), b"kept");
+    // Standard input on a terminal (script(1) gives it one) would wait for a stream forever.
+    let cmd = format!("{} analyze - --out {}", env!("CARGO_BIN_EXE_clv"), base.join("t").display());
+    let tty = Command::new("script").args(["-qec", &cmd, "/dev/null"]).stdin(Stdio::null()).output().expect("script(1) from util-linux");
+    let text = String::from_utf8_lossy(&tty.stdout);
+    assert!(!tty.status.success() && text.contains("standard input, which is a terminal"), "{text}");
 }
 
 /// The README's main command on the embedded default: every stage, every figure, and a

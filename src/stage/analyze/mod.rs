@@ -522,10 +522,10 @@ pub fn analyze_source(
                 "{name} is a segment of a run directory (checkpoints and R matrices), not a frame stream; make the frames with `clv backward RUN_DIR --out - | clv analyze - --out REPORT`"
             )));
         }
-        return Err(Error::Other(format!(
-            "{name}: no frames in the stream{}: its writer sent none (if it failed, its own error says why; `clv backward --resume` of a sweep that had finished sends none, start it without --resume)",
-            damage.map(|d| format!(" ({d})")).unwrap_or_default()
-        )));
+        return Err(Error::Other(match damage {
+            Some(d) => format!("{name}: no frames in the stream ({d})"),
+            None => format!("{name}: no frames in the stream: its writer sent none (`clv backward --resume` of a sweep that had finished sends none; start it without --resume)"),
+        }));
     };
     let analysed = analyzer.finish()?;
     if let Some(d) = damage {
