@@ -424,6 +424,9 @@ fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
         return print_report(&outcome.report, args.json);
     }
     if let Some(dir) = &args.out {
+        if dir.is_file() {
+            return Err(Error::param("out", format!("{} is a file; a run needs a directory (a new path, or an empty directory)", dir.display())));
+        }
         let meta = args.meta()?;
         if !args.quiet {
             eprintln!("clv: configuration: {}", serde_json::to_string(&meta.config).unwrap_or_default());
@@ -470,6 +473,9 @@ fn run(args: &RunArgs) -> Result<()> {
         Some(path) => config_from_file(path)?,
         None => RunConfig::preset(&args.preset)?,
     };
+    if args.out.is_file() {
+        return Err(Error::param("out", format!("{} is a file; `clv run` writes a directory (run/ and report/ in it)", args.out.display())));
+    }
     let quiet = args.quiet;
     let mut say = |msg: String| {
         if !quiet {

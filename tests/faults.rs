@@ -337,6 +337,22 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
         let err = stderr(&out);
         assert!(!out.status.success() && err.contains("is a file") && err.contains("run directory"), "{cmd:?}: {err}");
     }
+    // A file where a directory is to be written, and a file that is not MCAP at all.
+    let plain = base.join("plain.txt");
+    std::fs::write(&plain, b"not a run\n").unwrap();
+    let p = plain.to_str().unwrap();
+    for (cmd, needle) in [
+        (vec!["forward", "--n", "4", "--steps", "100", "--clv-steps", "20", "--out", p], "--out: "),
+        (vec!["run", "--out", p], "--out: "),
+        (vec!["analyze", frames_file.to_str().unwrap(), "--out", p], "--out: "),
+        (vec!["inspect", p], "not MCAP at all"),
+        (vec!["analyze", p, "--out", base.join("r").to_str().unwrap()], "not MCAP at all"),
+    ] {
+        let out = clv(&cmd);
+        let err = stderr(&out);
+        assert!(!out.status.success() && err.contains(needle) && !err.contains("os error"), "{cmd:?}: {err}");
+        assert_eq!(std::fs::read(&plain).unwrap(), b"not a run\n");
+    }
     // A run made by a build with other numerics cannot be continued bit for bit: refused.
     let original = std::fs::read_to_string(dir.join("run.json")).unwrap();
     std::fs::write(dir.join("run.json"), original.replace("clv-numerics/", "clv-numerics-old/")).unwrap();

@@ -183,10 +183,11 @@ pub fn inspect_frames(path: &Path) -> Result<FrameFileInspection> {
             Ok(crate::store::frames::Flow::Continue)
         },
     )?;
-    if found.frames == 0 && damage.is_none() {
+    if found.frames == 0 {
         return Err(crate::Error::Other(format!(
-            "{} holds no frames: `clv inspect` reads a run directory or a frame file written by `clv backward --out FILE`",
-            path.display()
+            "{} holds no frames{}: `clv inspect` reads a run directory or a frame file written by `clv backward --out FILE`",
+            path.display(),
+            damage.map(|d| format!(" ({d})")).unwrap_or_default()
         )));
     }
     found.backward = backward_json.and_then(|j| serde_json::from_str(&j).ok());

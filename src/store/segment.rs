@@ -162,6 +162,9 @@ pub fn read_stream(name: &Path, input: impl Read, mode: ReadMode, visit: impl Fn
     read_stream_limited(name, input, mode, STREAM_RECORD_LIMIT, visit)
 }
 
+/// The bytes every MCAP file begins (and ends) with.
+const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+
 /// [`read_stream`] refusing records longer than `max_record` bytes (for a file: its size).
 fn read_stream_limited(name: &Path, mut input: impl Read, mode: ReadMode, max_record: u64, mut visit: impl FnMut(Message) -> Result<()>) -> Result<ReadReport> {
     let partial = mode == ReadMode::Salvage;
@@ -175,6 +178,8 @@ fn read_stream_limited(name: &Path, mut input: impl Read, mode: ReadMode, max_re
     let mut report = ReadReport::default();
     let mut topics: BTreeMap<u16, String> = BTreeMap::new();
     let mut consumed = 0u64;
+    // The first bytes, to tell a file that is not MCAP at all from a damaged one.
+    let mut head = Vec::with_capacity(MAGIC.len());
     while let Some(event) = reader.next_event() {
         let record = match event {
             Ok(LinearReadEvent::ReadRequest(need)) => {
@@ -185,6 +190,8 @@ fn read_stream_limited(name: &Path, mut input: impl Read, mode: ReadMode, max_re
                         other => break other.map_err(|e| Error::io(name, e))?,
                     }
                 };
+                let missing = MAGIC.len() - head.len();
+                head.extend_from_slice(&buf[..n.min(missing)]);
                 consumed += n as u64;
                 reader.notify_read(n);
                 continue;
@@ -197,6 +204,8 @@ fn read_stream_limited(name: &Path, mut input: impl Read, mode: ReadMode, max_re
             Err(e) => {
                 report.damage = Some(if consumed == 0 {
                     "it is empty: nothing was written to it; from a pipe, the command writing it failed or wrote elsewhere, and its own error says why".to_string()
+                } else if !MAGIC.starts_with(&head) {
+                    "it is not MCAP at all (it does not begin with the MCAP magic bytes), so neither a frame stream nor a run segment written by clv".to_string()
                 } else {
                     format!("{e} (within the first {consumed} bytes, after {} complete messages)", report.messages)
                 });
