@@ -746,6 +746,12 @@ fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
     let Some(file) = file else { return Ok(raw) };
     let mut argv = raw[..2].to_vec();
     argv.extend(clv::report::config_file::expand(std::path::Path::new(&file), &config_keys())?);
+    // A bad value in the file is the file's error, not the command line's.
+    if let Err(e) = Cli::try_parse_from(&argv) {
+        let text = e.to_string();
+        let first = text.lines().next().unwrap_or_default().trim_start_matches("error: ");
+        return Err(Error::Other(format!("{file}: {first}")));
+    }
     argv.extend(rest);
     Ok(argv)
 }

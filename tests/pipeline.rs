@@ -337,4 +337,12 @@ fn configuration_files_round_trip_and_flags_override_them() {
     assert!(out_dir.join("report/index.html").exists());
     let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("run/run.json")).unwrap()).unwrap();
     assert_eq!(run["config"]["system"]["n"], 8);
+    // A bad value in a file is reported as the file's, for forward and run alike.
+    let bad = base.join("bad.toml");
+    std::fs::write(&bad, "n = \"many\"\n").unwrap();
+    for cmd in [vec!["forward", "--config", bad.to_str().unwrap()], vec!["run", "--config", bad.to_str().unwrap(), "--out", base.join("bad-out").to_str().unwrap()]] {
+        let out = clv(&cmd);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains("bad.toml: ") && err.contains("'many'") && err.contains("--n"), "{cmd:?}: {err}");
+    }
 }
