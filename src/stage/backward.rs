@@ -232,8 +232,11 @@ impl Window {
     /// frame file the multiples of --save-every, on a stream every step.
     pub fn frame_steps(&self, opts: &BackwardOptions) -> Option<(u64, u64)> {
         let m = if opts.frames_path.is_some() { opts.save_every } else { 1 };
-        let (oldest, newest) = (self.first.div_ceil(m.max(1)) * m.max(1), self.last / m.max(1) * m.max(1));
-        (m > 0 && oldest <= newest).then_some((oldest, newest))
+        if m == 0 {
+            return None;
+        }
+        let (oldest, newest) = (self.first.div_ceil(m) * m, self.last / m * m);
+        (oldest <= newest).then_some((oldest, newest))
     }
 }
 
