@@ -180,13 +180,19 @@ mod tests {
         assert!((localization_width(entropy(&v), n) - 0.5).abs() < 1e-15);
     }
 
+    /// Two vectors of 4 disks: one on a single disk (S = 0), one spread evenly (|v|^2 = 4,
+    /// S = ln 4).
+    fn local_and_spread() -> (Vec<f64>, Vec<f64>) {
+        let mut local = vec![0.0; 16];
+        local[1] = 1.0;
+        (local, vec![0.5; 16])
+    }
+
     #[test]
     fn accumulator_averages_entropy_not_width() {
         let n = 4;
         let d = 4 * n;
-        let mut local = vec![0.0; d];
-        local[1] = 1.0; // S = 0
-        let spread = vec![0.5; d]; // |v|^2 = 4, uniform over disks: S = ln 4
+        let (local, spread) = local_and_spread();
         let mut frame_a = local.clone();
         frame_a.extend_from_slice(&spread);
         let mut frame_b = spread.clone();
@@ -208,10 +214,7 @@ mod tests {
     #[test]
     fn errors_come_from_block_means() {
         let n = 4;
-        let d = 4 * n;
-        let mut local = vec![0.0; d];
-        local[1] = 1.0; // S = 0
-        let spread = vec![0.5; d]; // S = ln 4
+        let (local, spread) = local_and_spread();
         let mut acc = LocalizationAverage::new(n, 1, 2);
         for block in 0..4 {
             for _ in 0..2 {
