@@ -291,4 +291,9 @@ fn henon_runs_through_the_same_store() {
     assert_eq!(v["finished"], true);
     assert_eq!(v["intact"], true);
     assert_eq!(v["steps_done"], 5100);
+    // The text adds what the spectrum implies: h_KS = lambda_1 and D_KY = 1 + lambda_1 / |lambda_2|.
+    let l: Vec<f64> = serde_json::from_value(v["exponents"].clone()).unwrap();
+    let text = String::from_utf8(clv(&["inspect", d]).stdout).unwrap();
+    let want = format!("so far: h_KS = {:.5}, D_KY = {:.5}", l[0], 1.0 + l[0] / l[1].abs());
+    assert!(text.contains(&want), "{text} lacks {want}");
 }

@@ -140,6 +140,16 @@ impl Inspection {
         if !self.exponents.is_empty() {
             let show: Vec<String> = self.exponents.iter().take(4).map(|x| format!("{x:.5}")).collect();
             let _ = writeln!(s, "spectrum so far: lambda_1.. = {} ... lambda_k = {:.5}", show.join(", "), self.exponents.last().unwrap_or(&f64::NAN));
+            let mut sums = Vec::new();
+            if let Some(h) = crate::stage::forward::ks_entropy(&self.exponents) {
+                sums.push(format!("h_KS = {h:.5}"));
+            }
+            if let Some(d) = crate::stage::forward::kaplan_yorke_dimension(&self.exponents, self.run.config.system.dim()) {
+                sums.push(format!("D_KY = {d:.5}"));
+            }
+            if !sums.is_empty() {
+                let _ = writeln!(s, "so far: {}", sums.join(", "));
+            }
         }
         let _ = writeln!(s, "{}", if self.intact { "all finished files intact" } else { "DAMAGE FOUND (see above): `clv forward --resume` recomputes the damaged segments" });
         s
