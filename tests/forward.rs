@@ -136,6 +136,9 @@ fn a_batch_job_logs_its_progress() {
     }
     let quiet = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).env_remove("CLV_LOG_SECONDS").output().unwrap();
     assert!(!String::from_utf8_lossy(&quiet.stderr).contains(" forward: step "));
+    let odd = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).env("CLV_LOG_SECONDS", "5min").output().unwrap();
+    let err = String::from_utf8_lossy(&odd.stderr);
+    assert!(odd.status.success() && err.matches("CLV_LOG_SECONDS=\"5min\" is not a whole number").count() == 1, "{err}");
     // The backward stage logs both of its bars.
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("forward-batch-log");
     let _ = std::fs::remove_dir_all(&dir);

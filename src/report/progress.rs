@@ -44,8 +44,22 @@ fn target() -> ProgressDrawTarget {
     if !logging() {
         return ProgressDrawTarget::stderr();
     }
-    let seconds = std::env::var("CLV_LOG_SECONDS").ok().and_then(|s| s.parse().ok()).unwrap_or(300);
-    ProgressDrawTarget::term_like_with_hz(Box::new(LogLines::new(Duration::from_secs(seconds))), 1)
+    ProgressDrawTarget::term_like_with_hz(Box::new(LogLines::new(log_interval())), 1)
+}
+
+/// `CLV_LOG_SECONDS`, or five minutes (a value that is not a number of seconds is said so, once).
+fn log_interval() -> Duration {
+    static INTERVAL: std::sync::OnceLock<Duration> = std::sync::OnceLock::new();
+    *INTERVAL.get_or_init(|| {
+        let seconds = match std::env::var("CLV_LOG_SECONDS") {
+            Err(_) => 300,
+            Ok(v) => v.trim().parse().unwrap_or_else(|_| {
+                eprintln!("clv: warning: CLV_LOG_SECONDS={v:?} is not a whole number of seconds; logging progress every 300 s");
+                300
+            }),
+        };
+        Duration::from_secs(seconds)
+    })
 }
 
 /// A [`TermLike`] that turns the bars' redraws into log lines, one redraw in `interval`.
