@@ -44,8 +44,8 @@ fn shell_pipes_give_the_same_numbers_as_files_and_concurrency_changes_nothing() 
         .unwrap();
     assert!(backward.wait().unwrap().success());
     assert!(analyze.status.success(), "{}", String::from_utf8_lossy(&analyze.stderr));
-    // From a file written by the backward stage.
-    let frames = base.join("frames.mcap");
+    // From a file written by the backward stage (into directories it makes).
+    let frames = base.join("kept/frames/frames.mcap");
     ok(clv(&["backward", r, "--out", frames.to_str().unwrap(), "--with-gs", "--quiet"]));
     let filed = base.join("filed");
     ok(clv(&["analyze", frames.to_str().unwrap(), "--out", filed.to_str().unwrap(), "--every", "7"]));

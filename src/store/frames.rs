@@ -83,10 +83,14 @@ pub fn tmp_path(path: &Path) -> PathBuf {
 }
 
 impl FrameFile {
-    /// Start FILE.tmp (replacing a stale one); refuses if FILE exists.
+    /// Start FILE.tmp (replacing a stale one) in FILE's directory, made if missing (as a run
+    /// directory or a report is); refuses if FILE exists.
     pub fn create(path: &Path, metadata: &BTreeMap<String, String>) -> Result<Self> {
         if path.exists() {
             return Err(Error::Other(format!("{} already exists; refusing to overwrite it (remove it or choose another --out)", path.display())));
+        }
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
         }
         let tmp = tmp_path(path);
         let file = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
