@@ -42,7 +42,8 @@ fn merged_factor(a: MatRef<'_, f64>, t: MatRef<'_, f64>, nb: usize, s: usize, e:
 }
 
 /// Q (orgqr order, chunks of `chunk` columns) from blocks of width w (a multiple of nb).
-fn form_q(a: MatRef<'_, f64>, t: MatRef<'_, f64>, nb: usize, w: usize, chunk: usize, q: &mut Mat<f64>, tb: &mut Vec<Mat<f64>>, mem: &mut MemBuffer) -> (f64, f64) {
+#[allow(clippy::too_many_arguments)]
+fn form_q(a: MatRef<'_, f64>, t: MatRef<'_, f64>, nb: usize, w: usize, chunk: usize, q: &mut Mat<f64>, tb: &mut [Mat<f64>], mem: &mut MemBuffer) -> (f64, f64) {
     let (_, k) = a.shape();
     let blocks: Vec<(usize, usize)> = (0..k.div_ceil(w)).map(|b| (b * w, ((b + 1) * w).min(k))).collect();
     let s0 = Instant::now();
