@@ -88,11 +88,13 @@ def main():
     se = math.sqrt(resid @ resid / dof / np.sum((x - x.mean()) ** 2)) if dof > 0 else math.nan
     # The slope between neighbouring N: constant for a pure power law.
     local = [{"from": int(ns[i]), "to": int(ns[i + 1]), "eta": -(y[i + 1] - y[i]) / (x[i + 1] - x[i])} for i in range(len(ns) - 1)]
-    fit = {"eta": -coef[1], "eta_stderr": se if dof > 0 else None, "points": len(x), "local_eta": local, "density": a.density, "steps": a.steps, "clv_steps": a.clv_steps}
+    version = run([a.clv_bin, "--version"], stdout=subprocess.PIPE, text=True).stdout.strip()
+    fit = {"clv": version, "eta": -coef[1], "eta_stderr": se if dof > 0 else None, "points": len(x), "local_eta": local, "density": a.density, "steps": a.steps, "clv_steps": a.clv_steps}
     with open(os.path.join(a.out, "fit.json"), "w") as f:
         json.dump(fit, f, indent=2)
     between = ", ".join(f"{l['eta']:.3f} ({l['from']}-{l['to']})" for l in local)
-    print(f"W_1 ~ N^-eta: eta = {fit['eta']:.3f} +- {se:.3f} from N = {ns[0]}..{ns[-1]}; between neighbours {between}; table {table_path}")
+    error = f" +- {se:.3f}" if dof > 0 else " (no error from two points)"
+    print(f"W_1 ~ N^-eta: eta = {fit['eta']:.3f}{error} from N = {ns[0]}..{ns[-1]}; between neighbours {between}; table {table_path}")
 
 
 if __name__ == "__main__":
