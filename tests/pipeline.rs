@@ -194,6 +194,14 @@ fn a_resumed_stream_is_reported_as_covering_part_of_the_window() {
     let summary: serde_json::Value = serde_json::from_str(&read(&whole.join("summary.json"))).unwrap();
     assert_eq!((summary["first_step"].as_u64(), summary["last_step"].as_u64(), summary["warnings"].as_array().map(Vec::len)), (Some(first), Some(1900), Some(0)));
     assert!(!read(&whole.join("index.html")).contains("Incomplete stream"));
+    // With no backward transient the window ends one step before the run's last step (that
+    // step is never a frame): a whole stream, and no warning.
+    let t0 = base.join("t0");
+    let pipe = format!("{} backward {r} --transient 0 --out - --quiet | {} analyze - --out {} --quiet", env!("CARGO_BIN_EXE_clv"), env!("CARGO_BIN_EXE_clv"), t0.display());
+    let out = Command::new("bash").args(["-c", &format!("set -o pipefail; {pipe}")]).output().unwrap();
+    assert!(out.status.success() && !String::from_utf8_lossy(&out.stderr).contains("warning"), "{}", String::from_utf8_lossy(&out.stderr));
+    let summary: serde_json::Value = serde_json::from_str(&read(&t0.join("summary.json"))).unwrap();
+    assert_eq!((summary["last_step"].as_u64(), summary["warnings"].as_array().map(Vec::len)), (Some(2199), Some(0)));
     // --resume of the finished sweep: no frames, and both ends say why.
     let pipe = format!("{} backward {r} --resume --out - | {} analyze - --out {}", env!("CARGO_BIN_EXE_clv"), env!("CARGO_BIN_EXE_clv"), base.join("none").display());
     let out = Command::new("bash").args(["-c", &pipe]).output().unwrap();

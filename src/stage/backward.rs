@@ -217,7 +217,9 @@ pub struct Window {
 
 impl Window {
     /// The window a sweep with `opts` emits frames for: the steps the forward run kept for
-    /// the backward stage, less the backward transient at the newer end.
+    /// the backward stage, less the backward transient at the newer end. The run's last
+    /// step is never a frame (its local exponents would need R of the step after it), so
+    /// a transient of 0 ends the window one step before it.
     pub fn of(meta: &RunMeta, opts: &BackwardOptions) -> Result<Self> {
         let (config, store) = (&meta.config, &meta.store);
         let total = config.relax_steps + config.steps;
@@ -225,7 +227,7 @@ impl Window {
         if opts.transient >= kept {
             return Err(Error::param("transient", format!("must be below the {kept} steps the run kept for the backward stage (--clv-steps + --transient of the forward run)")));
         }
-        Ok(Window { first: total - kept, last: total - opts.transient })
+        Ok(Window { first: total - kept, last: total - opts.transient.max(1) })
     }
 
     /// The oldest and newest step of the frames a whole sweep with `opts` leaves: in its
