@@ -9,12 +9,11 @@
 //!   the older one with the forward code itself, and the recomputed state at the newer
 //!   checkpoint must equal the stored one bit for bit: a run can never be silently replayed
 //!   with other numbers (another build, another CPU, an altered file).
-//! - Segments are recomputed by two worker threads ahead of the sweep, which consumes them
-//!   newest first, and the run's threads are shared between them ([`Cores`]): the
-//!   recomputation is the larger part (a QR per step against two triangular products), so
-//!   it takes every thread the sweep is not using. Three segments are in memory at most
-//!   (one on a run of one thread: two); past the `--memory` budget the Gram-Schmidt bases
-//!   of a segment live in an unlinked scratch file (memmap2).
+//! - Segments are recomputed on a second thread while the sweep consumes the previous one,
+//!   and the run's threads are shared between the two ([`Cores`]): the recomputation is the
+//!   larger part (a QR per step against two triangular products), so it takes every thread
+//!   the sweep is not using. Two segments are in memory at most; past the `--memory`
+//!   budget the Gram-Schmidt bases of a segment live in an unlinked scratch file (memmap2).
 //! - C is iterated at every step (the local exponents need it), but V_n = G_n C_n, a quarter
 //!   of a step's arithmetic, and the G_n it needs are kept only for the frames that will be
 //!   read (`--vectors-every`): the analyses of vector statistics sample a few hundred frames.
@@ -377,7 +376,7 @@ impl Storage {
 
 /// One recomputed segment [s0, s1]: Gamma_n for n = s0..=s1, packed R_n for n = s0+1..=s1,
 /// and G_n for the steps whose frames carry vectors, in flat buffers that are handed back
-/// and reused (one more than the recomputation workers), so the memory of the sweep never depends on the window
+/// and reused (two exist at most), so the memory of the sweep never depends on the window
 /// length. G_n of step s0 + i is in slot `g_slot[i]`; with `--vectors-every m` a segment of
 /// C steps needs at most ceil((C + 1) / m) slots instead of C + 1.
 struct Segment {
@@ -399,11 +398,6 @@ impl Segment {
             phase: vec![0.0; (steps + 1) * d],
             r: vec![0.0; steps * k * (k + 1) / 2],
         })
-    }
-
-    /// Bytes of a segment of `steps` steps besides its G_n: the phase points and packed R_n.
-    fn bytes_besides_g(steps: usize, d: usize, k: usize) -> u64 {
-        8 * ((steps + 1) * d + steps * k * (k + 1) / 2) as u64
     }
 
     /// G_n slots a segment of `steps` steps needs: one per multiple of `vectors_every` among
@@ -437,110 +431,37 @@ pub fn sweep_threads(threads: usize) -> usize {
     (threads / 3).max(1)
 }
 
-/// Recomputation workers of a run on `threads` threads whose segments take `segment_bytes`
-/// each, within `memory_bytes`: two (see [`Cores`]) where the third segment they keep in
-/// memory fits, else one.
-fn recompute_workers(threads: usize, segment_bytes: u64, memory_bytes: u64) -> usize {
-    if threads >= 2 && 3 * segment_bytes <= memory_bytes { 2 } else { 1 }
-}
-
-/// How the run's threads are shared between the recomputation workers and the sweep, and
-/// which worker recomputes which segment.
-///
-/// The sweep (R^-1 C and V = G C, 4/3 D^3 flops a step) gets a third of the threads, at
-/// least one; the recomputation (a QR step, 8/3 D^3) the rest while the sweep works, and all
-/// of them while it waits for its next segment. Two workers take segments in the sweep's
-/// order and share the recomputation's threads, the one whose segment the sweep needs first
-/// getting the larger part. A QR on one thread does more per core than one on two (23.5
-/// against 2 x 12.7 ms at D = 792, measured): on a run of two threads the second worker
-/// takes the core the sweep leaves idle, instead of the first worker's QR taking it as a
-/// second thread (examples/backward_balance.rs). Spinning QR workers must not share a core
-/// with the sweep, so together they use no more threads than the run has, but for the
-/// first worker, which always has one (on a run of one thread it runs beside the sweep).
+/// How the run's threads are shared between the recomputation and the sweep. The sweep
+/// (R^-1 C and V = G C, 4/3 D^3 flops a step) gets a third of them, at least one; the
+/// recomputation (8/3 D^3) the rest while the sweep works, and all of them while the sweep
+/// waits for its next segment. Spinning QR workers must not share a core with the sweep,
+/// so together the two use no more threads than the run has (two when it has one: the
+/// recomputation beside the sweep).
 struct Cores {
     threads: usize,
-    state: std::sync::Mutex<CoresState>,
-    changed: std::sync::Condvar,
-}
-
-struct CoresState {
-    sweeping: bool,
-    /// The sweep has ended (finished, stopped or failed): workers stop at their next step.
-    closed: bool,
-    /// The next segment (in the sweep's order) no worker has taken yet.
-    next: usize,
-    /// The segment each worker is recomputing.
-    current: Vec<Option<usize>>,
+    sweeping: std::sync::atomic::AtomicBool,
 }
 
 impl Cores {
-    fn new(threads: usize, workers: usize) -> Self {
-        let threads = threads.max(1);
-        let state = CoresState { sweeping: false, closed: false, next: 0, current: vec![None; workers.max(1)] };
-        Cores { threads, state: state.into(), changed: Default::default() }
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, CoresState> {
-        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    fn new(threads: usize) -> Self {
+        Cores { threads: threads.max(1), sweeping: false.into() }
     }
 
     fn sweep_threads(&self) -> usize {
         sweep_threads(self.threads)
     }
 
-    /// Worker `w` takes the next of `segments` segments (`None` when none is left).
-    fn take(&self, w: usize, segments: usize) -> Option<usize> {
-        let mut state = self.lock();
-        let i = state.next;
-        (i < segments && !state.closed).then(|| {
-            state.next += 1;
-            state.current[w] = Some(i);
-            i
-        })
-    }
-
-    /// Worker `w` has handed its segment over.
-    fn finished(&self, w: usize) {
-        self.lock().current[w] = None;
-        self.changed.notify_all();
-    }
-
-    /// The threads of worker `w` for its next step: waits while it has none; `None` once
-    /// the sweep has ended.
-    fn recompute_threads(&self, w: usize) -> Option<usize> {
-        let mut state = self.lock();
-        loop {
-            if state.closed {
-                return None;
-            }
-            let free = if state.sweeping { self.threads.saturating_sub(self.sweep_threads()) } else { self.threads };
-            if let Some(threads) = share(free, &state.current, w) {
-                return Some(threads);
-            }
-            state = self.changed.wait(state).unwrap_or_else(|e| e.into_inner());
+    fn recompute_threads(&self) -> usize {
+        if self.sweeping.load(std::sync::atomic::Ordering::Relaxed) {
+            (self.threads - self.sweep_threads()).max(1)
+        } else {
+            self.threads
         }
     }
 
     fn set_sweeping(&self, sweeping: bool) {
-        self.lock().sweeping = sweeping;
-        self.changed.notify_all();
+        self.sweeping.store(sweeping, std::sync::atomic::Ordering::Relaxed);
     }
-
-    fn close(&self) {
-        self.lock().closed = true;
-        self.changed.notify_all();
-    }
-}
-
-/// The threads of worker `w` out of `free`, the workers recomputing segments `current`:
-/// an even share, the remainder to the workers whose segments the sweep needs first, and at
-/// least one to the first of them. `None`: none for now (wait).
-fn share(free: usize, current: &[Option<usize>], w: usize) -> Option<usize> {
-    let mine = current[w].unwrap_or(usize::MAX);
-    let busy = current.iter().flatten().count().max(1);
-    let rank = current.iter().flatten().filter(|&&i| i < mine).count();
-    let threads = free / busy + usize::from(rank < free % busy);
-    (threads > 0 || rank == 0).then_some(threads.max(1))
 }
 
 /// Recompute segment [s0, s1] into `seg` from the older checkpoint and verify it against
@@ -548,7 +469,7 @@ fn share(free: usize, current: &[Option<usize>], w: usize) -> Option<usize> {
 /// that carry vectors).
 /// The pass `fwd` is made on the first segment and restored on the others.
 #[allow(clippy::too_many_arguments)]
-fn recompute(config: &RunConfig, store_r_all: bool, reads_g: &dyn Fn(u64) -> bool, cores: &Cores, worker: usize, cps: &mut Checkpoints, fwd: &mut Option<Forward>, s0: u64, s1: u64, seg: &mut Segment) -> Result<()> {
+fn recompute(config: &RunConfig, store_r_all: bool, reads_g: &dyn Fn(u64) -> bool, cores: &Cores, cps: &mut Checkpoints, fwd: &mut Option<Forward>, s0: u64, s1: u64, seg: &mut Segment) -> Result<()> {
     // The newer end first: it is the older end of the segment before, still in `cps`.
     let want = cps.get(s1)?;
     let start = cps.get(s0)?;
@@ -579,10 +500,7 @@ fn recompute(config: &RunConfig, store_r_all: bool, reads_g: &dyn Fn(u64) -> boo
     }
     seg.phase[..d].copy_from_slice(&start.system.phase);
     for n in s0 + 1..=s1 {
-        let Some(threads) = cores.recompute_threads(worker) else {
-            return Err(Error::Other("the sweep ended".into()));
-        };
-        fwd.set_threads(threads);
+        fwd.set_threads(cores.recompute_threads());
         let i = (n - s0) as usize;
         let g_n = seg.g_slot[i].map(|slot| &mut g[slot * dk..(slot + 1) * dk]);
         fwd.step_with_copies(g_n, &mut seg.r[(i - 1) * kk..i * kk])?;
@@ -763,70 +681,43 @@ pub fn run(
     let resume_at = prior.as_ref().map(|p| p.at).unwrap_or(total);
     let todo: Vec<(u64, u64)> = bounds.windows(2).rev().map(|w| (w[0], w[1])).filter(|&(_, s1)| s1 <= resume_at).collect();
 
-    let g_bytes = 8 * (Segment::g_slots(c_every as usize, opts.vectors_every) * d * k) as u64;
-    let segment_bytes = g_bytes + Segment::bytes_besides_g(c_every as usize, d, k);
-    let workers = recompute_workers(config.threads, segment_bytes, memory_bytes);
-    let cores = Arc::new(Cores::new(config.threads, workers));
-    // Each worker holds one segment (recomputing it, or done and waiting to hand it over)
-    // while the sweep holds another.
-    let buffers = workers + 1;
-    let out_of_core = ((buffers as u64 + 1) * g_bytes > memory_bytes).then(|| dir.path.clone());
+    let segment_bytes = 8 * (Segment::g_slots(c_every as usize, opts.vectors_every) * d * k) as u64;
+    let out_of_core = (3 * segment_bytes > memory_bytes).then(|| dir.path.clone());
     let store_r_all = store.store_r == StoreR::All;
+    let cores = Arc::new(Cores::new(config.threads));
     let par = par(cores.sweep_threads());
 
-    let (free_tx, free_rx) = crossbeam_channel::bounded::<Segment>(buffers);
-    let (done_tx, done_rx) = crossbeam_channel::bounded::<(usize, Result<Segment>)>(buffers);
-    let allocated = Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let (tx, rx) = crossbeam_channel::bounded::<Result<Segment>>(0);
+    let (free_tx, free_rx) = crossbeam_channel::bounded::<Segment>(2);
+    let producer_config = config.clone();
     let segments = dir.segments()?;
+    let producer_todo = todo.clone();
+    let producer_cores = cores.clone();
     let vectors_every = opts.vectors_every;
-    let reads_g = Arc::new(move |n: u64| n >= window.first && n <= window.last && on_stride(n, vectors_every));
-    let todo = Arc::new(todo);
-    let mut handles = Vec::new();
-    for w in 0..workers {
-        let (config, cores, free_rx, done_tx, allocated, reads_g, out_of_core, todo) =
-            (config.clone(), cores.clone(), free_rx.clone(), done_tx.clone(), allocated.clone(), reads_g.clone(), out_of_core.clone(), todo.clone());
-        let mut cps = Checkpoints { segments: segments.clone(), last: None };
-        let handle = std::thread::Builder::new()
-            .name(format!("clv-recompute-{w}"))
-            .spawn(move || {
-                let mut fwd = None;
-                loop {
-                    // The buffer before the segment: every segment taken has one, so the
-                    // one the sweep waits for is always being recomputed.
-                    let buffer = match free_rx.try_recv() {
-                        Ok(b) => b,
-                        Err(_) if allocated.fetch_add(1, std::sync::atomic::Ordering::Relaxed) < buffers => {
-                            match Segment::new(c_every as usize, d, k, vectors_every, out_of_core.as_deref()) {
-                                Ok(b) => b,
-                                Err(e) => {
-                                    if let Some(i) = cores.take(w, todo.len()) {
-                                        cores.finished(w);
-                                        let _ = done_tx.send((i, Err(e)));
-                                    }
-                                    return;
-                                }
-                            }
-                        }
-                        Err(_) => match free_rx.recv() {
-                            Ok(b) => b,
-                            Err(_) => return,
-                        },
-                    };
-                    let Some(i) = cores.take(w, todo.len()) else { return };
-                    let (s0, s1) = todo[i];
-                    let mut buffer = buffer;
-                    let seg = recompute(&config, store_r_all, &*reads_g, &cores, w, &mut cps, &mut fwd, s0, s1, &mut buffer).map(|_| buffer);
-                    cores.finished(w);
-                    let failed = seg.is_err();
-                    if done_tx.send((i, seg)).is_err() || failed {
-                        return;
+    let reads_g = move |n: u64| n >= window.first && n <= window.last && on_stride(n, vectors_every);
+    let producer = std::thread::Builder::new()
+        .name("clv-recompute".into())
+        .spawn(move || {
+            let mut cps = Checkpoints { segments, last: None };
+            let mut fwd = None;
+            let mut allocated = 0;
+            for (s0, s1) in producer_todo {
+                let buffer = match free_rx.try_recv() {
+                    Ok(b) => Ok(b),
+                    Err(_) if allocated < 2 => {
+                        allocated += 1;
+                        Segment::new(c_every as usize, d, k, vectors_every, out_of_core.as_deref())
                     }
+                    Err(_) => free_rx.recv().map_err(|_| Error::Other("the sweep stopped".into())),
+                };
+                let seg = buffer.and_then(|mut b| recompute(&producer_config, store_r_all, &reads_g, &producer_cores, &mut cps, &mut fwd, s0, s1, &mut b).map(|_| b));
+                let failed = seg.is_err();
+                if tx.send(seg).is_err() || failed {
+                    break;
                 }
-            })
-            .map_err(|e| Error::Other(format!("cannot start a recomputation thread: {e}")))?;
-        handles.push(handle);
-    }
-    drop((free_rx, done_tx));
+            }
+        })
+        .map_err(|e| Error::Other(format!("cannot start the recomputation thread: {e}")))?;
 
     let mut r = Mat::<f64>::zeros(k, k);
     let mut norms = vec![0.0; k];
@@ -835,26 +726,11 @@ pub fn run(
     let mut spare: Option<Arc<Frame>> = None;
     let mut stopped = false;
     let mut failure = None;
-    // Segments recomputed ahead of the one the sweep needs (two at most).
-    let mut ahead = BTreeMap::new();
-    for i in 0..todo.len() {
-        let next = loop {
-            if let Some(seg) = ahead.remove(&i) {
-                break Some(seg);
-            }
-            match done_rx.recv() {
-                Ok((j, seg)) => ahead.insert(j, seg),
-                Err(_) => break None,
-            };
-        };
-        let seg = match next {
-            Some(Ok(s)) => s,
-            Some(Err(e)) => {
+    for segment in rx.iter() {
+        let seg = match segment {
+            Ok(s) => s,
+            Err(e) => {
                 failure = Some(e);
-                break;
-            }
-            None => {
-                failure = Some(Error::Other(format!("the recomputation of segment {}..{} stopped without a result (a bug: please report it)", todo[i].0, todo[i].1)));
                 break;
             }
         };
@@ -939,11 +815,8 @@ pub fn run(
         // thread, and a spinning QR worker must not share its core.
         cores.set_sweeping(false);
     }
-    cores.close();
-    drop((done_rx, ahead, free_tx));
-    for handle in handles {
-        let _ = handle.join();
-    }
+    drop(rx);
+    let _ = producer.join();
     if let Some(e) = failure {
         return Err(e);
     }
@@ -999,24 +872,6 @@ mod tests {
 
     fn record(c: Vec<f64>) -> Progress {
         Progress { options: BackwardOptions { transient: 1, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1 }, at: 7, c, acc: Accumulator::new(3, 2), stats: BackwardStats::default(), done: false }
-    }
-
-    /// The recomputation's threads go first to the segment the sweep needs first; on two
-    /// threads with the sweep at work, the other worker waits for its core.
-    #[test]
-    fn threads_are_shared_by_urgency() {
-        let two = [Some(4), Some(3)];
-        assert_eq!((share(1, &two, 1), share(1, &two, 0)), (Some(1), None));
-        assert_eq!((share(2, &two, 0), share(2, &two, 1)), (Some(1), Some(1)));
-        assert_eq!((share(3, &two, 0), share(3, &two, 1)), (Some(1), Some(2)));
-        assert_eq!((share(6, &two, 0), share(6, &two, 1)), (Some(3), Some(3)));
-        // One worker has handed its segment over: the other takes every thread.
-        assert_eq!(share(4, &[Some(7), None], 0), Some(4));
-        // A run of one thread: its worker keeps it beside the sweep.
-        assert_eq!(share(0, &[Some(0)], 0), Some(1));
-        for w in 0..2 {
-            assert!(share(5, &two, w).unwrap() + share(5, &two, 1 - w).unwrap() == 5);
-        }
     }
 
     #[test]
