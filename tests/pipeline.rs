@@ -246,6 +246,44 @@ fn the_scaling_study_tabulates_and_fits_its_runs() {
     assert!(!again.status.success() && String::from_utf8_lossy(&again.stderr).contains("exists"));
 }
 
+/// scripts/hyperbolicity.py: one row per N with the quantiles of Psi (recomputed here from
+/// the report's transversality.csv), a random-subspace baseline below Psi's median (the
+/// splitting is more transversal than chance), and the slopes of ln Psi against ln N; a
+/// second study into the same directory is refused.
+#[test]
+fn the_hyperbolicity_study_tabulates_psi_against_n() {
+    if !common::python_has("numpy") {
+        return;
+    }
+    let base = scratch("hyperbolicity");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/hyperbolicity.py");
+    let args = ["--n", "8,12,16", "--steps", "400", "--clv-steps", "100", "--every", "2", "--clv-bin", env!("CARGO_BIN_EXE_clv"), "--out", base.to_str().unwrap()];
+    ok(Command::new("python3").arg(&script).args(args).output().unwrap());
+    let table = read(&base.join("hyperbolicity.csv"));
+    let rows: Vec<Vec<f64>> = table.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.iter().map(|r| r[0]).collect::<Vec<_>>(), [8.0, 12.0, 16.0]);
+    let mut medians = Vec::new();
+    for r in &rows {
+        let n = r[0] as usize;
+        let text = read(&base.join(format!("runs/n{n}-report/transversality.csv")));
+        let mut psi: Vec<f64> = text.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse::<f64>().unwrap().to_degrees()).collect();
+        psi.sort_by(f64::total_cmp);
+        // 100 backward steps, V in the frames of every second one.
+        assert_eq!((r[1], psi.len()), (51.0, 51));
+        let median = psi[25];
+        assert!((r[2] - psi[0]).abs() < 1e-9 && (r[4] - median).abs() < 1e-9, "min and median of {n}: {r:?}");
+        assert!(r[2] <= r[3] && r[3] <= r[4] && r[2] > 0.0 && r[4] < 90.0, "{r:?}");
+        assert!(r[7] > 0.0 && r[7] < r[4], "random subspaces of N = {n} are less transversal than E^u and E^s: {r:?}");
+        medians.push((r[0].ln(), median.ln()));
+    }
+    let (mx, my) = (medians.iter().map(|p| p.0).sum::<f64>() / 3.0, medians.iter().map(|p| p.1).sum::<f64>() / 3.0);
+    let slope = medians.iter().map(|(a, b)| (a - mx) * (b - my)).sum::<f64>() / medians.iter().map(|(a, _)| (a - mx).powi(2)).sum::<f64>();
+    let fit: serde_json::Value = serde_json::from_str(&read(&base.join("fit.json"))).unwrap();
+    assert!((fit["slope_ln_median"].as_f64().unwrap() - slope).abs() < 1e-9, "{fit} against slope {slope}");
+    let again = Command::new("python3").arg(&script).args(args).output().unwrap();
+    assert!(!again.status.success() && String::from_utf8_lossy(&again.stderr).contains("exists"));
+}
+
 /// A Python user reads the frames with the mcap package, cbor2 and numpy and gets the same
 /// CLV spectrum as the backward stage.
 /// `--vectors-every m` forms V_n (and G_n) only for the steps n that are multiples of m: those frames are the

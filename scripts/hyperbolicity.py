@@ -1,0 +1,143 @@
+#!/usr/bin/env python3
+"""Does the angle between the unstable and stable subspaces of hard disks close as N grows?
+
+The paper's Sec. 5.6 finds the distribution of Psi, the smallest principal angle between
+E^u = v^1 + ... + v^(2N-3) and E^s = v^(2N+4) + ... + v^(4N), well bounded away from zero
+for N = 198, so that the system is (partially) hyperbolic, and speculates that for N -> oo
+it may reach the origin. This script measures that distribution against N at fixed density
+and box shape: for each N a forward run with all 4N vectors, the backward stage streaming
+into `clv analyze --only transversality` (Psi in every m-th frame, the same number of
+frames for every N), and the quantiles of Psi.
+
+    python3 scripts/hyperbolicity.py --out hyp                 # N = 16 .. 196, about 4 min
+    python3 scripts/hyperbolicity.py --out h --n 8,12 --steps 400 --clv-steps 100
+
+Writes OUT/hyperbolicity.csv (N, frames, and Psi's minimum, 5 % quantile, median and mean
+with its standard error, in degrees; and for comparison the median smallest angle between
+random subspaces of the same dimensions, which closes like 1/N since their dimensions leave
+only 6 of 4N to spare) and OUT/fit.json (the slopes of ln median and ln q05
+against ln N with their standard errors), and prints both. The runs and reports stay in
+OUT/runs.
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+
+def run(cmd, **kw):
+    return subprocess.run(cmd, check=True, **kw)
+
+
+def batch_stderr(x, blocks=10):
+    """Standard error of the mean from `blocks` batch means (neighbouring frames are correlated)."""
+    b = min(blocks, len(x))
+    if b < 2:
+        return math.nan
+    means = [np.mean(c) for c in np.array_split(np.asarray(x), b)]
+    return float(np.std(means, ddof=1) / math.sqrt(b))
+
+
+def random_psi(d, m, samples, rng):
+    """Median over `samples` pairs of random m-dimensional subspaces of R^d of their smallest
+    principal angle, in degrees: the baseline of no structure. Its sine is the smallest
+    singular value of (1 - Q1 Q1^T) Q2 (accurate for small angles, unlike arccos)."""
+    angles = []
+    for _ in range(samples):
+        q1, _ = np.linalg.qr(rng.standard_normal((d, m)))
+        q2, _ = np.linalg.qr(rng.standard_normal((d, m)))
+        s = np.linalg.svd(q2 - q1 @ (q1.T @ q2), compute_uv=False)
+        angles.append(math.degrees(math.asin(min(1.0, s.min()))))
+    return float(np.median(angles))
+
+
+def slope(x, y):
+    """Least-squares slope of y against x and its standard error (NaN from two points)."""
+    x, y = np.asarray(x), np.asarray(y)
+    a = np.vstack([np.ones_like(x), x]).T
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    dof = len(x) - 2
+    resid = y - a @ coef
+    se = math.sqrt(resid @ resid / dof / np.sum((x - x.mean()) ** 2)) if dof > 0 else math.nan
+    return float(coef[1]), se
+
+
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", required=True, help="directory for the runs and the tables (must not hold hyperbolicity.csv)")
+    ap.add_argument("--n", default="16,36,64,100,144,196", help="numbers of disks, comma-separated")
+    ap.add_argument("--density", type=float, default=0.7)
+    ap.add_argument("--aspect", type=float, default=1.0, help="box aspect ratio Ly/Lx, the same for every N")
+    ap.add_argument("--steps", type=int, default=3000, help="forward steps of tau = 0.6 after the relaxation")
+    ap.add_argument("--clv-steps", type=int, default=1000, help="steps of the backward window")
+    ap.add_argument("--every", type=int, default=5, help="Psi from the frames of every m-th step (V is formed for those only)")
+    ap.add_argument("--threads", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument("--clv-bin", default=os.path.join(here, "..", "target", "release", "clv"))
+    a = ap.parse_args()
+    ns = sorted({int(x) for x in a.n.split(",") if x.strip()})
+    if len(ns) < 2 or ns[0] < 4:
+        sys.exit("hyperbolicity.py: --n needs at least two numbers of disks, each at least 4 (E^u and E^s need 2N - 3 >= 1)")
+    if a.every < 1 or a.clv_steps < a.every:
+        sys.exit("hyperbolicity.py: --every must be at least 1 and at most --clv-steps")
+    table_path = os.path.join(a.out, "hyperbolicity.csv")
+    if os.path.exists(table_path):
+        sys.exit(f"hyperbolicity.py: {table_path} exists; choose another --out (the runs of a study are not replaced)")
+    os.makedirs(os.path.join(a.out, "runs"), exist_ok=True)
+    common = ["--density", str(a.density), "--aspect", str(a.aspect), "--threads", str(a.threads), "--quiet"]
+
+    rows = []
+    for n in ns:
+        base = os.path.join(a.out, "runs", f"n{n}")
+        run_dir, report = base + "-run", base + "-report"
+        run([a.clv_bin, "forward", "--n", str(n), "--steps", str(a.steps), "--clv-steps", str(a.clv_steps), "--out", run_dir] + common, stdout=subprocess.DEVNULL)
+        every = ["--vectors-every", str(a.every)]
+        backward = subprocess.Popen([a.clv_bin, "backward", run_dir, "--out", "-", "--quiet"] + every, stdout=subprocess.PIPE)
+        run([a.clv_bin, "analyze", "-", "--out", report, "--only", "transversality", "--every", str(a.every), "--overwrite", "--quiet"], stdin=backward.stdout)
+        backward.stdout.close()
+        if backward.wait() != 0:
+            sys.exit(f"hyperbolicity.py: clv backward {run_dir} failed")
+        with open(os.path.join(report, "transversality.csv")) as f:
+            psi = np.degrees([float(r["psi_unstable_stable"]) for r in csv.DictReader(f)])
+        if len(psi) == 0 or not np.all(np.isfinite(psi)):
+            sys.exit(f"hyperbolicity.py: {report}/transversality.csv holds no finite Psi")
+        row = {
+            "N": n,
+            "frames": len(psi),
+            "psi_min_deg": float(psi.min()),
+            "psi_q05_deg": float(np.quantile(psi, 0.05)),
+            "psi_median_deg": float(np.median(psi)),
+            "psi_mean_deg": float(psi.mean()),
+            "psi_mean_stderr_deg": batch_stderr(psi),
+            "random_median_deg": random_psi(4 * n, 2 * n - 3, 20, np.random.default_rng(n)),
+        }
+        rows.append(row)
+        print(f"N = {n:4d}: Psi min {row['psi_min_deg']:.2f}, q05 {row['psi_q05_deg']:.2f}, median {row['psi_median_deg']:.2f}, "
+              f"mean {row['psi_mean_deg']:.2f} +- {row['psi_mean_stderr_deg']:.2f} degrees over {len(psi)} frames "
+              f"(random subspaces: median {row['random_median_deg']:.2f})", file=sys.stderr)
+
+    with open(table_path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    x = np.log([r["N"] for r in rows])
+    fit = {"clv": run([a.clv_bin, "--version"], stdout=subprocess.PIPE, text=True).stdout.strip(),
+           "density": a.density, "aspect": a.aspect, "steps": a.steps, "clv_steps": a.clv_steps, "every": a.every}
+    for key in ["median", "q05"]:
+        s, se = slope(x, np.log([r[f"psi_{key}_deg"] for r in rows]))
+        fit[f"slope_ln_{key}"] = s
+        fit[f"slope_ln_{key}_stderr"] = None if math.isnan(se) else se
+    with open(os.path.join(a.out, "fit.json"), "w") as f:
+        json.dump(fit, f, indent=2)
+    err = lambda k: "" if fit[k] is None else f" +- {fit[k]:.3f}"
+    print(f"Psi ~ N^s from N = {ns[0]}..{ns[-1]}: median s = {fit['slope_ln_median']:.3f}{err('slope_ln_median_stderr')}, "
+          f"5 % quantile s = {fit['slope_ln_q05']:.3f}{err('slope_ln_q05_stderr')}; table {table_path}")
+
+
+if __name__ == "__main__":
+    main()
