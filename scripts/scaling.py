@@ -27,7 +27,13 @@ import numpy as np
 
 
 def run(cmd, **kw):
-    return subprocess.run(cmd, check=True, **kw)
+    """Run a command; if it fails, stop with its name (its own message is on stderr above)."""
+    try:
+        return subprocess.run(cmd, check=True, **kw)
+    except FileNotFoundError:
+        sys.exit(f"scaling.py: {cmd[0]} not found; build it with `cargo build --release` or name it with --clv-bin")
+    except subprocess.CalledProcessError as e:
+        sys.exit(f"scaling.py: `{' '.join(cmd[:3])} ...` failed (exit status {e.returncode}); its message is above")
 
 
 def main():
