@@ -19,7 +19,6 @@ only 6 of 4N to spare) and OUT/fit.json (the slopes of ln median and ln q05
 against ln N with their standard errors), and prints both. The runs and reports stay in
 OUT/runs.
 """
-import argparse
 import csv
 import json
 import math
@@ -29,15 +28,7 @@ import sys
 
 import numpy as np
 
-
-def run(cmd, **kw):
-    """Run a command; if it fails, stop with its name (its own message is on stderr above)."""
-    try:
-        return subprocess.run(cmd, check=True, **kw)
-    except FileNotFoundError:
-        sys.exit(f"hyperbolicity.py: {cmd[0]} not found; build it with `cargo build --release` or name it with --clv-bin")
-    except subprocess.CalledProcessError as e:
-        sys.exit(f"hyperbolicity.py: `{' '.join(cmd[:3])} ...` failed (exit status {e.returncode}); its message is above")
+import study
 
 
 def batch_stderr(x, blocks=10):
@@ -62,56 +53,28 @@ def random_psi(d, m, samples, rng):
     return float(np.median(angles))
 
 
-def slope(x, y):
-    """Least-squares slope of y against x and its standard error (NaN from two points)."""
-    x, y = np.asarray(x), np.asarray(y)
-    a = np.vstack([np.ones_like(x), x]).T
-    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
-    dof = len(x) - 2
-    resid = y - a @ coef
-    se = math.sqrt(resid @ resid / dof / np.sum((x - x.mean()) ** 2)) if dof > 0 else math.nan
-    return float(coef[1]), se
-
-
 def main():
-    here = os.path.dirname(os.path.abspath(__file__))
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", required=True, help="directory for the runs and the tables (must not hold hyperbolicity.csv)")
-    ap.add_argument("--n", default="16,36,64,100,144,196", help="numbers of disks, comma-separated")
-    ap.add_argument("--density", type=float, default=0.7)
+    ap = study.arguments(__doc__, "16,36,64,100,144,196", "hyperbolicity.csv")
     ap.add_argument("--aspect", type=float, default=1.0, help="box aspect ratio Ly/Lx, the same for every N")
     ap.add_argument("--steps", type=int, default=3000, help="forward steps of tau = 0.6 after the relaxation")
     ap.add_argument("--clv-steps", type=int, default=1000, help="steps of the backward window")
     ap.add_argument("--every", type=int, default=5, help="Psi from the frames of every m-th step (V is formed for those only)")
     ap.add_argument("--threads", type=int, default=min(2, os.cpu_count() or 1))
-    ap.add_argument("--clv-bin", default=os.path.join(here, "..", "target", "release", "clv"))
     a = ap.parse_args()
-    ns = sorted({int(x) for x in a.n.split(",") if x.strip()})
-    if len(ns) < 2 or ns[0] < 4:
-        sys.exit("hyperbolicity.py: --n needs at least two numbers of disks, each at least 4 (E^u and E^s need 2N - 3 >= 1)")
+    s = study.Study("hyperbolicity.py", a, "hyperbolicity.csv", min_n=4)
     if a.every < 1 or a.clv_steps < a.every:
-        sys.exit("hyperbolicity.py: --every must be at least 1 and at most --clv-steps")
-    table_path = os.path.join(a.out, "hyperbolicity.csv")
-    if os.path.exists(table_path):
-        sys.exit(f"hyperbolicity.py: {table_path} exists; choose another --out (the runs of a study are not replaced)")
-    os.makedirs(os.path.join(a.out, "runs"), exist_ok=True)
+        s.fail("--every must be at least 1 and at most --clv-steps")
     common = ["--density", str(a.density), "--aspect", str(a.aspect), "--threads", str(a.threads), "--quiet"]
 
     rows = []
-    for n in ns:
-        base = os.path.join(a.out, "runs", f"n{n}")
-        run_dir, report = base + "-run", base + "-report"
-        run([a.clv_bin, "forward", "--n", str(n), "--steps", str(a.steps), "--clv-steps", str(a.clv_steps), "--out", run_dir] + common, stdout=subprocess.DEVNULL)
-        every = ["--vectors-every", str(a.every)]
-        backward = subprocess.Popen([a.clv_bin, "backward", run_dir, "--out", "-", "--quiet"] + every, stdout=subprocess.PIPE)
-        run([a.clv_bin, "analyze", "-", "--out", report, "--only", "transversality", "--every", str(a.every), "--overwrite", "--quiet"], stdin=backward.stdout)
-        backward.stdout.close()
-        if backward.wait() != 0:
-            sys.exit(f"hyperbolicity.py: clv backward {run_dir} failed")
+    for n in s.ns:
+        run_dir, report = os.path.join(s.runs, f"n{n}-run"), os.path.join(s.runs, f"n{n}-report")
+        s.run(["forward", "--n", str(n), "--steps", str(a.steps), "--clv-steps", str(a.clv_steps), "--out", run_dir] + common, stdout=subprocess.DEVNULL)
+        s.backward_into_analyze(run_dir, report, ["--vectors-every", str(a.every)], ["--only", "transversality", "--every", str(a.every)])
         with open(os.path.join(report, "transversality.csv")) as f:
             psi = np.degrees([float(r["psi_unstable_stable"]) for r in csv.DictReader(f)])
         if len(psi) == 0 or not np.all(np.isfinite(psi)):
-            sys.exit(f"hyperbolicity.py: {report}/transversality.csv holds no finite Psi")
+            s.fail(f"{report}/transversality.csv holds no finite Psi")
         row = {
             "N": n,
             "frames": len(psi),
@@ -127,22 +90,19 @@ def main():
               f"mean {row['psi_mean_deg']:.2f} +- {row['psi_mean_stderr_deg']:.2f} degrees over {len(psi)} frames "
               f"(random subspaces: median {row['random_median_deg']:.2f})", file=sys.stderr)
 
-    with open(table_path, "w", newline="") as f:
+    with open(s.table, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
     x = np.log([r["N"] for r in rows])
-    fit = {"clv": run([a.clv_bin, "--version"], stdout=subprocess.PIPE, text=True).stdout.strip(),
-           "density": a.density, "aspect": a.aspect, "steps": a.steps, "clv_steps": a.clv_steps, "every": a.every}
+    fit = {"clv": s.version(), "density": a.density, "aspect": a.aspect, "steps": a.steps, "clv_steps": a.clv_steps, "every": a.every}
     for key in ["median", "q05"]:
-        s, se = slope(x, np.log([r[f"psi_{key}_deg"] for r in rows]))
-        fit[f"slope_ln_{key}"] = s
-        fit[f"slope_ln_{key}_stderr"] = None if math.isnan(se) else se
+        fit[f"slope_ln_{key}"], fit[f"slope_ln_{key}_stderr"] = study.slope(x, np.log([r[f"psi_{key}_deg"] for r in rows]))
     with open(os.path.join(a.out, "fit.json"), "w") as f:
         json.dump(fit, f, indent=2)
     err = lambda k: "" if fit[k] is None else f" +- {fit[k]:.3f}"
-    print(f"Psi ~ N^s from N = {ns[0]}..{ns[-1]}: median s = {fit['slope_ln_median']:.3f}{err('slope_ln_median_stderr')}, "
-          f"5 % quantile s = {fit['slope_ln_q05']:.3f}{err('slope_ln_q05_stderr')}; table {table_path}")
+    print(f"Psi ~ N^s from N = {s.ns[0]}..{s.ns[-1]}: median s = {fit['slope_ln_median']:.3f}{err('slope_ln_median_stderr')}, "
+          f"5 % quantile s = {fit['slope_ln_q05']:.3f}{err('slope_ln_q05_stderr')}; table {s.table}")
 
 
 if __name__ == "__main__":

@@ -15,7 +15,6 @@ Writes OUT/scaling.csv (N, lambda_1, W_1 and h_KS / N with their errors, h_KS wh
 full spectrum was computed) and OUT/fit.json (eta from a least-squares line of ln W_1
 against ln N, with its standard error), and prints both. The runs stay in OUT/runs.
 """
-import argparse
 import csv
 import json
 import math
@@ -25,82 +24,52 @@ import sys
 
 import numpy as np
 
-
-def run(cmd, **kw):
-    """Run a command; if it fails, stop with its name (its own message is on stderr above)."""
-    try:
-        return subprocess.run(cmd, check=True, **kw)
-    except FileNotFoundError:
-        sys.exit(f"scaling.py: {cmd[0]} not found; build it with `cargo build --release` or name it with --clv-bin")
-    except subprocess.CalledProcessError as e:
-        sys.exit(f"scaling.py: `{' '.join(cmd[:3])} ...` failed (exit status {e.returncode}); its message is above")
+import study
 
 
 def main():
-    here = os.path.dirname(os.path.abspath(__file__))
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", required=True, help="directory for the runs and the tables (must not hold scaling.csv)")
-    ap.add_argument("--n", default="16,32,64,128,256,512,1024", help="numbers of disks, comma-separated")
-    ap.add_argument("--density", type=float, default=0.7)
+    ap = study.arguments(__doc__, "16,32,64,128,256,512,1024", "scaling.csv")
     ap.add_argument("--steps", type=int, default=20000, help="forward steps of tau = 0.6 after the relaxation")
     ap.add_argument("--clv-steps", type=int, default=2000, help="frames of the backward window (W_1 is averaged over them)")
     ap.add_argument("--full-up-to", type=int, default=64, help="compute the full spectrum (h_KS) for N up to this")
-    ap.add_argument("--clv-bin", default=os.path.join(here, "..", "target", "release", "clv"))
     a = ap.parse_args()
-    ns = sorted({int(x) for x in a.n.split(",") if x.strip()})
-    if len(ns) < 2 or ns[0] < 2:
-        sys.exit("scaling.py: --n needs at least two numbers of disks, each at least 2")
-    table_path = os.path.join(a.out, "scaling.csv")
-    if os.path.exists(table_path):
-        sys.exit(f"scaling.py: {table_path} exists; choose another --out (the runs of a study are not replaced)")
-    os.makedirs(os.path.join(a.out, "runs"), exist_ok=True)
+    s = study.Study("scaling.py", a, "scaling.csv", min_n=2)
     common = ["--density", str(a.density), "--aspect", "1", "--quiet"]
 
     rows = []
-    for n in ns:
-        base = os.path.join(a.out, "runs", f"n{n}")
-        run_dir = base + "-run"
-        run([a.clv_bin, "forward", "--n", str(n), "--vectors", "1", "--steps", str(a.steps), "--clv-steps", str(a.clv_steps), "--out", run_dir] + common, stdout=subprocess.DEVNULL)
+    for n in s.ns:
+        run_dir, report = os.path.join(s.runs, f"n{n}-run"), os.path.join(s.runs, f"n{n}-report")
+        s.run(["forward", "--n", str(n), "--vectors", "1", "--steps", str(a.steps), "--clv-steps", str(a.clv_steps), "--out", run_dir] + common, stdout=subprocess.DEVNULL)
         with open(os.path.join(run_dir, "spectrum.json")) as f:
             spectrum = json.load(f)
-        report = base + "-report"
-        backward = subprocess.Popen([a.clv_bin, "backward", run_dir, "--out", "-", "--quiet"], stdout=subprocess.PIPE)
-        run([a.clv_bin, "analyze", "-", "--out", report, "--only", "localization", "--overwrite", "--quiet"], stdin=backward.stdout)
-        backward.stdout.close()
-        if backward.wait() != 0:
-            sys.exit(f"scaling.py: clv backward {run_dir} failed")
+        s.backward_into_analyze(run_dir, report, [], ["--only", "localization"])
         with open(os.path.join(report, "localization.csv")) as f:
             first = next(csv.DictReader(f))
         w1 = float(first["W_clv"])
         row = {"N": n, "lambda_1": spectrum["exponents"][0], "lambda_1_stderr": spectrum["stderr"][0], "W_1": w1, "W_1_stderr": float(first["stderr_clv"]), "h_KS_per_disk": math.nan, "h_KS_per_disk_stderr": math.nan}
         if n <= a.full_up_to:
-            out = run([a.clv_bin, "forward", "--n", str(n), "--steps", str(a.steps), "--json"] + common, stdout=subprocess.PIPE).stdout
+            out = s.run(["forward", "--n", str(n), "--steps", str(a.steps), "--json"] + common, stdout=subprocess.PIPE).stdout
             h = json.loads(out)["ks_entropy"]
             row["h_KS_per_disk"], row["h_KS_per_disk_stderr"] = h["value"] / n, h["stderr"] / n
         rows.append(row)
         print(f"N = {n:5d}: lambda_1 = {row['lambda_1']:.4f} +- {row['lambda_1_stderr']:.1e}, W_1 = {w1:.4f} +- {row['W_1_stderr']:.1e}, h_KS/N = {row['h_KS_per_disk']:.4f}", file=sys.stderr)
 
-    with open(table_path, "w", newline="") as f:
+    with open(s.table, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
     # ln W_1 = c - eta ln N: least squares, with the standard error of the slope.
     x = np.log([r["N"] for r in rows])
     y = np.log([r["W_1"] for r in rows])
-    A = np.vstack([np.ones_like(x), x]).T
-    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-    resid = y - A @ coef
-    dof = len(x) - 2
-    se = math.sqrt(resid @ resid / dof / np.sum((x - x.mean()) ** 2)) if dof > 0 else math.nan
+    minus_eta, se = study.slope(x, y)
     # The slope between neighbouring N: constant for a pure power law.
-    local = [{"from": int(ns[i]), "to": int(ns[i + 1]), "eta": -(y[i + 1] - y[i]) / (x[i + 1] - x[i])} for i in range(len(ns) - 1)]
-    version = run([a.clv_bin, "--version"], stdout=subprocess.PIPE, text=True).stdout.strip()
-    fit = {"clv": version, "eta": -coef[1], "eta_stderr": se if dof > 0 else None, "points": len(x), "local_eta": local, "density": a.density, "steps": a.steps, "clv_steps": a.clv_steps}
+    local = [{"from": int(s.ns[i]), "to": int(s.ns[i + 1]), "eta": -(y[i + 1] - y[i]) / (x[i + 1] - x[i])} for i in range(len(s.ns) - 1)]
+    fit = {"clv": s.version(), "eta": -minus_eta, "eta_stderr": se, "points": len(x), "local_eta": local, "density": a.density, "steps": a.steps, "clv_steps": a.clv_steps}
     with open(os.path.join(a.out, "fit.json"), "w") as f:
         json.dump(fit, f, indent=2)
     between = ", ".join(f"{l['eta']:.3f} ({l['from']}-{l['to']})" for l in local)
-    error = f" +- {se:.3f}" if dof > 0 else " (no error from two points)"
-    print(f"W_1 ~ N^-eta: eta = {fit['eta']:.3f}{error} from N = {ns[0]}..{ns[-1]}; between neighbours {between}; table {table_path}")
+    error = " (no error from two points)" if se is None else f" +- {se:.3f}"
+    print(f"W_1 ~ N^-eta: eta = {fit['eta']:.3f}{error} from N = {s.ns[0]}..{s.ns[-1]}; between neighbours {between}; table {s.table}")
 
 
 if __name__ == "__main__":
