@@ -3,16 +3,23 @@
 //!
 //! Measured on the 2-core CI-like machine (2026-11-24), ms per QR at D = 792 as throughput:
 //! one QR on 2 threads 12.7, on 1 thread 23.4, two 1-thread QRs side by side 11.9; a
-//! 1-thread QR beside the sweep 24.2 (the sweep 9.4, as alone). So the sweep does not slow
-//! the QR, and a QR on two threads does 94-98 % of the work of two on one. A backward stage
-//! with two recomputation workers (one QR each, the second taking the core the sweep leaves
-//! idle) was built on this and measured against the stage with one worker (its QR on two
-//! threads while the sweep waits): over a 1030-step run, 22.4 / 21.9 / 20.9 s against
-//! 21.3 / 21.7 / 21.4 s (V every frame, alternating), and it kept a third segment in memory
-//! (backward peak RSS 148 -> 207-228 MB in `clv bench`). It was not kept. On two cores a
-//! backward step costs at least (recomputation + sweep) / 2 = (27.5 + 10.5) / 2 ms, against
-//! 13.7 ms forward: the bound 1.38 on `backward_over_forward` with V in every frame is set
-//! by the work, not by the schedule.
+//! 1-thread QR beside the sweep 24.2 (the sweep 9.4, as alone). So, with the blocks in
+//! cache, the sweep does not slow the QR, and a QR on two threads does 94-98 % of the work
+//! of two on one. A backward stage with two recomputation workers (one QR each, the second
+//! taking the core the sweep leaves idle) was built on this and measured against the stage
+//! with one worker (its QR on two threads while the sweep waits): over a 1030-step run,
+//! 22.4 / 21.9 / 20.9 s against 21.3 / 21.7 / 21.4 s (V every frame, alternating), and it
+//! kept a third segment in memory (backward peak RSS 148 -> 207-228 MB in `clv bench`). It
+//! was not kept.
+//!
+//! Where the rest goes (instrumented, not kept): inside the backward stage the two slow
+//! each other through the shared cache and memory, where this example's blocks stay in
+//! cache. A one-thread recomputed step took 25.5-26 ms while the sweep waited and 27.5-28
+//! ms beside it, against 24.2 ms for a forward step alone, and the sweep 10.5 ms against
+//! 9.0 alone. That is 37.5 thread-ms a step, 18.8 ms on two cores, or 1.30 forward steps
+//! (14.4 ms). `clv bench` prints the bound from the work measured alone: 16.6 ms, 1.15.
+//! Measured, a step takes 20.4 ms (1.41). The rest is the schedule: the recomputation's
+//! two-thread phase is 15.5 ms a step, with its copies into the segment.
 //!
 //! cargo run --release --example backward_balance [-- SECONDS]
 use clv::linalg::{ginelli_step, mul_upper, Qr};

@@ -111,6 +111,13 @@ pub struct BenchReport {
     pub sampled_every: u64,
     pub backward_sampled_step_ms: Stat,
     pub backward_sampled_over_forward: f64,
+    /// The least a backward step with V in every frame can take on `threads` cores, from
+    /// the work measured on one thread: (one-thread forward step + one-thread R^-1 C and
+    /// V = G C) / threads (no schedule does a thread's work faster than one thread alone;
+    /// the copies into the segment are left out, so it is lower still). None on one thread.
+    pub backward_work_bound_ms: Option<f64>,
+    /// That bound over the median forward step (the least `backward_over_forward` can be).
+    pub backward_work_bound_over_forward: Option<f64>,
     /// The same forward step with k = 16 vectors (leading-k runs).
     pub leading_k16_step_ms: Stat,
     pub leading_k16_md_tangent_ms: Stat,
@@ -278,6 +285,23 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         ms(t.elapsed())
     }).collect());
 
+    // The work of a backward step measured on one thread, for its bound on `threads` cores.
+    let one_thread_work_ms = if threads >= 2 {
+        say("one-thread forward steps and backward kernels (the work bound)");
+        fwd.set_threads(1);
+        let steps = (0..reps).map(|_| fwd.step_timed().map(|(a, q)| ms(a + q))).collect::<Result<Vec<_>>>()?;
+        fwd.set_threads(threads);
+        let sweep = (0..reps).map(|_| {
+            let t = Instant::now();
+            crate::linalg::ginelli_step(r.as_ref(), cm.as_mut(), &mut norms, faer::Par::Seq);
+            crate::linalg::mul_upper(faer::MatMut::from_column_major_slice_mut(&mut v, d, k), MatRef::from_column_major_slice(&g, d, k), cm.as_ref(), faer::Par::Seq);
+            ms(t.elapsed())
+        });
+        Some(Stat::of(steps).median + Stat::of(sweep.collect()).median)
+    } else {
+        None
+    };
+
     say("stored forward run and backward stage over it, in pairs");
     let tmp = std::env::temp_dir().join(format!("clv-bench-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
@@ -347,6 +371,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     let backward_sampled_step_ms = Stat::of(sampled_steps);
     let backward_sampled_over_forward = Stat::of(sampled_ratios).median;
     let forward_step_over_qr = Stat::of(qr_ratios).median;
+    let backward_work_bound_ms = one_thread_work_ms.map(|w| w / threads as f64);
 
     say("leading k = 16");
     let lk = 16.min(d);
@@ -424,6 +449,8 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         sampled_every,
         backward_sampled_step_ms,
         backward_sampled_over_forward,
+        backward_work_bound_ms,
+        backward_work_bound_over_forward: backward_work_bound_ms.map(|b| b / forward_step_ms.median),
         leading_k16_step_ms: Stat::of(s16),
         leading_k16_md_tangent_ms: Stat::of(a16),
         leading_k16_qr_ms: Stat::of(q16),
@@ -455,6 +482,9 @@ impl BenchReport {
         let _ = writeln!(s, "  forward_step_over_qr   {:>9.3}   (target <= 1.15)", self.forward_step_over_qr);
         let _ = writeln!(s, "  qr_over_floor          {:>9.3}   (target <= 1.4 on 2 threads)", self.qr_over_floor);
         let _ = writeln!(s, "  backward_over_forward  {:>9.3}   (target <= 1.3)", self.backward_over_forward);
+        if let (Some(ms), Some(ratio)) = (self.backward_work_bound_ms, self.backward_work_bound_over_forward) {
+            let _ = writeln!(s, "    bound from the work on {} cores: {ms:.3} ms, over forward {ratio:.3} (one-thread step + sweep, over {})", self.threads, self.threads);
+        }
         let _ = writeln!(s, "  with V every {:>3} steps: backward_step_ms {}, over forward {:.3}", self.sampled_every, st(&self.backward_sampled_step_ms), self.backward_sampled_over_forward);
         let _ = writeln!(s, "  k = 16: step {}  md+tangent {}  qr {}", st(&self.leading_k16_step_ms), st(&self.leading_k16_md_tangent_ms), st(&self.leading_k16_qr_ms));
         for (n, r) in &self.collisions_per_second {

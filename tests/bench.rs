@@ -22,6 +22,23 @@ fn bench_reports_every_quantity_as_json() {
     assert!(rss.iter().all(|r| r["peak_mb"].as_f64().unwrap() > 1.0));
     assert_eq!((rss[0]["runs"].as_u64(), rss[1]["runs"].as_u64()), (Some(3), Some(1)), "the short run is repeated, its peak the largest");
     assert_eq!(v["backward_peak_rss"].as_array().unwrap().len(), 2);
+    // The work bound of a backward step is one of several cores.
+    assert!(v["backward_work_bound_ms"].is_null() && v["backward_work_bound_over_forward"].is_null());
+}
+
+/// On two threads the bench also gives the least a backward step can take from its work
+/// measured on one thread, and that over the forward step.
+#[test]
+fn bench_on_two_threads_bounds_the_backward_step() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_clv"))
+        .args(["bench", "--n", "6", "--reps", "2", "--threads", "2", "--collision-sizes", "8", "--no-rss", "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (bound, forward) = (v["backward_work_bound_ms"].as_f64().unwrap(), v["forward_step_ms"]["median"].as_f64().unwrap());
+    assert!(bound > 0.0 && bound.is_finite());
+    assert!((v["backward_work_bound_over_forward"].as_f64().unwrap() - bound / forward).abs() < 1e-12);
 }
 
 /// Options that would measure nothing (or never end) are refused, naming the flag.
