@@ -263,6 +263,11 @@ struct RunArgs {
     /// No progress bars or notices.
     #[arg(long)]
     quiet: bool,
+    /// Settings that change the preset's or the file's, as flags of `clv forward` after the
+    /// others, e.g. `clv run --preset paper --steps 50000 --threads 4` (`clv config` lists
+    /// them). The store's window (--clv-steps, --transient) follows --steps unless given.
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, value_name = "SETTINGS")]
+    settings: Vec<String>,
 }
 
 fn parse_ratio(s: &str) -> std::result::Result<f64, String> {
@@ -445,15 +450,71 @@ fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
     spectrum(args.config()?, args.json, args.quiet)
 }
 
-/// The run configuration a configuration file describes (read through `clv forward`'s flags).
-fn config_from_file(path: &std::path::Path) -> Result<RunConfig> {
-    let mut argv = vec!["clv".to_string(), "forward".to_string()];
-    argv.extend(clv::report::config_file::expand(path, &config_keys())?);
-    let cli = Cli::try_parse_from(&argv).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
-    match cli.command {
-        Command::Forward(f) => f.config(),
-        _ => unreachable!("parsed as forward"),
+/// The flags of `clv forward` that set up `config` (a preset): the system and the run, not
+/// the store, whose window then follows the run's length. Parsed back they give `config`.
+fn config_flags(config: &RunConfig) -> Vec<String> {
+    let mut flags = match &config.system {
+        SystemConfig::Henon { .. } => vec!["--system".to_string(), "henon".into()],
+        SystemConfig::Disks { n, density, aspect, .. } => {
+            vec!["--system".into(), "disks".into(), "--n".into(), n.to_string(), "--density".into(), density.to_string(), "--aspect".into(), aspect.to_string()]
+        }
+    };
+    // All vectors (k = D) is said by leaving --vectors out, so that it follows a changed --n.
+    if config.vectors != config.system.dim() {
+        flags.extend(["--vectors".into(), config.vectors.to_string()]);
     }
+    for (flag, value) in [
+        ("tau", config.tau.to_string()),
+        ("relax-steps", config.relax_steps.to_string()),
+        ("steps", config.steps.to_string()),
+        ("seed", config.seed.to_string()),
+        ("threads", config.threads.to_string()),
+        ("blocks", config.blocks.to_string()),
+    ] {
+        flags.extend([format!("--{flag}"), value]);
+    }
+    flags
+}
+
+/// What `clv run` runs: the preset or the configuration file, changed by the settings on
+/// its command line, read through `clv forward`'s flags.
+fn run_meta(args: &RunArgs) -> Result<RunMeta> {
+    let keys = config_keys();
+    let mut argv = vec!["clv".to_string(), "forward".to_string()];
+    match &args.config {
+        Some(path) => {
+            argv.extend(clv::report::config_file::expand(path, &keys)?);
+            // A bad value in the file is the file's error, not the command line's.
+            Cli::try_parse_from(&argv).map_err(|e| Error::Other(format!("{}: {}", path.display(), first_line(&e))))?;
+        }
+        None => argv.extend(config_flags(&RunConfig::preset(&args.preset)?)),
+    }
+    for setting in &args.settings {
+        if let Some(flag) = setting.strip_prefix("--") {
+            let key = flag.split('=').next().unwrap_or_default();
+            if !keys.iter().any(|k| k == key) {
+                return Err(Error::param(
+                    "settings",
+                    format!("--{key} is not a setting of a run; give `clv run` its own options (--preset, --config, --out, --quiet) before the settings, which are: --{}", keys.join(", --")),
+                ));
+            }
+        }
+    }
+    argv.extend(args.settings.iter().cloned());
+    let matches = Cli::command().try_get_matches_from(&argv).map_err(|e| Error::Other(format!("settings: {}", first_line(&e))))?;
+    let Ok(Cli { command: Command::Forward(forward), .. }) = Cli::from_arg_matches(&matches) else {
+        return Err(Error::Other("settings: not the flags of a run".into()));
+    };
+    if forward.system == SystemKind::Henon
+        && let Some(flag) = ["n", "density", "aspect", "lx", "ly"].into_iter().find(|id| args.settings.iter().any(|s| s == &format!("--{id}") || s.starts_with(&format!("--{id}="))))
+    {
+        return Err(Error::param(flag, "sets up hard disks; the Henon map (--system henon) has no such setting"));
+    }
+    forward.meta()
+}
+
+fn first_line(e: &clap::Error) -> String {
+    e.to_string().lines().next().unwrap_or_default().trim_start_matches("error: ").to_string()
 }
 
 /// The settings a configuration file may hold: the flags of `clv forward` that define a run.
@@ -469,10 +530,7 @@ fn config_keys() -> Vec<String> {
 }
 
 fn run(args: &RunArgs) -> Result<()> {
-    let config = match &args.config {
-        Some(path) => config_from_file(path)?,
-        None => RunConfig::preset(&args.preset)?,
-    };
+    let RunMeta { config, store, .. } = run_meta(args)?;
     if args.out.is_file() {
         return Err(Error::param("out", format!("{} is a file; `clv run` writes a directory (run/ and report/ in it)", args.out.display())));
     }
@@ -482,10 +540,15 @@ fn run(args: &RunArgs) -> Result<()> {
             eprintln!("clv run: {msg}");
         }
     };
-    say(format!("preset {:?}: {}", args.preset, serde_json::to_string(&config).unwrap_or_default()));
+    let origin = match &args.config {
+        Some(path) => format!("{}", path.display()),
+        None => format!("preset {:?}", args.preset),
+    };
+    let changed = if args.settings.is_empty() { String::new() } else { format!(" with {}", args.settings.join(" ")) };
+    say(format!("{origin}{changed}: {}", serde_json::to_string(&config).unwrap_or_default()));
     let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
     let started = Instant::now();
-    let result = clv::stage::pipeline::run(&config, &args.out, &mut feedback, &mut say)?;
+    let result = clv::stage::pipeline::run(&config, &store, &args.out, &mut feedback, &mut say)?;
     if let Some(bar) = &feedback.bar {
         bar.finish_and_clear();
     }
@@ -748,9 +811,7 @@ fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
     argv.extend(clv::report::config_file::expand(std::path::Path::new(&file), &config_keys())?);
     // A bad value in the file is the file's error, not the command line's.
     if let Err(e) = Cli::try_parse_from(&argv) {
-        let text = e.to_string();
-        let first = text.lines().next().unwrap_or_default().trim_start_matches("error: ");
-        return Err(Error::Other(format!("{file}: {first}")));
+        return Err(Error::Other(format!("{file}: {}", first_line(&e))));
     }
     argv.extend(rest);
     Ok(argv)
@@ -805,5 +866,24 @@ fn main() {
     if let Err(e) = result {
         eprintln!("clv: error: {e}");
         std::process::exit(1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `clv run` on a preset without settings runs exactly the preset, with the store
+    /// settings derived from it, as it did before it took settings (so that it continues
+    /// the runs it made then).
+    #[test]
+    fn a_preset_read_through_its_flags_is_the_preset() {
+        for preset in clv::config::PRESETS {
+            let args = RunArgs { preset: preset.into(), config: None, out: "clv-out".into(), quiet: true, settings: Vec::new() };
+            let meta = run_meta(&args).unwrap();
+            let want = RunConfig::preset(preset).unwrap();
+            assert_eq!(meta.config, want, "{preset}");
+            assert_eq!(meta.store, StoreConfig::for_run(&want), "{preset}");
+        }
     }
 }

@@ -154,6 +154,31 @@ fn clv_run_on_the_default_preset_writes_the_report() {
     drop(first);
 }
 
+/// `clv run` takes settings of a run after its own options: a preset with another N keeps
+/// all vectors (k = D follows N) and a window that follows --steps; what is not a setting of
+/// a run (a stage's own option, or a disk flag for the Henon map) is refused, naming it.
+#[test]
+fn clv_run_takes_settings_that_change_the_preset() {
+    let out = scratch("run-settings");
+    let o = out.to_str().unwrap();
+    ok(clv(&["run", "--out", o, "--quiet", "--n", "8", "--aspect", "1", "--steps", "300", "--relax-steps", "20"]));
+    let run: serde_json::Value = serde_json::from_str(&read(&out.join("run/run.json"))).unwrap();
+    assert_eq!((&run["config"]["system"]["n"], &run["config"]["vectors"], &run["config"]["steps"]), (&serde_json::json!(8), &serde_json::json!(32), &serde_json::json!(300)));
+    // StoreConfig::for_run: a tenth of the 320 steps, half of that again as the transient.
+    assert_eq!((&run["store"]["clv_steps"], &run["store"]["transient"]), (&serde_json::json!(32), &serde_json::json!(16)));
+    assert!(out.join("report/index.html").exists());
+    for (args, named) in [
+        (vec!["run", "--out", o, "--steps", "300", "--quiet"], "--quiet is not a setting of a run"),
+        (vec!["run", "--out", o, "--steps", "300", "--resume", o], "--resume is not a setting of a run"),
+        (vec!["run", "--out", o, "--preset", "henon", "--n", "5"], "--n: sets up hard disks"),
+        (vec!["run", "--out", o, "--steps", "many"], "'many'"),
+    ] {
+        let r = clv(&args);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success() && err.contains(named), "{args:?}: {err}");
+    }
+}
+
 /// A stream continued with `backward --resume` lacks the frames the interrupted stream's
 /// reader took: the backward stage says which, and the analyses of it say at the head of
 /// index.html, in summary.json and on stderr that they describe the rest only. A whole
@@ -383,6 +408,17 @@ fn configuration_files_round_trip_and_flags_override_them() {
     assert!(out_dir.join("report/index.html").exists());
     let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("run/run.json")).unwrap()).unwrap();
     assert_eq!(run["config"]["system"]["n"], 8);
+    assert_eq!((&run["store"]["clv_steps"], &run["store"]["transient"]), (&serde_json::json!(100), &serde_json::json!(50)), "the file's store settings are the run's");
+    // Settings after `clv run`'s own options change the file's, and the same file with
+    // another window is refused in the same --out (the run and its report stay as they are).
+    let changed = base.join("changed");
+    ok(clv(&["run", "--config", small.to_str().unwrap(), "--out", changed.to_str().unwrap(), "--quiet", "--clv-steps", "80", "--seed", "5"]));
+    let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(changed.join("run/run.json")).unwrap()).unwrap();
+    // The file's transient stays: only what the command line names changes.
+    assert_eq!((&run["store"]["clv_steps"], &run["store"]["transient"], &run["config"]["seed"]), (&serde_json::json!(80), &serde_json::json!(50), &serde_json::json!(5)));
+    let refused = clv(&["run", "--config", small.to_str().unwrap(), "--out", changed.to_str().unwrap(), "--quiet", "--clv-steps", "90", "--seed", "5"]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && err.contains("another configuration") && err.contains("\"clv_steps\":80"), "{err}");
     // A bad value in a file is reported as the file's, for forward and run alike.
     let bad = base.join("bad.toml");
     std::fs::write(&bad, "n = \"many\"\n").unwrap();

@@ -1,4 +1,5 @@
-//! `clv run`: forward, backward and every analysis in one process, on an embedded preset.
+//! `clv run`: forward, backward and every analysis in one process, on an embedded preset
+//! or a configuration file.
 //!
 //! The frames go straight from the backward sweep to the analyses over channels (nothing
 //! but the run directory is written in between), so the whole pipeline runs in the memory
@@ -22,29 +23,29 @@ pub struct PipelineResult {
     pub clv: backward::BackwardReport,
 }
 
-/// Run the configuration into `out`: `out/run` (the run directory) and `out/report`
-/// (index.html, figures, tables).
-pub fn run(config: &RunConfig, out: &Path, feedback: &mut Feedback, say: &mut dyn FnMut(String)) -> Result<PipelineResult> {
+/// Run the configuration with these store settings into `out`: `out/run` (the run
+/// directory) and `out/report` (index.html, figures, tables).
+pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut Feedback, say: &mut dyn FnMut(String)) -> Result<PipelineResult> {
     let run_dir = out.join("run");
     let report_dir = out.join("report");
     if run_dir.join("run.json").exists() {
         let (_, stored) = RunDir::open(&run_dir)?;
-        if stored.config != *config {
-            let json = |c: &RunConfig| serde_json::to_string(c).unwrap_or_default();
+        if stored.config != *config || stored.store != *store {
+            let json = |c: &RunConfig, s: &StoreConfig| format!("{}, store {}", serde_json::to_string(c).unwrap_or_default(), serde_json::to_string(s).unwrap_or_default());
             return Err(Error::param(
                 "out",
                 format!(
                     "{} holds a run of another configuration ({}), not of the one asked for ({}); choose another --out, or ask for that run's configuration to continue it",
                     run_dir.display(),
-                    json(&stored.config),
-                    json(config)
+                    json(&stored.config, &stored.store),
+                    json(config, store)
                 ),
             ));
         }
         say(format!("continuing the run in {}", run_dir.display()));
         forward_run::resume(&run_dir, feedback)?;
     } else {
-        let meta = RunMeta { format: FORMAT.into(), config: config.clone(), store: StoreConfig::for_run(config), build: BuildInfo::current() };
+        let meta = RunMeta { format: FORMAT.into(), config: config.clone(), store: store.clone(), build: BuildInfo::current() };
         say(format!("forward pass into {} ({})", run_dir.display(), meta.store.footprint(config).1));
         if let Some(warning) = crate::store::run::space_warning(&run_dir, meta.store.footprint(config).0) {
             eprintln!("clv run: {warning}");
