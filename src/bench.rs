@@ -341,7 +341,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
             opts.save_every = 0;
             opts.vectors_every = vectors_every;
             let mut marks: Vec<(Instant, u64)> = Vec::new();
-            backward::run(&dir, &opts, false, u64::MAX, &mut |_| Ok(Flow::Continue), &mut |steps, _| marks.push((Instant::now(), steps)))?;
+            backward::run(&dir, &opts, false, u64::MAX, None, &mut |_| Ok(Flow::Continue), &mut |steps, _| marks.push((Instant::now(), steps)))?;
             // Eleven segments (ten of 100 steps); the time per step is taken from the end of
             // the third segment's sweep to the end of the last but one (seven segments): the
             // period of the overlapped pipeline, once both segment buffers have been written

@@ -76,6 +76,12 @@ pub struct RunConfig {
 }
 
 impl RunConfig {
+    /// The same run, perhaps on another number of threads (which the numbers do not depend
+    /// on: a run may continue, and be replayed backward, on any).
+    pub fn same_but_threads(&self, other: &RunConfig) -> bool {
+        RunConfig { threads: other.threads, ..self.clone() } == *other
+    }
+
     pub fn validate(&self) -> Result<()> {
         if matches!(self.system, SystemConfig::Disks { n: 0, .. }) {
             return Err(Error::param("n", "must be at least 1 disk"));

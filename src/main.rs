@@ -200,6 +200,10 @@ struct BackwardArgs {
     /// Memory budget in MB; segments that do not fit are kept in a scratch file instead.
     #[arg(long, default_value_t = 4096)]
     memory: u64,
+    /// Threads for the recomputation and the sweep (default: the run's; the numbers do not
+    /// depend on it).
+    #[arg(long)]
+    threads: Option<usize>,
     /// Print one JSON object (CLV and GS spectra, statistics) instead of the table.
     #[arg(long)]
     json: bool,
@@ -337,7 +341,6 @@ fn flag_values(m: &RunMeta) -> Vec<(&'static str, String)> {
         ("steps", c.steps.to_string()),
         ("vectors", c.vectors.to_string()),
         ("seed", c.seed.to_string()),
-        ("threads", c.threads.to_string()),
         ("blocks", c.blocks.to_string()),
         ("checkpoint_every", m.store.checkpoint_every.to_string()),
         ("segment_checkpoints", m.store.segment_checkpoints.to_string()),
@@ -419,7 +422,11 @@ fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
         forward_run::complete_creation(dir, &mut feedback)?;
         check_resume_flags(args, matches, dir)?;
-        let outcome = forward_run::resume(dir, &mut feedback)?;
+        let threads = (matches.value_source("threads") == Some(ValueSource::CommandLine)).then_some(args.threads);
+        if threads == Some(0) {
+            return Err(Error::param("threads", "must be at least 1"));
+        }
+        let outcome = forward_run::resume(dir, threads, &mut feedback)?;
         if let Some(bar) = &feedback.bar {
             bar.finish_and_clear();
         }
@@ -656,6 +663,9 @@ fn spectrum(config: RunConfig, json: bool, quiet: bool) -> Result<()> {
 fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     use clv::stage::backward::{self, BackwardOptions, CInit};
     use clv::store::frames::{FrameStdout, Flow};
+    if args.threads == Some(0) {
+        return Err(Error::param("threads", "must be at least 1"));
+    }
     let (dir, meta) = clv::store::RunDir::open(&args.dir)?;
     let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
     // A resumed sweep continues with the options it was started with; flags given again
@@ -723,7 +733,7 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
             sweep.set_position(frames);
         }
     };
-    let report = backward::run(&args.dir, &opts, args.resume, args.memory << 20, &mut consumer, &mut on_progress)?;
+    let report = backward::run(&args.dir, &opts, args.resume, args.memory << 20, args.threads, &mut consumer, &mut on_progress)?;
     if let Some((multi, recompute, sweep)) = &bars {
         recompute.finish_and_clear();
         sweep.finish_and_clear();

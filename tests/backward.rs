@@ -400,6 +400,25 @@ fn two_threads_give_the_frames_of_one() {
     let (f1, f2) = (frames(&one.join("frames.mcap")), frames(&two.join("frames.mcap")));
     assert_eq!(f1.len(), 201);
     assert!(f1 == f2, "the frames of the two-thread run differ from the one-thread run");
+    // The threads are the process's, not the run's: the one-thread run replayed on two, and
+    // a one-thread run cut short and continued on two, give the same run and frames.
+    let on_two = one.parent().unwrap().join("on-two.mcap");
+    ok(clv(&["backward", one.to_str().unwrap(), "--quiet", "--with-gs", "--threads", "2", "--out", on_two.to_str().unwrap()]));
+    assert!(frames(&on_two) == f1, "the one-thread run replayed on two threads");
+    let cut = scratch("threads-cut").join("run");
+    // Segments of two checkpoints, so that the crash leaves finished ones to continue from.
+    let args = [&["forward", "--quiet", "--out", cut.to_str().unwrap(), "--threads", "1", "--segment-checkpoints", "2"], &flags[..]].concat();
+    let crashed = common::clv_env(&args, &[("CLV_FAULT_CRASH_AT", "segment-renamed#2")]);
+    assert_eq!(crashed.status.code(), Some(clv::store::fault::CRASH_STATUS), "{}", common::stderr(&crashed));
+    ok(clv(&["forward", "--resume", cut.to_str().unwrap(), "--threads", "2", "--quiet"]));
+    assert_eq!(common::contents(&cut).exponents, common::contents(&one).exponents, "a run continued on two threads");
+    // Its backward stage verifies every recomputed segment against the checkpoints written
+    // on either number of threads.
+    let (cut_report, cut_frames) = (backward_json(&cut, &["--with-gs"]), frames(&cut.join("frames.mcap")));
+    assert_eq!(cut_report["exponents"], r1["exponents"]);
+    assert!(cut_frames == f1, "the frames of the run continued on two threads");
+    let refused = clv(&["backward", one.to_str().unwrap(), "--threads", "0", "--quiet"]);
+    assert!(!refused.status.success() && common::stderr(&refused).contains("--threads"));
 }
 
 /// The sweep reuses a frame's buffers once its consumer has dropped it: a consumer that lets
@@ -418,7 +437,7 @@ fn reused_frame_buffers_give_the_frames_of_fresh_ones() {
     opts.save_every = 0;
     let sweep = |keep: &dyn Fn(u64) -> bool| {
         let (mut seen, mut kept) = (Vec::new(), Vec::new());
-        backward::run(&dir, &opts, false, u64::MAX, &mut |f: Arc<Frame>| {
+        backward::run(&dir, &opts, false, u64::MAX, None, &mut |f: Arc<Frame>| {
             seen.push((f.step, f.v.iter().map(|x| x.to_bits()).collect::<Vec<_>>(), f.g.as_ref().unwrap().iter().map(|x| x.to_bits()).collect::<Vec<_>>()));
             if keep(f.step) {
                 kept.push(f);

@@ -167,6 +167,9 @@ fn clv_run_takes_settings_that_change_the_preset() {
     // StoreConfig::for_run: a tenth of the 320 steps, half of that again as the transient.
     assert_eq!((&run["store"]["clv_steps"], &run["store"]["transient"]), (&serde_json::json!(32), &serde_json::json!(16)));
     assert!(out.join("report/index.html").exists());
+    // The same run on two threads is the same run: continued, not refused.
+    let again = ok(clv(&["run", "--out", o, "--n", "8", "--aspect", "1", "--steps", "300", "--relax-steps", "20", "--threads", "2"]));
+    assert!(common::stderr(&again).contains("continuing the run"), "{}", common::stderr(&again));
     for (args, named) in [
         (vec!["run", "--out", o, "--steps", "300", "--quiet"], "--quiet is not a setting of a run"),
         (vec!["run", "--out", o, "--steps", "300", "--resume", o], "--resume is not a setting of a run"),

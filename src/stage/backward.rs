@@ -550,11 +550,15 @@ pub fn run(
     opts: &BackwardOptions,
     resume: bool,
     memory_bytes: u64,
+    threads: Option<usize>,
     consumer: &mut dyn FnMut(Arc<Frame>) -> Result<Flow>,
     on_progress: OnProgress,
 ) -> Result<BackwardReport> {
     let started = Instant::now();
-    let (dir, meta) = RunDir::open(path)?;
+    let (dir, mut meta) = RunDir::open(path)?;
+    if let Some(threads) = threads {
+        meta.config.threads = threads.max(1);
+    }
     let _lock = dir.lock("backward pass")?;
     meta.build.check_can_continue(path)?;
     let (config, store) = (&meta.config, &meta.store);

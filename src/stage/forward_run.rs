@@ -76,10 +76,14 @@ pub fn complete_creation(path: &Path, feedback: &mut Feedback) -> Result<()> {
     Ok(())
 }
 
-/// Continue an interrupted run in `path` (or report a finished one).
-pub fn resume(path: &Path, feedback: &mut Feedback) -> Result<Outcome> {
+/// Continue an interrupted run in `path` (or report a finished one), on `threads` threads
+/// if given, else on the run's (the numbers do not depend on it).
+pub fn resume(path: &Path, threads: Option<usize>, feedback: &mut Feedback) -> Result<Outcome> {
     complete_creation(path, feedback)?;
-    let (dir, meta) = RunDir::open(path)?;
+    let (dir, mut meta) = RunDir::open(path)?;
+    if let Some(threads) = threads {
+        meta.config.threads = threads.max(1);
+    }
     let _lock = dir.lock("forward pass")?;
     meta.build.check_can_continue(path)?;
     for partial in dir.partial_segments()? {

@@ -30,7 +30,8 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
     let report_dir = out.join("report");
     if run_dir.join("run.json").exists() {
         let (_, stored) = RunDir::open(&run_dir)?;
-        if stored.config != *config || stored.store != *store {
+        // The threads are the process's, not the run's: the numbers do not depend on them.
+        if !stored.config.same_but_threads(config) || stored.store != *store {
             let json = |c: &RunConfig, s: &StoreConfig| format!("{}, store {}", serde_json::to_string(c).unwrap_or_default(), serde_json::to_string(s).unwrap_or_default());
             return Err(Error::param(
                 "out",
@@ -43,7 +44,7 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
             ));
         }
         say(format!("continuing the run in {}", run_dir.display()));
-        forward_run::resume(&run_dir, feedback)?;
+        forward_run::resume(&run_dir, Some(config.threads), feedback)?;
     } else {
         let meta = RunMeta { format: FORMAT.into(), config: config.clone(), store: store.clone(), build: BuildInfo::current() };
         say(format!("forward pass into {} ({})", run_dir.display(), meta.store.footprint(config).1));
@@ -80,7 +81,7 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
             bar.set_position(recomputed);
         }
     };
-    let clv = backward::run(&run_dir, &opts, false, 4096 << 20, &mut consumer, &mut on_progress)?;
+    let clv = backward::run(&run_dir, &opts, false, 4096 << 20, Some(config.threads), &mut consumer, &mut on_progress)?;
     let produced = match analyzer {
         Some(a) => a.finish()?.produced,
         None => Vec::new(),
