@@ -413,11 +413,7 @@ fn print_report(report: &SpectrumReport, json: bool) -> Result<()> {
 }
 
 fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
-    if args.system == SystemKind::Henon
-        && let Some(flag) = ["n", "density", "aspect", "lx", "ly"].into_iter().find(|id| matches.value_source(id) == Some(ValueSource::CommandLine))
-    {
-        return Err(Error::param(flag, "sets up hard disks; the Henon map (--system henon) has no such setting"));
-    }
+    no_disk_flags_for_henon(args.system, |id| matches.value_source(id) == Some(ValueSource::CommandLine))?;
     if let Some(dir) = &args.resume {
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
         forward_run::complete_creation(dir, &mut feedback)?;
@@ -512,12 +508,17 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
     let Ok(Cli { command: Command::Forward(forward), .. }) = Cli::from_arg_matches(&matches) else {
         return Err(Error::Other("settings: not the flags of a run".into()));
     };
-    if forward.system == SystemKind::Henon
-        && let Some(flag) = ["n", "density", "aspect", "lx", "ly"].into_iter().find(|id| args.settings.iter().any(|s| s == &format!("--{id}") || s.starts_with(&format!("--{id}="))))
-    {
-        return Err(Error::param(flag, "sets up hard disks; the Henon map (--system henon) has no such setting"));
-    }
+    no_disk_flags_for_henon(forward.system, |id| args.settings.iter().any(|s| s == &format!("--{id}") || s.starts_with(&format!("--{id}="))))?;
     forward.meta()
+}
+
+/// Refuse a flag that sets up hard disks (`given` tells which were given) for the Henon map,
+/// which would otherwise ignore it.
+fn no_disk_flags_for_henon(system: SystemKind, given: impl Fn(&str) -> bool) -> Result<()> {
+    match ["n", "density", "aspect", "lx", "ly"].into_iter().find(|id| given(id)) {
+        Some(flag) if system == SystemKind::Henon => Err(Error::param(flag, "sets up hard disks; the Henon map (--system henon) has no such setting")),
+        _ => Ok(()),
+    }
 }
 
 fn first_line(e: &clap::Error) -> String {
