@@ -103,6 +103,18 @@ impl LocalExponents {
     }
 }
 
+impl LocalExponents {
+    /// The pairs (i, i+1), 0-based i, at the borders of the null space of disks with all
+    /// vectors: (2N-3, 2N-2) between E^u and E^0 and (2N+3, 2N+4) between E^0 and E^s.
+    fn null_borders(&self) -> Vec<(&'static str, usize)> {
+        let n = self.ctx.n;
+        if !self.ctx.is_disks() || n < 2 || 2 * n + 3 >= self.ctx.k {
+            return Vec::new();
+        }
+        vec![("border_unstable_null", 2 * n - 4), ("border_null_stable", 2 * n + 2)]
+    }
+}
+
 impl Analysis for LocalExponents {
     fn name(&self) -> &'static str {
         "local_exponents"
@@ -226,8 +238,10 @@ impl Analysis for LocalExponents {
         let pairs: Vec<Vec<f64>> = (0..self.deltas.len()).map(|w| self.test.pair_fractions(w)).collect();
         let outside: Vec<f64> = pairs.iter().map(|p| finite_mean(p.iter().enumerate().filter(|(i, _)| !self.in_null(*i)).map(|(_, &x)| x))).collect();
         let sel: Vec<usize> = self.js.iter().copied().filter(|&j| j + 1 < ctx.k).collect();
+        let borders = self.null_borders();
         let mut header = vec!["delta".to_string(), "overall".to_string(), "outside_null".to_string()];
         header.extend(sel.iter().map(|j| format!("pair_{}_{}", j + 1, j + 2)));
+        header.extend(borders.iter().map(|(name, _)| name.to_string()));
         let h: Vec<&str> = header.iter().map(String::as_str).collect();
         write_csv(
             &out.join("domination.csv"),
@@ -235,6 +249,7 @@ impl Analysis for LocalExponents {
             self.deltas.iter().enumerate().map(|(w, &dl)| {
                 let mut row = vec![dl as f64, overall[w], outside[w]];
                 row.extend(sel.iter().map(|&j| pairs[w][j]));
+                row.extend(borders.iter().map(|&(_, i)| pairs[w][i]));
                 row
             }),
         )?;
@@ -256,12 +271,36 @@ impl Analysis for LocalExponents {
             let y: Vec<f64> = pairs.iter().map(|p| p[j]).collect();
             fig.series(&format!("pair ({}, {})", j + 1, j + 2), &x, &y, Marker::LinePoints);
         }
+        for (name, i) in &borders {
+            let y: Vec<f64> = pairs.iter().map(|p| p[*i]).collect();
+            fig.series(&format!("{} ({}, {})", name.replace('_', " "), i + 1, i + 2), &x, &y, Marker::LinePoints);
+        }
         fig.hline(0.0);
         save_figure(&fig, out, "domination")?;
+        // Domination at the borders of the null space: the smallest measured Delta from which
+        // neither border pair swaps again.
+        let borders_text = if borders.is_empty() {
+            String::new()
+        } else {
+            let at = |w: usize| borders.iter().map(|&(_, i)| format!("{:.3e}", pairs[w][i])).collect::<Vec<_>>().join(" and ");
+            let quiet = |w: usize| borders.iter().all(|&(_, i)| pairs[w][i] == 0.0);
+            let names = format!("the pairs ({}, {}) between E^u and E^0 and ({}, {}) between E^0 and E^s", borders[0].1 + 1, borders[0].1 + 2, borders[1].1 + 1, borders[1].1 + 2);
+            match (0..self.deltas.len()).find(|&w| (w..self.deltas.len()).all(quiet)) {
+                Some(0) => format!(" At the borders of the null space, {names} never swap, not even in single steps: E^u ⊕ E^0 ⊕ E^s is dominated in these frames."),
+                Some(w) => format!(
+                    " At the borders of the null space, {names} swap in {} of the windows at Δ = {} and in none from Δ = {} on: E^u ⊕ E^0 ⊕ E^s is dominated in these frames, with Δ_0 <= {}.",
+                    at(0),
+                    self.deltas[0],
+                    self.deltas[w],
+                    self.deltas[w]
+                ),
+                None => format!(" At the borders of the null space, {names} still swap at Δ = {}, in {} of the windows: no domination of E^u ⊕ E^0 ⊕ E^s is seen in these frames.", self.deltas[self.deltas.len() - 1], at(self.deltas.len() - 1)),
+            }
+        };
         produced.push(Produced {
             title: "Domination of the Oseledec splitting (Sec. 6)".into(),
             caption: format!(
-                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over all {} adjacent pairs{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0 (degenerate exponents, as in the null space and the modes, swap for every Δ). Overall fraction at Δ = {}: {:.3e}; at Δ = {}: {:.3e}.{unfilled}{caveat}",
+                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over all {} adjacent pairs{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0 (degenerate exponents, as in the null space and the modes, swap for every Δ). Overall fraction at Δ = {}: {:.3e}; at Δ = {}: {:.3e}.{borders_text}{unfilled}{caveat}",
                 ctx.k.saturating_sub(1),
                 if ctx.is_disks() { ", averaged over the pairs outside the null space" } else { "" },
                 self.deltas[0],
@@ -350,6 +389,11 @@ mod tests {
         assert!(column(&dom, "pair_1_2").iter().all(|&x| x == 0.0));
         // pair (3, 4): lambda_3 = 10 +- 0.5 against the null space: never swaps
         assert!(column(&dom, "pair_3_4").iter().all(|&x| x == 0.0));
+        // the borders of the null space (2N-3, 2N-2) = (3, 4) and (2N+3, 2N+4) = (9, 10)
+        assert_eq!(column(&dom, "border_unstable_null"), column(&dom, "pair_3_4"));
+        assert!(column(&dom, "border_null_stable").iter().all(|&x| x == 0.0));
+        let caption = &produced[2].caption;
+        assert!(caption.contains("(3, 4) between E^u and E^0 and (9, 10) between E^0 and E^s never swap") && caption.contains("is dominated"), "{caption}");
         // five null pairs of 11 swap about half the time at Delta = 1
         let overall = column(&dom, "overall");
         assert!((overall[0] - 0.5 * 5.0 / 11.0).abs() < 0.05, "{overall:?}");
@@ -377,6 +421,33 @@ mod tests {
         assert!((row[3] - mean1).abs() < 1e-12);
         assert!(row[5] > 11.5 && row[6] < 12.5);
         let _ = std::fs::remove_dir_all(&out);
+    }
+
+    /// A smallest positive exponent that fluctuates through zero swaps with the null space
+    /// in short windows and not in long ones: the caption gives the Delta_0 it finds; one that
+    /// sits at zero swaps at every Delta: no domination.
+    #[test]
+    fn the_borders_of_the_null_space_are_tested_for_domination() {
+        let (n, d) = (3, 12);
+        for (lambda_3, said) in [(0.3, "in none from Δ = 25 on"), (0.0, "still swap at Δ = 25")] {
+            let mut a = new(&context(n, vec![1], vec![1, 5, 25])).unwrap();
+            for step in (0..500u64).rev() {
+                let local: Vec<f64> = (0..d)
+                    .map(|i| match i {
+                        2 => lambda_3 + 2.0 * noise(step, i),
+                        3..=8 => 0.0,
+                        _ => (d - i) as f64 - if i > 8 { 12.0 } else { 0.0 } + 0.99 * noise(step, i),
+                    })
+                    .collect();
+                a.consume(&frame(step, local)).unwrap();
+            }
+            let out = scratch(&format!("borders-{lambda_3}"));
+            let produced = a.finish(&out, 500).unwrap();
+            let border = column(&read_csv(&out.join("domination.csv")), "border_unstable_null");
+            assert!(border[0] > 0.2, "{border:?}");
+            assert!(produced[2].caption.contains(said), "{}", produced[2].caption);
+            let _ = std::fs::remove_dir_all(&out);
+        }
     }
 
     #[test]
