@@ -13,9 +13,11 @@ frames for every N), and the quantiles of Psi.
     python3 scripts/hyperbolicity.py --out h --n 8,12 --steps 400 --clv-steps 100
 
 Writes OUT/hyperbolicity.csv (N, frames, and Psi's minimum, 5 % quantile, median and mean
-with its standard error, in degrees; and for comparison the median smallest angle between
+with its standard error, in degrees; for comparison the median smallest angle between
 random subspaces of the same dimensions, which closes like 1/N since their dimensions leave
-only 6 of 4N to spare) and OUT/fit.json (the slopes of ln median and ln q05
+only 6 of 4N to spare; and, for the paper's other open question (Sec. 6), how often the
+local exponents swap order across the borders of the null space, in single steps and in the
+longest windows: never means a dominated splitting E^u + E^0 + E^s) and OUT/fit.json (the slopes of ln median and ln q05
 against ln N with their standard errors), and prints both. The runs and reports stay in
 OUT/runs.
 """
@@ -53,6 +55,17 @@ def random_psi(d, m, samples, rng):
     return float(np.median(angles))
 
 
+def border_swaps(path):
+    """From the report's domination test: the largest fraction of windows in which the local
+    exponents swap order across a border of the null space (E^u | E^0 or E^0 | E^s), at the
+    shortest window (a single step) and at the longest; 0 at the longest means the splitting
+    E^u + E^0 + E^s is dominated in these frames."""
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    worst = [max(float(r["border_unstable_null"]), float(r["border_null_stable"])) for r in rows]
+    return {"border_swaps_shortest": worst[0], "border_swaps_longest": worst[-1], "longest_window": int(float(rows[-1]["delta"]))}
+
+
 def main():
     ap = study.arguments(__doc__, "16,36,64,100,144,196", "hyperbolicity.csv")
     ap.add_argument("--aspect", type=float, default=1.0, help="box aspect ratio Ly/Lx, the same for every N")
@@ -70,7 +83,7 @@ def main():
     for n in s.ns:
         run_dir, report = os.path.join(s.runs, f"n{n}-run"), os.path.join(s.runs, f"n{n}-report")
         s.run(["forward", "--n", str(n), "--steps", str(a.steps), "--clv-steps", str(a.clv_steps), "--out", run_dir] + common, stdout=subprocess.DEVNULL)
-        s.backward_into_analyze(run_dir, report, ["--vectors-every", str(a.every)], ["--only", "transversality", "--every", str(a.every)])
+        s.backward_into_analyze(run_dir, report, ["--vectors-every", str(a.every)], ["--only", "transversality,local_exponents", "--every", str(a.every)])
         with open(os.path.join(report, "transversality.csv")) as f:
             psi = np.degrees([float(r["psi_unstable_stable"]) for r in csv.DictReader(f)])
         if len(psi) == 0 or not np.all(np.isfinite(psi)):
@@ -85,10 +98,12 @@ def main():
             "psi_mean_stderr_deg": batch_stderr(psi),
             "random_median_deg": random_psi(4 * n, 2 * n - 3, 20, np.random.default_rng(n)),
         }
+        row.update(border_swaps(os.path.join(report, "domination.csv")))
         rows.append(row)
         print(f"N = {n:4d}: Psi min {row['psi_min_deg']:.2f}, q05 {row['psi_q05_deg']:.2f}, median {row['psi_median_deg']:.2f}, "
               f"mean {row['psi_mean_deg']:.2f} +- {row['psi_mean_stderr_deg']:.2f} degrees over {len(psi)} frames "
-              f"(random subspaces: median {row['random_median_deg']:.2f})", file=sys.stderr)
+              f"(random subspaces: median {row['random_median_deg']:.2f}); null-space borders swap in {row['border_swaps_shortest']:.3g} of single "
+              f"steps, {row['border_swaps_longest']:.3g} of windows of {row['longest_window']}", file=sys.stderr)
 
     with open(s.table, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))

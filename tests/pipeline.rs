@@ -276,8 +276,9 @@ fn the_scaling_study_tabulates_and_fits_its_runs() {
 
 /// scripts/hyperbolicity.py: one row per N with the quantiles of Psi (recomputed here from
 /// the report's transversality.csv), a random-subspace baseline below Psi's median (the
-/// splitting is more transversal than chance), and the slopes of ln Psi against ln N; a
-/// second study into the same directory is refused.
+/// splitting is more transversal than chance), the swaps across the null space's borders
+/// (from domination.csv), and the slopes of ln Psi against ln N; a second study into the
+/// same directory is refused.
 #[test]
 fn the_hyperbolicity_study_tabulates_psi_against_n() {
     if !common::python_has("numpy") {
@@ -302,6 +303,13 @@ fn the_hyperbolicity_study_tabulates_psi_against_n() {
         assert!((r[2] - psi[0]).abs() < 1e-9 && (r[4] - median).abs() < 1e-9, "min and median of {n}: {r:?}");
         assert!(r[2] <= r[3] && r[3] <= r[4] && r[2] > 0.0 && r[4] < 90.0, "{r:?}");
         assert!(r[7] > 0.0 && r[7] < r[4], "random subspaces of N = {n} are less transversal than E^u and E^s: {r:?}");
+        // The domination test at the borders of the null space, first and last window.
+        let dom = read(&base.join(format!("runs/n{n}-report/domination.csv")));
+        let head: Vec<&str> = dom.lines().next().unwrap().split(',').collect();
+        let rows: Vec<Vec<f64>> = dom.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+        let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+        let worst = |row: &Vec<f64>| row[col("border_unstable_null")].max(row[col("border_null_stable")]);
+        assert_eq!((r[8], r[9], r[10]), (worst(&rows[0]), worst(rows.last().unwrap()), rows.last().unwrap()[0]), "N = {n}");
         medians.push((r[0].ln(), median.ln()));
     }
     let (mx, my) = (medians.iter().map(|p| p.0).sum::<f64>() / 3.0, medians.iter().map(|p| p.1).sum::<f64>() / 3.0);
