@@ -65,15 +65,32 @@ pub fn render(name: &str, config: &RunConfig, store: &StoreConfig) -> String {
             let _ = writeln!(s, "system = \"disks\"\nn = {n}\ndensity = {density}\naspect = {aspect}    # Ly/Lx");
         }
     }
+    // Settings at their defaults are written as comments, so that they keep following the
+    // settings they derive from when those are edited (k = D follows n; the CLV window
+    // follows steps).
+    let at_default = |default: bool| if default { "# " } else { "" };
+    let derived = StoreConfig::for_run(config);
     let _ = writeln!(
         s,
-        "\n[run]\ntau = {}\nrelax-steps = {}\nsteps = {}\nvectors = {}\nseed = {}\nthreads = {}\nblocks = {}",
-        config.tau, config.relax_steps, config.steps, config.vectors, config.seed, config.threads, config.blocks
+        "\n[run]\ntau = {}\nrelax-steps = {}\nsteps = {}\n{}vectors = {}    # default: all, k = D\nseed = {}\nthreads = {}\nblocks = {}",
+        config.tau,
+        config.relax_steps,
+        config.steps,
+        at_default(config.vectors == config.system.dim()),
+        config.vectors,
+        config.seed,
+        config.threads,
+        config.blocks
     );
     let _ = writeln!(
         s,
-        "\n[store]\ncheckpoint-every = {}\nsegment-checkpoints = {}\nclv-steps = {}\ntransient = {}",
-        store.checkpoint_every, store.segment_checkpoints, store.clv_steps, store.transient
+        "\n[store]\ncheckpoint-every = {}\nsegment-checkpoints = {}\n{}clv-steps = {}    # default: a tenth of relax-steps + steps, at most 2/3 of steps\n{}transient = {}    # default: half of clv-steps",
+        store.checkpoint_every,
+        store.segment_checkpoints,
+        at_default(store.clv_steps == derived.clv_steps),
+        store.clv_steps,
+        at_default(store.transient == derived.transient && store.clv_steps == derived.clv_steps),
+        store.transient
     );
     s
 }
@@ -97,6 +114,16 @@ mod tests {
         let args = expand(&path, &known).unwrap();
         let joined = args.join(" ");
         assert!(joined.contains("--n 198") && joined.contains("--steps 240000") && joined.contains("--system disks"), "{joined}");
+        // Defaults are comments: k = D and the CLV window follow n and steps when edited.
+        assert!(text.contains("# vectors = 792") && text.contains("# clv-steps = 25000") && text.contains("# transient = 12500"), "{text}");
+        assert!(!joined.contains("--vectors") && !joined.contains("--clv-steps") && !joined.contains("--transient"), "{joined}");
+        let mut store = StoreConfig::for_run(&config);
+        store.clv_steps = 1000;
+        let args = {
+            std::fs::write(&path, render("paper", &config, &store)).unwrap();
+            expand(&path, &known).unwrap().join(" ")
+        };
+        assert!(args.contains("--clv-steps 1000") && args.contains("--transient 12500"), "a window of its own is written: {args}");
         std::fs::write(&path, "[run]\nsteps = 10 # comment\nbogus = 3\n").unwrap();
         let err = expand(&path, &known).unwrap_err().to_string();
         assert!(err.contains("paper.toml:3") && err.contains("bogus") && err.contains("steps"), "{err}");
