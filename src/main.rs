@@ -453,30 +453,19 @@ fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
     spectrum(args.config()?, args.json, args.quiet)
 }
 
-/// The flags of `clv forward` that set up `config` (a preset): the system and the run, not
-/// the store, whose window then follows the run's length. Parsed back they give `config`.
+/// The flags of `clv forward` that set up `config` (a preset): the system (by density and
+/// aspect) and the run, not the store, whose window then follows the run's length; all
+/// vectors (k = D) by leaving --vectors out, so that they follow a changed --n. Parsed back
+/// they give `config`.
 fn config_flags(config: &RunConfig) -> Vec<String> {
-    let mut flags = match &config.system {
-        SystemConfig::Henon { .. } => vec!["--system".to_string(), "henon".into()],
-        SystemConfig::Disks { n, density, aspect, .. } => {
-            vec!["--system".into(), "disks".into(), "--n".into(), n.to_string(), "--density".into(), density.to_string(), "--aspect".into(), aspect.to_string()]
-        }
-    };
-    // All vectors (k = D) is said by leaving --vectors out, so that it follows a changed --n.
-    if config.vectors != config.system.dim() {
-        flags.extend(["--vectors".into(), config.vectors.to_string()]);
-    }
-    for (flag, value) in [
-        ("tau", config.tau.to_string()),
-        ("relax-steps", config.relax_steps.to_string()),
-        ("steps", config.steps.to_string()),
-        ("seed", config.seed.to_string()),
-        ("threads", config.threads.to_string()),
-        ("blocks", config.blocks.to_string()),
-    ] {
-        flags.extend([format!("--{flag}"), value]);
-    }
-    flags
+    let meta = RunMeta { format: FORMAT.into(), config: config.clone(), store: StoreConfig::for_run(config), build: BuildInfo::current() };
+    let left_out = ["lx", "ly", "checkpoint_every", "segment_checkpoints", "segment_mb", "store_r", "clv_steps", "transient"];
+    flag_values(&meta)
+        .into_iter()
+        .filter(|(id, _)| !left_out.contains(id) && (*id != "vectors" || config.vectors != config.system.dim()))
+        .chain([("threads", config.threads.to_string())])
+        .flat_map(|(id, value)| [format!("--{}", id.replace('_', "-")), value])
+        .collect()
 }
 
 /// What `clv run` runs: the preset or the configuration file, changed by the settings on
