@@ -239,21 +239,37 @@ fn a_resumed_stream_is_reported_as_covering_part_of_the_window() {
     assert!(err.contains("no frames in the stream") && err.contains("without --resume"), "analyze: {err}");
 }
 
+/// Run a study script of scripts/ on N = 8, 12, 16 with `args` into a fresh directory:
+/// (its directory, the script's arguments, its table's rows by N), or None without numpy.
+fn study(script: &str, name: &str, table: &str, args: &[&str]) -> Option<(std::path::PathBuf, Vec<String>, Vec<Vec<f64>>)> {
+    if !common::python_has("numpy") {
+        return None;
+    }
+    let base = scratch(name);
+    let mut all: Vec<String> = ["--n", "8,12,16", "--clv-bin", env!("CARGO_BIN_EXE_clv"), "--out", base.to_str().unwrap()].iter().map(|s| s.to_string()).collect();
+    all.extend(args.iter().map(|s| s.to_string()));
+    ok(Command::new("python3").arg(study_script(script)).args(&all).output().unwrap());
+    let rows: Vec<Vec<f64>> = read(&base.join(table)).lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.iter().map(|r| r[0]).collect::<Vec<_>>(), [8.0, 12.0, 16.0]);
+    Some((base, all, rows))
+}
+
+fn study_script(script: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts").join(script)
+}
+
+/// A second study into the same directory is refused: its runs are never replaced.
+fn refused_again(script: &str, args: &[String]) {
+    let again = Command::new("python3").arg(study_script(script)).args(args).output().unwrap();
+    assert!(!again.status.success() && String::from_utf8_lossy(&again.stderr).contains("exists"));
+}
+
 /// scripts/scaling.py: one row per N with the run's lambda_1 and the report's W_1, h_KS per
 /// disk for the full spectra, and eta the slope of ln W_1 against ln N (recomputed here);
 /// a second study into the same directory is refused.
 #[test]
 fn the_scaling_study_tabulates_and_fits_its_runs() {
-    if !common::python_has("numpy") {
-        return;
-    }
-    let base = scratch("scaling");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/scaling.py");
-    let args = ["--n", "8,12,16", "--steps", "600", "--clv-steps", "200", "--full-up-to", "12", "--clv-bin", env!("CARGO_BIN_EXE_clv"), "--out", base.to_str().unwrap()];
-    ok(Command::new("python3").arg(&script).args(args).output().unwrap());
-    let table = read(&base.join("scaling.csv"));
-    let rows: Vec<Vec<f64>> = table.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
-    assert_eq!(rows.iter().map(|r| r[0]).collect::<Vec<_>>(), [8.0, 12.0, 16.0]);
+    let Some((base, args, rows)) = study("scaling.py", "scaling", "scaling.csv", &["--steps", "600", "--clv-steps", "200", "--full-up-to", "12"]) else { return };
     for r in &rows {
         let n = r[0] as usize;
         let spectrum: serde_json::Value = serde_json::from_str(&read(&base.join(format!("runs/n{n}-run/spectrum.json")))).unwrap();
@@ -270,8 +286,7 @@ fn the_scaling_study_tabulates_and_fits_its_runs() {
     let fit: serde_json::Value = serde_json::from_str(&read(&base.join("fit.json"))).unwrap();
     assert!((fit["eta"].as_f64().unwrap() + slope).abs() < 1e-9, "{fit} against slope {slope}");
     assert!(fit["eta_stderr"].as_f64().unwrap() >= 0.0);
-    let again = Command::new("python3").arg(&script).args(args).output().unwrap();
-    assert!(!again.status.success() && String::from_utf8_lossy(&again.stderr).contains("exists"));
+    refused_again("scaling.py", &args);
 }
 
 /// scripts/hyperbolicity.py: one row per N with the quantiles of Psi (recomputed here from
@@ -281,16 +296,7 @@ fn the_scaling_study_tabulates_and_fits_its_runs() {
 /// same directory is refused.
 #[test]
 fn the_hyperbolicity_study_tabulates_psi_against_n() {
-    if !common::python_has("numpy") {
-        return;
-    }
-    let base = scratch("hyperbolicity");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/hyperbolicity.py");
-    let args = ["--n", "8,12,16", "--steps", "400", "--clv-steps", "100", "--every", "2", "--clv-bin", env!("CARGO_BIN_EXE_clv"), "--out", base.to_str().unwrap()];
-    ok(Command::new("python3").arg(&script).args(args).output().unwrap());
-    let table = read(&base.join("hyperbolicity.csv"));
-    let rows: Vec<Vec<f64>> = table.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
-    assert_eq!(rows.iter().map(|r| r[0]).collect::<Vec<_>>(), [8.0, 12.0, 16.0]);
+    let Some((base, args, rows)) = study("hyperbolicity.py", "hyperbolicity", "hyperbolicity.csv", &["--steps", "400", "--clv-steps", "100", "--every", "2"]) else { return };
     let mut medians = Vec::new();
     for r in &rows {
         let n = r[0] as usize;
@@ -316,8 +322,7 @@ fn the_hyperbolicity_study_tabulates_psi_against_n() {
     let slope = medians.iter().map(|(a, b)| (a - mx) * (b - my)).sum::<f64>() / medians.iter().map(|(a, _)| (a - mx).powi(2)).sum::<f64>();
     let fit: serde_json::Value = serde_json::from_str(&read(&base.join("fit.json"))).unwrap();
     assert!((fit["slope_ln_median"].as_f64().unwrap() - slope).abs() < 1e-9, "{fit} against slope {slope}");
-    let again = Command::new("python3").arg(&script).args(args).output().unwrap();
-    assert!(!again.status.success() && String::from_utf8_lossy(&again.stderr).contains("exists"));
+    refused_again("hyperbolicity.py", &args);
 }
 
 /// A Python user reads the frames with the mcap package, cbor2 and numpy and gets the same
