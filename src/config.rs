@@ -7,6 +7,7 @@ use crate::error::{Error, Result};
 use crate::rng::Rng;
 use crate::system::disks::{box_sides, HardDisks};
 use crate::system::henon::Henon;
+use crate::system::lorenz::Lorenz;
 use crate::system::DynamicalSystem;
 use serde::{Deserialize, Serialize};
 
@@ -15,6 +16,8 @@ use serde::{Deserialize, Serialize};
 pub enum SystemConfig {
     /// The Henon map x' = a - x^2 + b y, y' = x (paper section 4).
     Henon { a: f64, b: f64 },
+    /// The Lorenz-63 flow (a flow without conservation laws: PHYSICS.md's small tests).
+    Lorenz { sigma: f64, rho: f64, beta: f64 },
     /// N hard disks in a periodic Lx x Ly box (paper section 5); density = N/(Lx Ly) and
     /// aspect = Ly/Lx are kept for the record.
     Disks { n: usize, lx: f64, ly: f64, density: f64, aspect: f64 },
@@ -23,6 +26,10 @@ pub enum SystemConfig {
 impl SystemConfig {
     pub fn henon() -> Self {
         SystemConfig::Henon { a: Henon::A, b: Henon::B }
+    }
+
+    pub fn lorenz() -> Self {
+        SystemConfig::Lorenz { sigma: Lorenz::SIGMA, rho: Lorenz::RHO, beta: Lorenz::BETA }
     }
 
     /// Disks from N, density and aspect ratio Ly/Lx.
@@ -51,6 +58,7 @@ impl SystemConfig {
     pub fn dim(&self) -> usize {
         match self {
             SystemConfig::Henon { .. } => 2,
+            SystemConfig::Lorenz { .. } => 3,
             SystemConfig::Disks { n, .. } => 4 * n,
         }
     }
@@ -117,18 +125,25 @@ impl RunConfig {
                 let (x, y) = (0.2 * rng.uniform() - 0.1, 0.2 * rng.uniform() - 0.1);
                 Box::new(Henon::new(a, b, x, y))
             }
+            SystemConfig::Lorenz { sigma, rho, beta } => {
+                // A point near the attractor, moved by the seed; the relaxation steps bring
+                // it onto the attractor.
+                let mut rng = Rng::new(self.seed);
+                let x = [1.0 + rng.uniform(), 1.0 + rng.uniform(), 20.0 + rng.uniform()];
+                Box::new(Lorenz::new(sigma, rho, beta, self.tau, x))
+            }
             SystemConfig::Disks { n, lx, ly, .. } => Box::new(HardDisks::new(n, lx, ly, self.tau, self.seed)?),
         })
     }
 }
 
 /// The configurations embedded in the binary.
-pub const PRESETS: [&str; 3] = ["default", "paper", "henon"];
+pub const PRESETS: [&str; 4] = ["default", "paper", "henon", "lorenz"];
 
 impl RunConfig {
     /// A named preset: `default` (a small hard-disk system in the paper's geometry that still
     /// shows Lyapunov modes, 10-15 s end to end after the build), `paper` (the paper's 198-disk system,
-    /// t_0 + t_omega = 2.5e5 steps of tau = 0.6 in all, section 5) or `henon`.
+    /// t_0 + t_omega = 2.5e5 steps of tau = 0.6 in all, section 5), `henon` or `lorenz`.
     pub fn preset(name: &str) -> Result<Self> {
         let disks = |n, relax_steps, steps, threads| -> Result<Self> {
             Ok(RunConfig {
@@ -152,6 +167,16 @@ impl RunConfig {
                 relax_steps: 1000,
                 steps: 1_000_000,
                 vectors: 2,
+                seed: 1,
+                threads: 1,
+                blocks: 20,
+            }),
+            "lorenz" => Ok(RunConfig {
+                system: SystemConfig::lorenz(),
+                tau: 0.1,
+                relax_steps: 1000,
+                steps: 100_000,
+                vectors: 3,
                 seed: 1,
                 threads: 1,
                 blocks: 20,

@@ -73,6 +73,7 @@ struct BenchArgs {
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum SystemKind {
     Henon,
+    Lorenz,
     Disks,
 }
 
@@ -287,6 +288,7 @@ impl ForwardArgs {
     fn config(&self) -> Result<RunConfig> {
         let (system, tau) = match self.system {
             SystemKind::Henon => (SystemConfig::henon(), self.tau.unwrap_or(1.0)),
+            SystemKind::Lorenz => (SystemConfig::lorenz(), self.tau.unwrap_or(0.1)),
             SystemKind::Disks => {
                 let system = match (self.lx, self.ly) {
                     (Some(lx), Some(ly)) => SystemConfig::disks_in_box(self.n, lx, ly),
@@ -351,6 +353,7 @@ fn flag_values(m: &RunMeta) -> Vec<(&'static str, String)> {
     ];
     match &c.system {
         SystemConfig::Henon { .. } => v.push(("system", "henon".into())),
+        SystemConfig::Lorenz { .. } => v.push(("system", "lorenz".into())),
         SystemConfig::Disks { n, lx, ly, density, aspect } => v.extend([
             ("system", "disks".into()),
             ("n", n.to_string()),
@@ -505,7 +508,7 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
 /// which would otherwise ignore it.
 fn no_disk_flags_for_henon(system: SystemKind, given: impl Fn(&str) -> bool) -> Result<()> {
     match ["n", "density", "aspect", "lx", "ly"].into_iter().find(|id| given(id)) {
-        Some(flag) if system == SystemKind::Henon => Err(Error::param(flag, "sets up hard disks; the Henon map (--system henon) has no such setting")),
+        Some(flag) if system != SystemKind::Disks => Err(Error::param(flag, "sets up hard disks; the Henon map and the Lorenz flow (--system henon, lorenz) have no such setting")),
         _ => Ok(()),
     }
 }

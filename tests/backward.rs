@@ -87,6 +87,39 @@ fn henon_clvs_are_the_manifold_directions() {
     }
 }
 
+/// The Lorenz flow (PHYSICS.md): exponents (0.9056, 0, -14.5723), the GS ones summing to
+/// -(sigma + 1 + beta) = -13.6667 exactly, and the CLV of the zero exponent parallel
+/// to the vector field at every frame (the flow direction is covariant), where g^2 is not.
+#[test]
+fn lorenz_clvs_give_the_flow_direction() {
+    use clv::system::lorenz::Lorenz;
+    let dir = forward("lorenz", &["--system", "lorenz", "--steps", "20000", "--clv-steps", "2000", "--transient", "500"]);
+    let report = backward_json(&dir, &["--with-gs"]);
+    let divergence = -(Lorenz::SIGMA + 1.0 + Lorenz::BETA);
+    // The GS sum is ln |det| of every step, exact to the integrator's 1e-6; the CLV sum
+    // only converges to it (the CLVs are not orthogonal: their local growths do not add up
+    // to the volume's step by step).
+    for (key, tolerance) in [("gs_exponents", 1e-5), ("exponents", 0.02)] {
+        let l = vec_of(&report, key);
+        assert!((l.iter().sum::<f64>() - divergence).abs() < tolerance, "{key}: sum {} against {divergence}", l.iter().sum::<f64>());
+        // Sprott's values; 2000 frames average them to a few hundredths.
+        assert!((l[0] - 0.9056).abs() < 0.05 && l[1].abs() < 0.02 && (l[2] + 14.5723).abs() < 0.05, "{key}: {l:?}");
+    }
+    let fs = frames(&dir.join("frames.mcap"));
+    assert_eq!(fs.len(), 2001);
+    let lorenz = Lorenz::new(Lorenz::SIGMA, Lorenz::RHO, Lorenz::BETA, 0.1, [0.0; 3]);
+    let (mut worst, mut gs_worst) = (1.0f64, 1.0f64);
+    for f in &fs {
+        let flow = unit(&lorenz.field([f.phase[0], f.phase[1], f.phase[2]]));
+        worst = worst.min(dot(f.v(1), &flow).abs() / dot(f.v(1), f.v(1)).sqrt());
+        gs_worst = gs_worst.min(dot(f.g(1).unwrap(), &flow).abs());
+    }
+    assert!(worst > 1.0 - 1e-9, "|cos(v^2, flow)| down to {worst}");
+    // g^2 is orthogonal to g^1 = v^1, so it leaves the flow direction wherever v^1 is not
+    // orthogonal to the flow.
+    assert!(gs_worst < 0.9, "g^2 is not the flow direction: |cos| at least {gs_worst}");
+}
+
 /// Propagating v_n^j over tau gives a vector parallel to v_{n+1}^j, for every j outside the
 /// degenerate (null-space) subspace.
 fn check_covariance(system: &mut dyn DynamicalSystem, fs: &[Frame], skip: &[usize]) {

@@ -318,7 +318,7 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
         (vec!["forward", "--n", "4", "--tau=-1", "--out", o], "--tau"),
         (vec!["forward", "--n", "4", "--steps", "100", "--relax-steps", "10", "--checkpoint-every", "500", "--out", o], "--checkpoint-every"),
         (vec!["forward", "--n", "4", "--steps", "100", "--clv-steps", "90", "--transient", "50", "--out", o], "--clv-steps"),
-        (vec!["forward", "--system", "lorenz", "--out", o], "lorenz"),
+        (vec!["forward", "--system", "rossler", "--out", o], "rossler"),
     ];
     for (args, needle) in cases {
         let out = clv(&args);

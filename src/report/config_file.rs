@@ -61,6 +61,9 @@ pub fn render(name: &str, config: &RunConfig, store: &StoreConfig) -> String {
         SystemConfig::Henon { .. } => {
             let _ = writeln!(s, "system = \"henon\"");
         }
+        SystemConfig::Lorenz { .. } => {
+            let _ = writeln!(s, "system = \"lorenz\"");
+        }
         SystemConfig::Disks { n, density, aspect, .. } => {
             let _ = writeln!(s, "system = \"disks\"\nn = {n}\ndensity = {density}\naspect = {aspect}    # Ly/Lx");
         }

@@ -2,8 +2,8 @@
 //!
 //! A system advances its phase point Gamma and a block of k tangent vectors over one interval
 //! tau. The forward and backward stages drive any system through the [`DynamicalSystem`]
-//! trait and never know which one it is: the Henon map and hard disks share every line of
-//! the Lyapunov machinery.
+//! trait and never know which one it is: the Henon map, the Lorenz flow and hard disks share
+//! every line of the Lyapunov machinery.
 //!
 //! Tangent vectors live in a [`Tangent`] block whose row order is the system's own
 //! (hard disks keep the four components of a particle next to each other, so that a
@@ -12,6 +12,7 @@
 
 pub mod disks;
 pub mod henon;
+pub mod lorenz;
 
 use crate::error::Result;
 use serde::{Deserialize, Serialize};

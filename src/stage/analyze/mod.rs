@@ -81,7 +81,7 @@ pub struct Context {
 /// map, whose picture follows the vectors along the orbit (and where V costs nothing).
 pub fn vectors_every_for(meta: &RunMeta) -> u64 {
     match meta.config.system {
-        crate::config::SystemConfig::Henon { .. } => 1,
+        crate::config::SystemConfig::Henon { .. } | crate::config::SystemConfig::Lorenz { .. } => 1,
         crate::config::SystemConfig::Disks { .. } => default_every(meta.store.clv_steps, 1),
     }
 }
@@ -102,6 +102,7 @@ impl Context {
             Some(m) => {
                 let (name, n, lx, ly) = match m.config.system {
                     crate::config::SystemConfig::Henon { .. } => ("henon", 0, 0.0, 0.0),
+                    crate::config::SystemConfig::Lorenz { .. } => ("lorenz", 0, 0.0, 0.0),
                     crate::config::SystemConfig::Disks { n, lx, ly, .. } => ("disks", n, lx, ly),
                 };
                 (name.to_string(), n, lx, ly, m.config.tau, m.store.clv_steps)
