@@ -107,7 +107,7 @@ struct ForwardArgs {
     /// Box side Ly (with --lx).
     #[arg(long, requires = "lx", allow_negative_numbers = true)]
     ly: Option<f64>,
-    /// Time between re-orthonormalisations (default 0.6 for disks, 1 for Henon).
+    /// Time between re-orthonormalisations (default 0.6 for disks, 1 for Henon, 0.1 for Lorenz).
     #[arg(long, allow_negative_numbers = true)]
     tau: Option<f64>,
     /// Relaxation steps before accumulation.
