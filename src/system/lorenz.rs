@@ -13,7 +13,8 @@ use super::{DynamicalSystem, Invariants, Snapshot, Tangent};
 use crate::error::{Error, Result};
 
 /// Runge-Kutta steps per unit time: h = 0.0025 keeps the divergence of the discrete map
-/// within 1e-6 of -(sigma + 1 + beta) (the exponents sum to it to that), at 3 us a step.
+/// within about 1e-6 of -(sigma + 1 + beta) per unit time (the GS exponents sum to it to
+/// that), at about 3 us a step.
 const STEPS_PER_UNIT: f64 = 400.0;
 
 #[derive(Clone, Debug)]
