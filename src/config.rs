@@ -90,6 +90,13 @@ impl RunConfig {
         RunConfig { threads: other.threads, ..self.clone() } == *other
     }
 
+    /// Run on `threads` threads from now on, if given.
+    pub fn set_threads(&mut self, threads: Option<usize>) {
+        if let Some(threads) = threads {
+            self.threads = threads.max(1);
+        }
+    }
+
     pub fn validate(&self) -> Result<()> {
         if matches!(self.system, SystemConfig::Disks { n: 0, .. }) {
             return Err(Error::param("n", "must be at least 1 disk"));

@@ -556,9 +556,7 @@ pub fn run(
 ) -> Result<BackwardReport> {
     let started = Instant::now();
     let (dir, mut meta) = RunDir::open(path)?;
-    if let Some(threads) = threads {
-        meta.config.threads = threads.max(1);
-    }
+    meta.config.set_threads(threads);
     let _lock = dir.lock("backward pass")?;
     meta.build.check_can_continue(path)?;
     let (config, store) = (&meta.config, &meta.store);

@@ -81,9 +81,7 @@ pub fn complete_creation(path: &Path, feedback: &mut Feedback) -> Result<()> {
 pub fn resume(path: &Path, threads: Option<usize>, feedback: &mut Feedback) -> Result<Outcome> {
     complete_creation(path, feedback)?;
     let (dir, mut meta) = RunDir::open(path)?;
-    if let Some(threads) = threads {
-        meta.config.threads = threads.max(1);
-    }
+    meta.config.set_threads(threads);
     let _lock = dir.lock("forward pass")?;
     meta.build.check_can_continue(path)?;
     for partial in dir.partial_segments()? {
