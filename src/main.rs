@@ -5,7 +5,7 @@ use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand,
 use clv::config::{RunConfig, SystemConfig};
 use clv::report::{inspect, SpectrumReport, Statistics};
 use clv::stage::forward::Forward;
-use clv::stage::forward_run::{self, Feedback};
+use clv::stage::forward_run::{self, Extension, Feedback};
 use clv::store::run::{BuildInfo, RunMeta, StoreConfig, StoreR, FORMAT};
 use clv::{Error, Result};
 use indicatif::ProgressBar;
@@ -132,7 +132,7 @@ struct ForwardArgs {
     /// Write a run directory (checkpoints, R matrices, running spectrum) for the backward stage.
     #[arg(long, conflicts_with = "resume")]
     out: Option<PathBuf>,
-    /// Continue the interrupted run in this directory (its configuration is read from it).
+    /// Continue the interrupted run in this directory (its configuration is read from it); with a larger --steps, make the run longer.
     #[arg(long)]
     resume: Option<PathBuf>,
     /// Steps between checkpoints.
@@ -157,7 +157,6 @@ struct ForwardArgs {
     #[arg(long)]
     json: bool,
     /// No progress bar or notices.
-    /// No progress bars or notices.
     #[arg(long)]
     quiet: bool,
 }
@@ -366,8 +365,9 @@ fn flag_values(m: &RunMeta) -> Vec<(&'static str, String)> {
     v
 }
 
-/// Refuse flags given with --resume that disagree with the stored run.
-fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path::Path) -> Result<()> {
+/// Refuse flags given with --resume that disagree with the stored run, except a longer
+/// --steps (with a new --clv-steps or --transient): that extends the run.
+fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path::Path) -> Result<Option<Extension>> {
     let (_, stored) = clv::store::RunDir::open(dir)?;
     let given: Vec<&str> = flag_values(&stored)
         .iter()
@@ -375,20 +375,26 @@ fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path:
         .chain(["system"])
         .filter(|id| matches.value_source(id) == Some(ValueSource::CommandLine))
         .collect();
+    let extending = given.contains(&"steps") && args.steps > stored.config.steps;
     if given.is_empty() {
-        return Ok(());
+        return Ok(None);
     }
-    let wanted = flag_values(&args.meta()?);
-    let stored = flag_values(&stored);
+    let wanted_meta = args.meta()?;
+    let wanted = flag_values(&wanted_meta);
+    let stored_flags = flag_values(&stored);
     for id in given {
+        if extending && ["steps", "clv_steps", "transient"].contains(&id) {
+            continue;
+        }
         let w = wanted.iter().find(|(k, _)| *k == id).map(|(_, v)| v.as_str());
-        let s = stored.iter().find(|(k, _)| *k == id).map(|(_, v)| v.as_str());
+        let s = stored_flags.iter().find(|(k, _)| *k == id).map(|(_, v)| v.as_str());
         if w != s {
             let flag = id.replace('_', "-");
+            let extend = if id == "steps" { ", give a larger --steps to extend it" } else { "" };
             return Err(Error::param(
                 "resume",
                 format!(
-                    "--{flag} {} conflicts with the run in {}, which was made with --{flag} {}; drop the flag to resume it, or start a new run with --out",
+                    "--{flag} {} conflicts with the run in {}, which was made with --{flag} {}; drop the flag to resume it{extend}, or start a new run with --out",
                     w.unwrap_or("?"),
                     dir.display(),
                     s.unwrap_or("(not set)")
@@ -396,7 +402,9 @@ fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path:
             ));
         }
     }
-    Ok(())
+    // A new --clv-steps brings its default transient, as in a new run.
+    let transient = args.transient.or(args.clv_steps.map(|_| wanted_meta.store.transient));
+    Ok(extending.then_some(Extension { steps: args.steps, clv_steps: args.clv_steps, transient }))
 }
 
 fn progress(what: &str, quiet: bool) -> Option<ProgressBar> {
@@ -420,12 +428,15 @@ fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
     if let Some(dir) = &args.resume {
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
         forward_run::complete_creation(dir, &mut feedback)?;
-        check_resume_flags(args, matches, dir)?;
+        let extension = check_resume_flags(args, matches, dir)?;
         let threads = (matches.value_source("threads") == Some(ValueSource::CommandLine)).then_some(args.threads);
         if threads == Some(0) {
             return Err(Error::param("threads", "must be at least 1"));
         }
-        let outcome = forward_run::resume(dir, threads, &mut feedback)?;
+        let outcome = match extension {
+            Some(ext) => forward_run::extend(dir, ext, threads, &[], &mut feedback)?,
+            None => forward_run::resume(dir, threads, &mut feedback)?,
+        };
         if let Some(bar) = &feedback.bar {
             bar.finish_and_clear();
         }

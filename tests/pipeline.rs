@@ -170,6 +170,18 @@ fn clv_run_takes_settings_that_change_the_preset() {
     // The same run on two threads is the same run: continued, not refused.
     let again = ok(clv(&["run", "--out", o, "--n", "8", "--aspect", "1", "--steps", "300", "--relax-steps", "20", "--threads", "2"]));
     assert!(common::stderr(&again).contains("continuing the run"), "{}", common::stderr(&again));
+    // More --steps extend the run: its window follows them, and the shorter run's report
+    // and spectra are kept beside it, not overwritten.
+    let report = read(&out.join("report/index.html"));
+    let longer = ok(clv(&["run", "--out", o, "--n", "8", "--aspect", "1", "--steps", "500", "--relax-steps", "20"]));
+    assert!(common::stderr(&longer).contains("extending the run in") && common::stderr(&longer).contains("from 300 to 500 steps"), "{}", common::stderr(&longer));
+    let kept = out.join("run/previous-300-steps");
+    assert_eq!(read(&kept.join("report/index.html")), report);
+    assert!(kept.join("spectrum.json").exists() && kept.join("clv_spectrum.json").exists());
+    let run: serde_json::Value = serde_json::from_str(&read(&out.join("run/run.json"))).unwrap();
+    assert_eq!((&run["config"]["steps"], &run["store"]["clv_steps"]), (&serde_json::json!(500), &serde_json::json!(52)));
+    let summary: serde_json::Value = serde_json::from_str(&read(&out.join("report/summary.json"))).unwrap();
+    assert!(summary["frames"].as_u64().unwrap() >= 52, "{summary}");
     for (args, named) in [
         (vec!["run", "--out", o, "--steps", "300", "--quiet"], "--quiet is not a setting of a run"),
         (vec!["run", "--out", o, "--steps", "300", "--resume", o], "--resume is not a setting of a run"),

@@ -114,9 +114,12 @@ fn resuming_a_finished_run_does_nothing_and_conflicts_are_refused() {
     assert!(out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("already complete"));
     assert!(contents(&dir) == *want);
-    let out = clv(&["forward", "--resume", d, "--steps", "5000"]);
+    let out = clv(&["forward", "--resume", d, "--steps", "2000"]);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("--steps 5000 conflicts") && err.contains("--steps 3000"), "{err}");
+    assert!(!out.status.success() && err.contains("--steps 2000 conflicts") && err.contains("--steps 3000") && err.contains("larger --steps to extend"), "{err}");
+    let out = clv(&["forward", "--resume", d, "--clv-steps", "300"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--clv-steps 300 conflicts"), "a new window alone is refused: {err}");
     // Killed while run.json's temporary file was half written: nothing to resume, and
     // starting again in the same directory works.
     let fresh = scratch("half-created").join("run");
@@ -157,6 +160,62 @@ fn damage(path: &Path, rng: &mut Rng, truncate: bool) -> String {
         bytes[at] ^= 1 << rng.below(8);
         std::fs::write(path, &bytes).unwrap();
         format!("bit flipped at {at}")
+    }
+}
+
+/// A run made longer with `--resume --steps` is the longer run made at once: the same
+/// trajectory, G_n and exponent sums at every checkpoint both keep, the same spectrum and
+/// covariant vectors, bit for bit. Only the standard error's blocks differ; they double in
+/// length and stay between B and 2B. The shorter run's results are kept byte for byte, and
+/// an extension killed at any durable step ends the same when repeated.
+#[test]
+fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
+    const BASE: [&str; 14] = ["forward", "--n", "16", "--aspect", "1", "--relax-steps", "100", "--checkpoint-every", "50", "--segment-checkpoints", "4", "--blocks", "4", "--quiet"];
+    let run = |dir: &Path, steps: &str, clv_steps: &str| ok(clv(&[&BASE[..], &["--steps", steps, "--clv-steps", clv_steps, "--out", dir.to_str().unwrap()]].concat()));
+    let backward = |dir: &Path| ok(clv(&["backward", dir.to_str().unwrap(), "--quiet"]));
+    let (short, long) = (scratch("extend-short").join("run"), scratch("extend-long").join("run"));
+    // 530 + 100 steps end between two checkpoints: the extension continues from the run's
+    // extra last checkpoint, which the longer run does not have. The longer window (800 +
+    // 400 steps, from step 400) takes the backward stage across that step, and across step
+    // 1164, where the 8 blocks of 133 steps become 4 of 266.
+    run(&short, "530", "200");
+    backward(&short);
+    run(&long, "1500", "800");
+    backward(&long);
+    let before: BTreeMap<&str, Vec<u8>> = ["spectrum.json", "clv_spectrum.json", "frames.mcap"].into_iter().map(|f| (f, std::fs::read(short.join(f)).unwrap())).collect();
+    let extended = scratch("extend-crash-ref").join("run");
+    copy_dir(&short, &extended);
+    let extend = |dir: &Path, env: &[(&str, &str)]| common::clv_env(&["forward", "--resume", dir.to_str().unwrap(), "--steps", "1500", "--clv-steps", "800", "--quiet"], env);
+    ok(extend(&extended, &[]));
+    let kept = extended.join("previous-530-steps");
+    for (f, bytes) in &before {
+        assert!(std::fs::read(kept.join(f)).unwrap() == *bytes, "{f} of the shorter run is not kept as it was");
+        assert!(!extended.join(f).exists() || *f == "spectrum.json", "{f} of the shorter run left in the run");
+    }
+    let (a, b) = (contents(&extended), contents(&long));
+    assert_eq!(a.exponents, b.exponents, "spectrum");
+    let common: Vec<u64> = b.checkpoints.keys().filter(|s| a.checkpoints.contains_key(s)).copied().collect();
+    assert!(common.len() >= 24 && common.contains(&400) && common.contains(&1600) && a.checkpoints.contains_key(&630), "checkpoints {common:?}");
+    for s in &common {
+        let (x, y) = (&a.checkpoints[s], &b.checkpoints[s]);
+        assert!(x.system == y.system && x.g == y.g && x.acc.sum == y.acc.sum, "checkpoint at step {s}");
+    }
+    let acc = &a.checkpoints[&1600].acc;
+    assert!((4..8).contains(&acc.blocks.len()) && acc.block_len == 2 * 530_u64.div_ceil(4), "{} blocks of {}", acc.blocks.len(), acc.block_len);
+    backward(&extended);
+    assert!(common::frames(&extended.join("frames.mcap")) == common::frames(&long.join("frames.mcap")), "covariant vectors");
+    // Killed while it extends: repeating the command gives the same run.
+    let want = contents(&extended);
+    for at in ["atomic-synced#1", "atomic-renamed#1", "segment-synced#2", "segment-renamed#3", "forward-done#1", "atomic-renamed#2"] {
+        let dir = scratch(&format!("extend-crash-{at}")).join("run");
+        copy_dir(&short, &dir);
+        let out = extend(&dir, &[("CLV_FAULT_CRASH_AT", at)]);
+        assert_eq!(out.status.code(), Some(clv::store::fault::CRASH_STATUS), "{at} not reached: {}", common::stderr(&out));
+        ok(extend(&dir, &[]));
+        assert!(contents(&dir) == want, "extension killed at {at}");
+        for (f, bytes) in &before {
+            assert!(std::fs::read(dir.join("previous-530-steps").join(f)).unwrap() == *bytes, "{at}: {f}");
+        }
     }
 }
 

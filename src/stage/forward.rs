@@ -48,6 +48,19 @@ impl Accumulator {
         }
     }
 
+    /// Merge neighbouring completed blocks pairwise, doubling the block length, once there
+    /// are `2 * blocks` of them: a run extended past the length its blocks were planned for
+    /// keeps between `blocks` and `2 * blocks` blocks, each as long as the run allows.
+    /// Runs that end where they were planned to never get there (the sums are untouched).
+    pub fn limit_blocks(&mut self, blocks: usize) {
+        let (n, empty_current) = (self.blocks.len(), self.steps.is_multiple_of(self.block_len));
+        if n < 2 * blocks.max(1) || !n.is_multiple_of(2) || !empty_current {
+            return;
+        }
+        self.blocks = self.blocks.chunks(2).map(|p| p[0].iter().zip(&p[1]).map(|(a, b)| a + b).collect()).collect();
+        self.block_len *= 2;
+    }
+
     /// lambda_i = sum ln R_ii / (steps tau).
     pub fn exponents(&self, tau: f64) -> Vec<f64> {
         let t = self.steps.max(1) as f64 * tau;
@@ -156,6 +169,8 @@ pub struct Forward {
     pub step: u64,
     pub acc: Accumulator,
     relax_steps: u64,
+    /// The run's number of blocks for the standard error ([`Accumulator::limit_blocks`]).
+    blocks: usize,
     /// The run's thread setting: the most [`Forward::set_threads`] may use.
     threads: usize,
     qr: Qr,
@@ -178,6 +193,7 @@ impl Forward {
             step: 0,
             acc: Accumulator::new(k, block_len),
             relax_steps: config.relax_steps,
+            blocks: config.blocks,
             threads: config.threads.max(1),
             qr: Qr::new(d, k, config.threads),
             paper_rows,
@@ -232,6 +248,7 @@ impl Forward {
         }
         if self.step >= self.relax_steps {
             self.acc.add(&self.r);
+            self.acc.limit_blocks(self.blocks);
         }
         self.step += 1;
         Ok((t1 - t0, t2 - t1))
@@ -310,6 +327,33 @@ mod tests {
         let mut all_positive = Accumulator::new(2, 2);
         all_positive.add_logs([1.0, 0.5].into_iter());
         assert_eq!(all_positive.ks_entropy(1.0), None);
+    }
+
+    /// Feeding 4B blocks' worth of steps with the doubling rule gives the blocks of an
+    /// accumulator planned with four times the block length from the start (up to the order of
+    /// the additions), and the same sums bit for bit; a planned run never merges.
+    #[test]
+    fn blocks_double_when_a_run_outgrows_its_plan() {
+        let logs = |n: u64| [(n as f64 * 0.37).sin(), -(n as f64 * 0.11).cos() - 1.0];
+        let (mut doubled, mut planned, mut wide) = (Accumulator::new(2, 3), Accumulator::new(2, 3), Accumulator::new(2, 12));
+        for n in 0..4 * 4 * 3 + 2 {
+            doubled.add_logs(logs(n).into_iter());
+            doubled.limit_blocks(4);
+            wide.add_logs(logs(n).into_iter());
+            if n < 4 * 3 {
+                planned.add_logs(logs(n).into_iter());
+                planned.limit_blocks(4);
+            }
+        }
+        assert_eq!((planned.block_len, planned.blocks.len()), (3, 4), "a run that ends as planned keeps its blocks");
+        assert_eq!((doubled.block_len, doubled.blocks.len()), (12, 4), "8 blocks of 3 became 4 of 6, then 8 of 6 became 4 of 12");
+        assert_eq!(doubled.sum, wide.sum);
+        assert_eq!(doubled.current, wide.current, "the block in progress (2 steps) is unchanged");
+        for (a, b) in doubled.blocks.iter().flatten().zip(wide.blocks.iter().flatten()) {
+            assert!((a - b).abs() < 1e-14, "{a} {b}");
+        }
+        let (e, w) = (doubled.stderr(0.5), wide.stderr(0.5));
+        assert!(e.iter().zip(&w).all(|(a, b)| (a - b).abs() < 1e-12 && a.is_finite()));
     }
 
     /// A used pass restored to a saved state continues exactly as a fresh pass resumed from it.

@@ -84,6 +84,118 @@ pub fn resume(path: &Path, threads: Option<usize>, feedback: &mut Feedback) -> R
     meta.config.set_threads(threads);
     let _lock = dir.lock("forward pass")?;
     meta.build.check_can_continue(path)?;
+    continue_locked(&dir, &meta, feedback)
+}
+
+/// A run made longer: `steps` accumulated steps in all, a CLV window of `clv_steps` plus
+/// `transient` at its new end (by default the window the run had).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Extension {
+    pub steps: u64,
+    pub clv_steps: Option<u64>,
+    pub transient: Option<u64>,
+}
+
+/// Continue the run in `path` past the length it was made for, finished or not. The
+/// trajectory, G_n and the exponent sums are those of a run made that long from the start,
+/// bit for bit; only the blocks of the standard error differ (they double in length as the
+/// run outgrows them, [`crate::stage::forward::Accumulator::limit_blocks`]). What was
+/// computed for the shorter run and no longer describes this one (spectrum.json, and the
+/// covariant vectors of the old window: clv_spectrum.json, backward.json, frames.mcap) is
+/// moved into `path/previous-STEPS-steps/`, never overwritten, and so are the files or
+/// directories in `also` (a report made from them, say).
+pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path], feedback: &mut Feedback) -> Result<Outcome> {
+    complete_creation(path, feedback)?;
+    let (dir, mut meta) = RunDir::open(path)?;
+    let _lock = dir.lock("forward pass")?;
+    meta.build.check_can_continue(path)?;
+    let old = meta.clone();
+    if ext.steps < old.config.steps {
+        return Err(Error::param("steps", format!(
+            "{} is fewer than the {} steps the run in {} was made for; a run can be made longer, not shorter (the backward stage can use a shorter window: see --clv-steps)",
+            ext.steps,
+            old.config.steps,
+            path.display()
+        )));
+    }
+    meta.config.steps = ext.steps;
+    meta.store.clv_steps = ext.clv_steps.unwrap_or(old.store.clv_steps);
+    meta.store.transient = ext.transient.unwrap_or(old.store.transient);
+    if meta.config.steps == old.config.steps {
+        if meta != old {
+            return Err(Error::param("clv-steps", format!(
+                "the CLV window of the run in {} ({} + transient {} steps) can change only together with a longer --steps",
+                path.display(),
+                old.store.clv_steps,
+                old.store.transient
+            )));
+        }
+        meta.config.set_threads(threads);
+        return continue_locked(&dir, &meta, feedback);
+    }
+    meta.store.validate(&meta.config)?;
+    let (start, c) = (meta.store.window_start(&meta.config), meta.store.checkpoint_every);
+    if let Some(oldest) = dir.segments()?.first().filter(|s| s.first > start / c * c) {
+        return Err(Error::param("clv-steps", format!(
+            "the CLV window plus transient ({} + {} steps) would start at step {start}, but the run keeps its steps only from {} on ({}); choose a shorter window",
+            meta.store.clv_steps,
+            meta.store.transient,
+            oldest.first,
+            oldest.path.display()
+        )));
+    }
+    let kept = archive_results(&dir, &previous_results(path, old.config.steps), also)?;
+    let json = serde_json::to_string_pretty(&meta).map_err(|e| Error::Other(e.to_string()))?;
+    write_atomic(&dir.meta_path(), json.as_bytes())?;
+    let mut msg = format!(
+        "extending {} from {} to {} steps (CLV window {} + transient {} at the new end)",
+        path.display(),
+        old.config.steps,
+        meta.config.steps,
+        meta.store.clv_steps,
+        meta.store.transient
+    );
+    if let Some(kept) = kept {
+        msg += &format!("; the results of the {}-step run are kept in {}", old.config.steps, kept.display());
+    }
+    feedback.notice(msg);
+    meta.config.set_threads(threads);
+    continue_locked(&dir, &meta, feedback)
+}
+
+/// Where [`extend`] keeps the results of the run in `run` as it was with `steps` steps.
+pub fn previous_results(run: &Path, steps: u64) -> PathBuf {
+    run.join(format!("previous-{steps}-steps"))
+}
+
+/// Move what the stages wrote about the run as it was (its spectrum, and the backward
+/// stage's files) and `also` into `to`; `to`, if it holds anything. A move cut short is
+/// finished by the next call (each file is renamed whole); a file that would replace one
+/// already there stops it.
+fn archive_results(dir: &RunDir, to: &Path, also: &[&Path]) -> Result<Option<PathBuf>> {
+    let names = ["spectrum.json", "clv_spectrum.json", "backward.json", "frames.mcap", "frames.mcap.tmp"];
+    let present: Vec<PathBuf> = names.iter().map(|n| dir.path.join(n)).chain(also.iter().map(|p| p.to_path_buf())).filter(|p| p.exists()).collect();
+    if !present.is_empty() {
+        std::fs::create_dir_all(to).map_err(|e| Error::io(to, e))?;
+    }
+    for from in present {
+        let dest = to.join(from.file_name().unwrap_or_default());
+        if dest.exists() {
+            return Err(Error::Other(format!(
+                "{} and {} both exist; move one of them out of the way, then extend the run again",
+                from.display(),
+                dest.display()
+            )));
+        }
+        std::fs::rename(&from, &dest).map_err(|e| Error::io(&from, e))?;
+    }
+    crate::store::segment::sync_dir(&dir.path)?;
+    Ok(to.exists().then(|| to.to_path_buf()))
+}
+
+/// [`resume`] once the run's lock is held and `meta` is what run.json says.
+fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Result<Outcome> {
+    let path = dir.path.as_path();
     for partial in dir.partial_segments()? {
         let mut checkpoints = 0u64;
         let mut last = None;

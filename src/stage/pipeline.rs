@@ -30,21 +30,25 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
     let report_dir = out.join("report");
     if run_dir.join("run.json").exists() {
         let (_, stored) = RunDir::open(&run_dir)?;
-        // The threads are the process's, not the run's: the numbers do not depend on them.
-        if !stored.config.same_but_threads(config) || stored.store != *store {
+        if let Some(ext) = extension(&stored, config, store) {
+            say(format!("extending the run in {} from {} to {} steps", run_dir.display(), stored.config.steps, config.steps));
+            forward_run::extend(&run_dir, ext, Some(config.threads), &[&report_dir], feedback)?;
+        } else if !stored.config.same_but_threads(config) || stored.store != *store {
+            // The threads are the process's, not the run's: the numbers do not depend on them.
             let json = |c: &RunConfig, s: &StoreConfig| format!("{}, store {}", serde_json::to_string(c).unwrap_or_default(), serde_json::to_string(s).unwrap_or_default());
             return Err(Error::param(
                 "out",
                 format!(
-                    "{} holds a run of another configuration ({}), not of the one asked for ({}); choose another --out, or ask for that run's configuration to continue it",
+                    "{} holds a run of another configuration ({}), not of the one asked for ({}); choose another --out, or ask for that run's configuration to continue it (or for more --steps to extend it)",
                     run_dir.display(),
                     json(&stored.config, &stored.store),
                     json(config, store)
                 ),
             ));
+        } else {
+            say(format!("continuing the run in {}", run_dir.display()));
+            forward_run::resume(&run_dir, Some(config.threads), feedback)?;
         }
-        say(format!("continuing the run in {}", run_dir.display()));
-        forward_run::resume(&run_dir, Some(config.threads), feedback)?;
     } else {
         let meta = RunMeta { format: FORMAT.into(), config: config.clone(), store: store.clone(), build: BuildInfo::current() };
         say(format!("forward pass into {} ({})", run_dir.display(), meta.store.footprint(config).1));
@@ -87,4 +91,13 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
         None => Vec::new(),
     };
     Ok(PipelineResult { run_dir, report_dir, produced, clv })
+}
+
+/// The extension that turns the stored run into the one asked for, if that is one: the same
+/// system and settings with more steps, and the same store up to the CLV window.
+fn extension(stored: &RunMeta, config: &RunConfig, store: &StoreConfig) -> Option<forward_run::Extension> {
+    let longer = RunConfig { steps: config.steps, ..stored.config.clone() };
+    let rewindowed = StoreConfig { clv_steps: store.clv_steps, transient: store.transient, ..stored.store.clone() };
+    (config.steps > stored.config.steps && longer.same_but_threads(config) && rewindowed == *store)
+        .then_some(forward_run::Extension { steps: config.steps, clv_steps: Some(store.clv_steps), transient: Some(store.transient) })
 }
