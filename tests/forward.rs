@@ -114,6 +114,20 @@ fn cli_json_reports_spectrum_configuration_and_statistics() {
     assert!(st["energy_drift"].as_f64().unwrap() < 1e-12);
     assert!(st["wall_seconds"].as_f64().is_some());
     assert!((st["simulated_time"].as_f64().unwrap() - 120.0).abs() < 1e-9);
+    // The block averages behind the errors: 20 blocks of 10 steps, whose mean is the
+    // exponent and whose spread is its standard error.
+    let blocks: Vec<Vec<f64>> = serde_json::from_value(v["blocks"]["exponents"].clone()).unwrap();
+    assert_eq!((blocks.len(), &v["blocks"]["block_steps"]), (20, &serde_json::json!(10)));
+    let se = |x: &[f64]| {
+        let m = x.iter().sum::<f64>() / x.len() as f64;
+        (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (x.len() * (x.len() - 1)) as f64).sqrt()
+    };
+    for i in 0..16 {
+        let column: Vec<f64> = blocks.iter().map(|b| b[i]).collect();
+        let (lambda, stderr) = (v["exponents"][i].as_f64().unwrap(), v["stderr"][i].as_f64().unwrap());
+        assert!((column.iter().sum::<f64>() / 20.0 - lambda).abs() < 1e-12 * (1.0 + lambda.abs()), "lambda_{}", i + 1);
+        assert!((se(&column) - stderr).abs() <= 1e-12 * (1.0 + stderr), "stderr_{}", i + 1);
+    }
 }
 
 /// With standard error in a file (a batch job), progress comes as timestamped log lines,

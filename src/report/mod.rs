@@ -6,7 +6,7 @@ pub mod plot;
 pub mod progress;
 
 use crate::config::RunConfig;
-use crate::stage::forward::{kaplan_yorke_dimension, Accumulator, Estimate};
+use crate::stage::forward::{kaplan_yorke_dimension, Accumulator, BlockAverages, Estimate};
 use crate::system::Invariants;
 use serde::Serialize;
 use std::fmt::Write;
@@ -58,6 +58,8 @@ pub struct SpectrumReport {
     /// D_KY (Kaplan-Yorke); None when the k exponents do not decide it.
     pub kaplan_yorke_dimension: Option<f64>,
     pub statistics: Statistics,
+    /// The block averages behind `stderr`.
+    pub blocks: BlockAverages,
 }
 
 impl SpectrumReport {
@@ -70,6 +72,7 @@ impl SpectrumReport {
             kaplan_yorke_dimension: kaplan_yorke_dimension(&exponents, config.system.dim()),
             exponents,
             statistics,
+            blocks: acc.block_averages(config.tau),
             config,
         }
     }
@@ -115,6 +118,9 @@ pub struct SpectrumSummary {
     /// Absent from the files of builds before it was reported.
     #[serde(default)]
     pub ks_entropy: Option<Estimate>,
+    /// Absent from the files of builds before they were kept.
+    #[serde(default)]
+    pub blocks: Option<BlockAverages>,
 }
 
 impl SpectrumSummary {

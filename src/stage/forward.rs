@@ -67,6 +67,12 @@ impl Accumulator {
         self.sum.iter().map(|s| s / t).collect()
     }
 
+    /// The batch means: each exponent averaged over each completed block, oldest first.
+    pub fn block_averages(&self, tau: f64) -> BlockAverages {
+        let t = self.block_len as f64 * tau;
+        BlockAverages { block_steps: self.block_len, exponents: self.blocks.iter().map(|b| b.iter().map(|s| s / t).collect()).collect() }
+    }
+
     /// Standard error of each exponent from the spread of the block averages (NaN with
     /// fewer than two completed blocks).
     pub fn stderr(&self, tau: f64) -> Vec<f64> {
@@ -92,6 +98,16 @@ impl Accumulator {
 /// spectrum does not reach the non-positive part).
 pub fn ks_entropy(lambda: &[f64]) -> Option<f64> {
     lambda.iter().any(|&l| l <= 0.0).then(|| lambda.iter().filter(|&&l| l > 0.0).sum())
+}
+
+/// The exponents averaged over consecutive blocks of a run: the batch means its standard
+/// errors come from, kept so that a reader can judge them (src/stage/analyze/convergence.rs).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct BlockAverages {
+    /// Steps per block.
+    pub block_steps: u64,
+    /// exponents[b][i]: lambda_(i+1) averaged over block b, oldest block first.
+    pub exponents: Vec<Vec<f64>>,
 }
 
 /// A time average with its standard error (batch means).

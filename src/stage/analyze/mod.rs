@@ -15,6 +15,7 @@
 //! stream that covers less than the window its metadata describes, such as one continued
 //! with `clv backward --resume`, would otherwise give a report that looks complete.
 
+pub mod convergence;
 pub mod henon;
 pub mod kernels;
 pub mod local_exponents;
@@ -234,6 +235,7 @@ type Maker = fn(&Context) -> Option<Box<dyn Analysis>>;
 pub fn registry(ctx: &Context) -> Vec<Box<dyn Analysis>> {
     const MAKERS: &[Maker] = &[
         spectrum::new,
+        convergence::new,
         localization::new,
         overlaps::new,
         projections::new,

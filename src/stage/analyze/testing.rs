@@ -36,7 +36,7 @@ pub fn spectrum(n: usize, len: usize) -> SpectrumSummary {
     let mut e = pos.clone();
     e.extend([0.0; 6]);
     e.extend(pos.iter().rev().map(|x| -x));
-    SpectrumSummary { stderr: vec![1e-3; e.len()], exponents: e, ks_entropy: None }
+    SpectrumSummary { stderr: vec![1e-3; e.len()], exponents: e, ks_entropy: None, blocks: None }
 }
 
 pub fn context(system: &str, n: usize, d: usize, lx: f64, ly: f64, gs: Option<SpectrumSummary>, with_gs: bool) -> Context {

@@ -12,6 +12,7 @@
 //! Nothing here does I/O or keeps state beyond small accumulators: frame consumers wrap these.
 
 pub mod angles;
+pub mod convergence;
 pub mod local;
 pub mod localization;
 pub mod modes;

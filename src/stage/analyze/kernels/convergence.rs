@@ -1,0 +1,159 @@
+//! Is a time average converged, and can its batch-means errors be trusted? Both questions
+//! are answered from the block averages a_b^i (block b = 1..B, exponent i) that the
+//! standard errors come from.
+//!
+//! * Drift: z_i = (mean of the newer half of the blocks - mean of the older half) / the
+//!   standard error of that difference. A stationary run with independent blocks has
+//!   |z_i| > 2 for about 5 % of the exponents; a run still settling has many more.
+//! * Independence: r_1, the lag-1 autocorrelation of consecutive block averages, averaged over
+//!   the exponents. Independent blocks give about -1/B, with a spread of about 1/sqrt(B) for
+//!   one exponent. Blocks shorter than the correlation time make r_1 clearly positive; their
+//!   standard errors are then too small.
+//!
+//! Exponents whose block averages do not vary beyond round-off (the null space of a
+//! Hamiltonian system) are left out: their z and r_1 would measure round-off.
+
+use crate::stage::forward::standard_error;
+
+/// The drift and independence tests over the exponents that vary.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Diagnostics {
+    /// Exponents tested (those whose block averages vary beyond round-off).
+    pub tested: usize,
+    /// Fraction of them with |z| > 2.
+    pub drifting: f64,
+    /// The largest |z| and its exponent (0-based).
+    pub max_z: f64,
+    pub max_z_index: usize,
+    /// Mean lag-1 autocorrelation of consecutive block averages.
+    pub r1: f64,
+    /// Blocks used.
+    pub blocks: usize,
+}
+
+impl Diagnostics {
+    /// r_1 of independent blocks (its expectation, -1/B, plus two standard deviations of
+    /// one exponent's r_1): above it the blocks are correlated.
+    pub fn r1_limit(&self) -> f64 {
+        -1.0 / self.blocks as f64 + 2.0 / (self.blocks as f64).sqrt()
+    }
+}
+
+/// The running estimate after each block: running[b][i] = mean of a_1^i..a_(b+1)^i.
+pub fn running(blocks: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let mut sum = vec![0.0; blocks.first().map_or(0, Vec::len)];
+    blocks
+        .iter()
+        .enumerate()
+        .map(|(b, a)| {
+            for (s, x) in sum.iter_mut().zip(a) {
+                *s += x;
+            }
+            sum.iter().map(|s| s / (b + 1) as f64).collect()
+        })
+        .collect()
+}
+
+/// Both tests over `blocks` (oldest first; at least 4, else None).
+pub fn diagnose(blocks: &[Vec<f64>]) -> Option<Diagnostics> {
+    let nb = blocks.len();
+    let k = blocks.first()?.len();
+    if nb < 4 {
+        return None;
+    }
+    let column = |i: usize| -> Vec<f64> { blocks.iter().map(|a| a[i]).collect() };
+    let spread = |x: &[f64]| {
+        let m = x.iter().sum::<f64>() / x.len() as f64;
+        (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (x.len() - 1) as f64).sqrt()
+    };
+    let spreads: Vec<f64> = (0..k).map(|i| spread(&column(i))).collect();
+    let scale = spreads.iter().cloned().fold(0.0, f64::max);
+    let varies: Vec<usize> = (0..k).filter(|&i| spreads[i] > 1e-9 * scale && scale > 0.0).collect();
+    if varies.is_empty() {
+        return None;
+    }
+    let half = nb / 2;
+    let (mut drifting, mut max_z, mut max_z_index, mut r1) = (0usize, 0.0f64, 0usize, 0.0);
+    for &i in &varies {
+        let x = column(i);
+        let (old, new) = (&x[..half], &x[nb - half..]);
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let z = (mean(new) - mean(old)) / standard_error(old).hypot(standard_error(new));
+        if z.abs() > 2.0 {
+            drifting += 1;
+        }
+        if z.abs() > max_z {
+            (max_z, max_z_index) = (z.abs(), i);
+        }
+        let m = mean(&x);
+        let var: f64 = x.iter().map(|v| (v - m).powi(2)).sum();
+        r1 += x.windows(2).map(|w| (w[0] - m) * (w[1] - m)).sum::<f64>() / var;
+    }
+    let tested = varies.len();
+    Some(Diagnostics { tested, drifting: drifting as f64 / tested as f64, max_z, max_z_index, r1: r1 / tested as f64, blocks: nb })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+
+    /// 40 blocks of 30 exponents, each block average `level(b, i)` plus noise that is
+    /// independent from block to block, or an AR(1) process with coefficient `ar`.
+    fn blocks(level: impl Fn(usize, usize) -> f64, ar: f64, seed: u64) -> Vec<Vec<f64>> {
+        let mut rng = Rng::new(seed);
+        let mut noise = vec![0.0; 30];
+        (0..40)
+            .map(|b| {
+                (0..30)
+                    .map(|i| {
+                        noise[i] = ar * noise[i] + (1.0 - ar * ar).sqrt() * rng.normal();
+                        level(b, i) + 0.1 * noise[i]
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn running_estimates_are_cumulative_means() {
+        let r = running(&[vec![1.0, 4.0], vec![3.0, 0.0], vec![5.0, 2.0]]);
+        assert_eq!(r, vec![vec![1.0, 4.0], vec![2.0, 2.0], vec![3.0, 2.0]]);
+    }
+
+    /// Stationary, independent blocks pass both tests over many seeds: about 5 % of the
+    /// exponents drift by chance, and r_1 stays below its limit.
+    #[test]
+    fn a_stationary_run_with_independent_blocks_passes() {
+        let mut drifting = 0.0;
+        for seed in 0..20 {
+            let d = diagnose(&blocks(|_, i| 3.0 - 0.1 * i as f64, 0.0, seed)).unwrap();
+            assert_eq!((d.tested, d.blocks), (30, 40));
+            assert!(d.r1 < d.r1_limit(), "seed {seed}: r1 = {}", d.r1);
+            drifting += d.drifting / 20.0;
+        }
+        assert!((0.02..0.09).contains(&drifting), "{drifting}");
+    }
+
+    /// A run still settling (exponents relaxing towards their values) drifts, and blocks
+    /// shorter than the correlation time (AR(1) with coefficient 0.8) fail the r_1 test.
+    #[test]
+    fn drift_and_correlated_blocks_are_caught() {
+        let d = diagnose(&blocks(|b, i| 3.0 - 0.1 * i as f64 + 0.5 * (-(b as f64) / 15.0).exp(), 0.0, 1)).unwrap();
+        assert!(d.drifting > 0.9 && d.max_z > 5.0, "{d:?}");
+        let d = diagnose(&blocks(|_, i| 3.0 - 0.1 * i as f64, 0.8, 2)).unwrap();
+        assert!(d.r1 > d.r1_limit() + 0.2, "{d:?}");
+    }
+
+    /// Exponents constant up to round-off (a null space) are not tested; too few blocks give
+    /// no verdict.
+    #[test]
+    fn round_off_exponents_and_short_runs_are_left_out() {
+        let mut b = blocks(|_, i| 1.0 - 0.1 * i as f64, 0.0, 3);
+        for (n, a) in b.iter_mut().enumerate() {
+            a[7] = 1e-16 * (n % 3) as f64;
+        }
+        assert_eq!(diagnose(&b).unwrap().tested, 29);
+        assert_eq!(diagnose(&b[..3]), None);
+    }
+}
