@@ -355,4 +355,7 @@ fn henon_runs_through_the_same_store() {
     let text = String::from_utf8(clv(&["inspect", d]).stdout).unwrap();
     let want = format!("so far: h_KS = {:.5}, D_KY = {:.5}", l[0], 1.0 + l[0] / l[1].abs());
     assert!(text.contains(&want), "{text} lacks {want}");
+    // And the convergence tests over the 20 blocks of 250 steps (two exponents, both vary).
+    assert_eq!((&v["convergence"]["blocks"], &v["convergence"]["block_steps"]), (&serde_json::json!(20), &serde_json::json!(250)));
+    assert!(text.contains("convergence so far (20 blocks of 250 steps): ") && text.contains(" of 2 exponents have |z| > 2"), "{text}");
 }

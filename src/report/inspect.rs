@@ -40,19 +40,31 @@ pub struct Inspection {
     pub stderr: Vec<f64>,
     /// Every finished segment reads back whole (an interrupted one is not counted as damage).
     pub intact: bool,
+    /// The convergence tests of the exponents so far (from 4 completed blocks on).
+    pub convergence: Option<Convergence>,
+}
+
+/// [`crate::stage::analyze::kernels::convergence`] over the blocks completed so far.
+#[derive(Debug, Serialize)]
+pub struct Convergence {
+    pub blocks: usize,
+    pub block_steps: u64,
+    pub tests: String,
+    pub verdict: String,
 }
 
 pub fn inspect(path: &Path) -> Result<Inspection> {
     let (dir, meta) = RunDir::open(path)?;
     let mut segments = Vec::new();
-    let mut newest: Option<(u64, Stats)> = None;
+    let mut newest: Option<(u64, Stats, Option<crate::stage::forward::Accumulator>)> = None;
     for seg in dir.segments()? {
         let (mut checkpoints, mut rs) = (0, 0);
-        let mut last_stats = None;
+        let (mut last_stats, mut last_acc) = (None, None);
         let result = read_segment(&seg.path, crate::store::segment::ReadMode::Strict, |m| {
             let check = |r: std::result::Result<(), String>| r.map_err(|e| crate::Error::corrupt(&seg.path, format!("step {}: {e}", m.step)));
             if m.topic == CHECKPOINT.topic {
-                check(Checkpoint::decode(m.data).map(|_| ()))?;
+                let cp = Checkpoint::decode(m.data).map_err(|e| crate::Error::corrupt(&seg.path, format!("step {}: {e}", m.step)))?;
+                last_acc = Some(cp.state.acc);
                 checkpoints += 1;
             } else if m.topic == R.topic {
                 check(crate::store::records::decode_r(m.data).map(|_| ()))?;
@@ -65,8 +77,8 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         let damage = result.err().map(|e| e.to_string());
         if damage.is_none()
             && let Some(s) = last_stats
-                && newest.as_ref().is_none_or(|(step, _)| s.step > *step) {
-                    newest = Some((s.step, s));
+                && newest.as_ref().is_none_or(|(step, _, _)| s.step > *step) {
+                    newest = Some((s.step, s, last_acc));
                 }
         segments.push(SegmentReport {
             file: seg.path.file_name().unwrap_or_default().to_string_lossy().into(),
@@ -90,11 +102,16 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     }
     set_aside.sort();
     let total_steps = meta.config.relax_steps + meta.config.steps;
-    let (exponents, stderr) = newest.as_ref().map(|(_, s)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
+    let (exponents, stderr) = newest.as_ref().map(|(_, s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
+    let convergence = newest.as_ref().and_then(|(_, _, acc)| {
+        let blocks = acc.as_ref()?.block_averages(meta.config.tau);
+        let d = crate::stage::analyze::kernels::convergence::diagnose(&blocks.exponents)?;
+        Some(Convergence { blocks: d.blocks, block_steps: blocks.block_steps, tests: d.numbers(), verdict: d.verdict().to_string() })
+    });
     Ok(Inspection {
         total_steps,
-        steps_done: newest.as_ref().map(|(s, _)| *s),
-        finished: dir.spectrum_path().exists() && newest.as_ref().is_some_and(|(s, _)| *s == total_steps),
+        steps_done: newest.as_ref().map(|(s, _, _)| *s),
+        finished: dir.spectrum_path().exists() && newest.as_ref().is_some_and(|(s, _, _)| *s == total_steps),
         checkpoints: segments.iter().map(|s| s.checkpoints).sum(),
         // A segment left unfinished by a kill is the expected trace of an interrupted run,
         // not damage: --resume discards and recomputes it.
@@ -105,6 +122,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         disk_bytes,
         exponents,
         stderr,
+        convergence,
         run: meta,
     })
 }
@@ -149,6 +167,9 @@ impl Inspection {
             }
             if !sums.is_empty() {
                 let _ = writeln!(s, "so far: {}", sums.join(", "));
+            }
+            if let Some(c) = &self.convergence {
+                let _ = writeln!(s, "convergence so far ({} blocks of {} steps): {}; {}", c.blocks, c.block_steps, c.tests, c.verdict);
             }
         }
         let _ = writeln!(s, "{}", if self.intact { "all finished files intact" } else { "DAMAGE FOUND (see above): `clv forward --resume` recomputes the damaged segments" });

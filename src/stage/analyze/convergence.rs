@@ -117,23 +117,8 @@ fn selected(lambda: &[f64]) -> Vec<usize> {
 
 /// One sentence per spectrum: the numbers and what they mean.
 fn verdict(label: &str, d: &Diagnostics, block_steps: u64) -> String {
-    let mut s = format!(
-        "{label}: {} blocks of {block_steps} steps; {:.0} % of {} exponents have |z| > 2 (largest |z| = {:.1}, i = {}); r_1 = {:+.3} (limit {:+.3}).",
-        d.blocks,
-        100.0 * d.drifting,
-        d.tested,
-        d.max_z,
-        d.max_z_index + 1,
-        d.r1,
-        d.r1_limit()
-    );
-    let drifting = d.drifting > 0.15;
-    let correlated = d.r1 > d.r1_limit();
-    s += match (drifting, correlated) {
-        (false, false) => " Both as for a converged run with independent blocks.",
-        (true, _) => " The exponents still drift: the run is too short for its standard errors; extend it.",
-        (false, true) => " The blocks are correlated: the standard errors are too small; extend the run (its blocks then grow).",
-    };
+    let verdict = d.verdict();
+    let mut s = format!("{label}: {} blocks of {block_steps} steps; {}. {}{}.", d.blocks, d.numbers(), verdict[..1].to_uppercase(), &verdict[1..]);
     if d.r1 > 0.0 {
         s += &format!(" Were the block averages an AR(1) sequence with this r_1, the standard errors would be too small by a factor {:.2}.", ((1.0 + d.r1) / (1.0 - d.r1)).sqrt());
     }

@@ -37,6 +37,29 @@ impl Diagnostics {
     pub fn r1_limit(&self) -> f64 {
         -1.0 / self.blocks as f64 + 2.0 / (self.blocks as f64).sqrt()
     }
+
+    /// What the two tests say, in words: more than 15 % of the exponents drifting (three
+    /// times chance) means the run is still settling.
+    pub fn verdict(&self) -> &'static str {
+        match (self.drifting > 0.15, self.r1 > self.r1_limit()) {
+            (false, false) => "both as for a converged run with independent blocks",
+            (true, _) => "the exponents still drift: the run is too short for its standard errors; extend it",
+            (false, true) => "the blocks are correlated: the standard errors are too small; extend the run (its blocks then grow)",
+        }
+    }
+
+    /// The numbers of both tests, for a report line.
+    pub fn numbers(&self) -> String {
+        format!(
+            "{:.0} % of {} exponents have |z| > 2 (largest |z| = {:.1}, i = {}); r_1 = {:+.3} (limit {:+.3})",
+            100.0 * self.drifting,
+            self.tested,
+            self.max_z,
+            self.max_z_index + 1,
+            self.r1,
+            self.r1_limit()
+        )
+    }
 }
 
 /// The running estimate after each block: running[b][i] = mean of a_1^i..a_(b+1)^i.
