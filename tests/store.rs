@@ -219,6 +219,28 @@ fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
     }
 }
 
+/// run.json edited by hand (or damaged) so that it describes another trajectory is refused
+/// by both stages and named by `clv inspect`, against the copy every segment carries; the
+/// copy put beside it restores the run. Lengths and windows may differ (an extension).
+#[test]
+fn an_edited_run_json_is_refused_and_restored_from_the_segments_copy() {
+    let (dir, want) = reference_copy("edited-meta");
+    let d = dir.to_str().unwrap();
+    let meta = dir.join("run.json");
+    let original = std::fs::read_to_string(&meta).unwrap();
+    std::fs::remove_file(dir.join("spectrum.json")).unwrap();
+    std::fs::write(&meta, original.replace("\"tau\": 0.6", "\"tau\": 0.5")).unwrap();
+    for args in [vec!["forward", "--resume", d, "--quiet"], vec!["backward", d, "--quiet"], vec!["inspect", d]] {
+        let out = clv(&args);
+        let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        assert!(!out.status.success() && text.contains("run.json") && text.contains("edited or damaged"), "{args:?}: {text}");
+    }
+    assert!(!dir.join("spectrum.json").exists(), "nothing computed with the wrong tau");
+    std::fs::rename(dir.join("run.json.from-segments"), &meta).unwrap();
+    ok(clv(&["forward", "--resume", d, "--quiet"]));
+    assert!(contents(&dir) == *want);
+}
+
 #[test]
 fn damaged_segments_are_named_and_resume_falls_back() {
     let (dir, want) = reference();

@@ -42,6 +42,8 @@ pub struct Inspection {
     pub intact: bool,
     /// The convergence tests of the exponents so far (from 4 completed blocks on).
     pub convergence: Option<Convergence>,
+    /// run.json disagrees with the copy a segment was written with.
+    pub meta_mismatch: Option<String>,
 }
 
 /// [`crate::stage::analyze::kernels::convergence`] over the blocks completed so far.
@@ -56,6 +58,7 @@ pub struct Convergence {
 pub fn inspect(path: &Path) -> Result<Inspection> {
     let (dir, meta) = RunDir::open(path)?;
     let mut segments = Vec::new();
+    let mut meta_mismatch = None;
     let mut newest: Option<(u64, Stats, Option<crate::stage::forward::Accumulator>)> = None;
     for seg in dir.segments()? {
         let (mut checkpoints, mut rs) = (0, 0);
@@ -74,6 +77,12 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             }
             Ok(())
         });
+        if let Ok(report) = &result
+            && let Some(theirs) = report.run_json.as_deref().and_then(|j| serde_json::from_str::<RunMeta>(j).ok())
+            && !meta.same_trajectory(&theirs)
+        {
+            meta_mismatch.get_or_insert_with(|| format!("run.json describes another run than {} was written for (tau, system, seed, ...): it was edited or damaged; `clv forward --resume` puts the segment's copy beside it to restore it from", seg.path.display()));
+        }
         let damage = result.err().map(|e| e.to_string());
         if damage.is_none()
             && let Some(s) = last_stats
@@ -115,7 +124,8 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         checkpoints: segments.iter().map(|s| s.checkpoints).sum(),
         // A segment left unfinished by a kill is the expected trace of an interrupted run,
         // not damage: --resume discards and recomputes it.
-        intact: segments.iter().all(|s| s.damage.is_none()),
+        intact: segments.iter().all(|s| s.damage.is_none()) && meta_mismatch.is_none(),
+        meta_mismatch,
         segments,
         partial_segments,
         set_aside,
@@ -172,7 +182,17 @@ impl Inspection {
                 let _ = writeln!(s, "convergence so far ({} blocks of {} steps): {}; {}", c.blocks, c.block_steps, c.tests, c.verdict);
             }
         }
-        let _ = writeln!(s, "{}", if self.intact { "all finished files intact" } else { "DAMAGE FOUND (see above): `clv forward --resume` recomputes the damaged segments" });
+        if let Some(m) = &self.meta_mismatch {
+            let _ = writeln!(s, "DAMAGE: {m}");
+        }
+        let verdict = if self.intact {
+            "all finished files intact"
+        } else if self.segments.iter().all(|s| s.damage.is_none()) {
+            "DAMAGE FOUND in run.json (see above)"
+        } else {
+            "DAMAGE FOUND (see above): `clv forward --resume` recomputes the damaged segments"
+        };
+        let _ = writeln!(s, "{verdict}");
         s
     }
 }

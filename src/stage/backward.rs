@@ -559,6 +559,7 @@ pub fn run(
     meta.config.set_threads(threads);
     let _lock = dir.lock("backward pass")?;
     meta.build.check_can_continue(path)?;
+    dir.check_meta(&meta)?;
     let (config, store) = (&meta.config, &meta.store);
     let total = config.relax_steps + config.steps;
     let gs: crate::report::SpectrumSummary = crate::report::SpectrumSummary::read(&dir.spectrum_path()).map_err(|_| {

@@ -84,6 +84,7 @@ pub fn resume(path: &Path, threads: Option<usize>, feedback: &mut Feedback) -> R
     meta.config.set_threads(threads);
     let _lock = dir.lock("forward pass")?;
     meta.build.check_can_continue(path)?;
+    dir.check_meta(&meta)?;
     continue_locked(&dir, &meta, feedback)
 }
 
@@ -109,6 +110,7 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
     let (dir, mut meta) = RunDir::open(path)?;
     let _lock = dir.lock("forward pass")?;
     meta.build.check_can_continue(path)?;
+    dir.check_meta(&meta)?;
     let old = meta.clone();
     if ext.steps < old.config.steps {
         return Err(Error::param("steps", format!(

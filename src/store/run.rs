@@ -231,6 +231,16 @@ pub struct RunMeta {
     pub build: BuildInfo,
 }
 
+impl RunMeta {
+    /// Whether `other` describes the same trajectory: everything but the run's length, its
+    /// CLV window and the threads, which extending a run or moving it to another machine
+    /// changes.
+    pub fn same_trajectory(&self, other: &RunMeta) -> bool {
+        let fixed = |m: &RunMeta| (m.format.clone(), RunConfig { steps: 0, threads: 1, ..m.config.clone() }, m.store.checkpoint_every);
+        fixed(self) == fixed(other)
+    }
+}
+
 /// A finished segment file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SegmentFile {
@@ -354,6 +364,35 @@ impl RunDir {
 
     pub fn meta_json(meta: &RunMeta) -> String {
         serde_json::to_string(meta).unwrap_or_default()
+    }
+
+    /// Refuse a run.json that no longer describes the run its segments hold (edited by
+    /// hand, or damaged): every finished segment carries the run.json it was written with.
+    /// The copy of the newest one that disagrees is put beside it, to restore it from.
+    pub fn check_meta(&self, meta: &RunMeta) -> Result<()> {
+        for seg in self.segments()?.iter().rev() {
+            let Some(json) = segment::embedded_run_json(&seg.path) else { continue };
+            let Ok(theirs) = serde_json::from_str::<RunMeta>(&json) else { continue };
+            if meta.same_trajectory(&theirs) {
+                continue;
+            }
+            let copy = self.path.join("run.json.from-segments");
+            let pretty = serde_json::to_string_pretty(&theirs).map_err(|e| Error::Other(e.to_string()))?;
+            write_atomic(&copy, pretty.as_bytes())?;
+            let show = |m: &RunMeta| serde_json::to_string(&m.config).unwrap_or_default();
+            return Err(Error::corrupt(
+                &self.meta_path(),
+                format!(
+                    "it describes another run ({}) than the one {} was written for ({}); run.json was edited or damaged. \
+                     The segment's copy is in {}: move it over run.json to continue this run",
+                    show(meta),
+                    seg.path.display(),
+                    show(&theirs),
+                    copy.display()
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// Finished segments, oldest first.

@@ -108,6 +108,18 @@ impl SegmentWriter {
     }
 }
 
+/// The run description (run.json) a finished segment was written with, read through its
+/// summary without decompressing a chunk; None when the file has no usable summary (a
+/// damaged file, which a whole read reports).
+pub fn embedded_run_json(path: &Path) -> Option<String> {
+    let file = File::open(path).ok()?;
+    // SAFETY: finished segments are never modified (written under a temporary name, renamed).
+    let map = unsafe { memmap2::Mmap::map(&file) }.ok()?;
+    let summary = mcap::Summary::read(&map).ok()??;
+    let index = summary.metadata_indexes.iter().find(|m| m.name == RUN_METADATA)?;
+    mcap::read::metadata(&map, index).ok()?.metadata.get("run.json").cloned()
+}
+
 pub fn sync_dir(dir: &Path) -> Result<()> {
     File::open(dir).and_then(|d| d.sync_all()).map_err(|e| Error::io(dir, e))
 }
