@@ -32,6 +32,8 @@ enum Command {
     Analyze(AnalyzeArgs),
     /// The whole pipeline (forward, backward, all analyses) on an embedded preset.
     Run(RunArgs),
+    /// One spectrum from independent runs of one system (other seeds): errors from the spread between them.
+    Combine(CombineArgs),
     /// Measure kernels and stages side by side on this machine (medians, ratios, memory).
     Bench(BenchArgs),
     /// Print a configuration file to start from (keys are the flags of `clv forward`).
@@ -39,8 +41,18 @@ enum Command {
 }
 
 #[derive(Args)]
+struct CombineArgs {
+    /// Finished runs: run directories or their spectrum.json files (e.g. runs/seed-*).
+    #[arg(required = true)]
+    runs: Vec<PathBuf>,
+    /// Print one JSON object to stdout instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
 struct ConfigArgs {
-    /// Embedded configuration: default, paper or henon.
+    /// Embedded configuration: default, paper, henon or lorenz.
     #[arg(long, default_value = "default")]
     preset: String,
 }
@@ -868,6 +880,14 @@ fn main() {
         Command::Inspect(args) => inspect_cmd(args),
         Command::Analyze(args) => analyze(args),
         Command::Run(args) => run(args),
+        Command::Combine(args) => clv::report::combine::combine(&args.runs).and_then(|c| {
+            if args.json {
+                println!("{}", serde_json::to_string(&c).map_err(|e| Error::Other(e.to_string()))?);
+            } else {
+                print!("{}", c.table());
+            }
+            Ok(())
+        }),
         Command::Bench(args) => bench(args),
         Command::Config(args) => RunConfig::preset(&args.preset).map(|c| {
             print!("{}", clv::report::config_file::render(&args.preset, &c, &clv::store::run::StoreConfig::for_run(&c)));

@@ -181,3 +181,53 @@ fn cli_refuses_bad_input_with_a_clear_message() {
         assert!(err.contains(needle) && !err.contains("panicked"), "{args:?}: {err}");
     }
 }
+
+/// `clv combine` over independent seeds: the exponents are the runs' means weighted by their
+/// lengths, the errors the spread between them; the same seed twice, another system, an
+/// unfinished run and a single run are refused, naming the files.
+#[test]
+fn combine_gives_the_spectrum_of_independent_runs() {
+    let dir = std::env::temp_dir().join(format!("clv-combine-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let run = |seed: &str, steps: &str| {
+        let out = dir.join(format!("seed-{seed}"));
+        let o = clv(&["forward", "--n", "4", "--aspect", "1", "--steps", steps, "--seed", seed, "--out", out.to_str().unwrap(), "--quiet"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        out
+    };
+    let runs = [run("1", "400"), run("2", "400"), run("3", "800")];
+    let spectrum = |p: &std::path::Path| -> serde_json::Value { serde_json::from_slice(&std::fs::read(p.join("spectrum.json")).unwrap()).unwrap() };
+    let paths: Vec<&str> = runs.iter().map(|p| p.to_str().unwrap()).collect();
+    let out = clv(&[&["combine", "--json"][..], &paths].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!((&v["config"]["steps"], &v["seeds"]), (&serde_json::json!(1600), &serde_json::json!([1, 2, 3])));
+    for i in 0..16 {
+        let l: Vec<f64> = runs.iter().map(|r| spectrum(r)["exponents"][i].as_f64().unwrap()).collect();
+        let want = (400.0 * l[0] + 400.0 * l[1] + 800.0 * l[2]) / 1600.0;
+        assert!((v["exponents"][i].as_f64().unwrap() - want).abs() < 1e-12, "lambda_{}", i + 1);
+        let spread = l.iter().map(|x| (x - want).abs()).fold(0.0, f64::max);
+        let err = v["stderr"][i].as_f64().unwrap();
+        assert!(err <= spread && (err > 0.1 * spread || spread < 1e-12), "error {err} against spread {spread} of lambda_{}", i + 1);
+    }
+    let m = v["mean_chi2_per_dof"].as_f64().unwrap();
+    assert!(m > 0.05 && m < 20.0, "chi2/dof {m}");
+    let text = String::from_utf8(clv(&[&["combine"][..], &paths].concat()).stdout).unwrap();
+    assert!(text.contains("3 runs (seeds 1, 2, 3), 1600 steps in all"), "{text}");
+    let other = dir.join("other");
+    assert!(clv(&["forward", "--n", "4", "--aspect", "1", "--tau", "0.5", "--steps", "400", "--seed", "4", "--out", other.to_str().unwrap(), "--quiet"]).status.success());
+    let unfinished = dir.join("unfinished");
+    std::fs::create_dir_all(&unfinished).unwrap();
+    for (args, named) in [
+        (vec!["combine", paths[0], paths[0]], "have the same seed"),
+        (vec!["combine", paths[0], other.to_str().unwrap()], "another system or setting"),
+        (vec!["combine", paths[0], unfinished.to_str().unwrap()], "has no spectrum.json"),
+        (vec!["combine", paths[0]], "at least two runs"),
+    ] {
+        let out = clv(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(named) && !err.contains("panicked"), "{args:?}: {err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+

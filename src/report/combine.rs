@@ -1,0 +1,204 @@
+//! `clv combine`: one spectrum from independent runs of one system (other seeds, as a batch
+//! array job makes them), with an error from the spread between the runs and a check of
+//! each run's own errors against that spread.
+//!
+//! Why between runs: independent trajectories are the one error estimate that needs no
+//! assumption about correlation times. The weighted mean over runs of lengths T_r is the
+//! exponent of the runs laid end to end; its error is the spread of the run means,
+//! sqrt(R / (R - 1) * sum_r w_r^2 (lambda_r - lambda)^2) with w_r = T_r / sum T (for equal
+//! lengths the standard error of the mean of R numbers). chi^2 / dof = sum_r ((lambda_r -
+//! lambda) / sigma_r)^2 / (R - 1), averaged over the exponents that vary, is about 1 when
+//! every run's batch-means error sigma_r is right; clearly above 1, those errors are too
+//! small (or the runs do not sample the same state).
+
+use crate::config::RunConfig;
+use crate::error::{Error, Result};
+use crate::stage::forward::{ks_entropy, Estimate};
+use serde::{Deserialize, Serialize};
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+/// What combining needs of one run's spectrum.json.
+#[derive(Clone, Debug, Deserialize)]
+struct RunSpectrum {
+    config: RunConfig,
+    exponents: Vec<f64>,
+    stderr: Vec<f64>,
+}
+
+/// The combined spectrum, as `clv combine --json` prints it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Combined {
+    pub runs: Vec<PathBuf>,
+    /// The runs' common configuration (steps: the sum over the runs; seed: the first run's).
+    pub config: RunConfig,
+    pub seeds: Vec<u64>,
+    pub exponents: Vec<f64>,
+    /// Standard error from the spread between the runs.
+    pub stderr: Vec<f64>,
+    /// chi^2 per degree of freedom of the runs' exponents about the combined one, with
+    /// their own errors (NaN where an exponent does not vary).
+    pub chi2_per_dof: Vec<f64>,
+    /// Mean of `chi2_per_dof` over the exponents that vary.
+    pub mean_chi2_per_dof: f64,
+    /// h_KS of the combined exponents, its error from the runs' h_KS.
+    pub ks_entropy: Option<Estimate>,
+}
+
+/// Read `paths` (run directories or spectrum.json files) and combine them.
+pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
+    if paths.len() < 2 {
+        return Err(Error::Other("clv combine needs at least two runs (run directories or their spectrum.json files)".into()));
+    }
+    let runs: Vec<RunSpectrum> = paths.iter().map(|p| read(p)).collect::<Result<_>>()?;
+    let first = &runs[0].config;
+    for (run, path) in runs.iter().zip(paths).skip(1) {
+        let same = RunConfig { steps: first.steps, seed: first.seed, threads: first.threads, blocks: first.blocks, relax_steps: first.relax_steps, ..run.config.clone() };
+        if same != *first {
+            return Err(Error::Other(format!(
+                "{} is a run of another system or setting ({}) than {} ({}); only runs that differ in seed and length can be combined",
+                path.display(),
+                serde_json::to_string(&run.config).unwrap_or_default(),
+                paths[0].display(),
+                serde_json::to_string(first).unwrap_or_default()
+            )));
+        }
+    }
+    for a in 0..runs.len() {
+        if let Some(b) = (a + 1..runs.len()).find(|&b| runs[b].config.seed == runs[a].config.seed) {
+            return Err(Error::Other(format!(
+                "{} and {} have the same seed ({}): they follow the same trajectory and are not independent; give each run its own --seed",
+                paths[a].display(),
+                paths[b].display(),
+                runs[a].config.seed
+            )));
+        }
+    }
+    let weights: Vec<f64> = runs.iter().map(|r| r.config.steps as f64).collect();
+    let lambda: Vec<Vec<f64>> = runs.iter().map(|r| r.exponents.clone()).collect();
+    let sigma: Vec<Vec<f64>> = runs.iter().map(|r| r.stderr.clone()).collect();
+    let (mut exponents, mut stderr, mut chi2) = (Vec::new(), Vec::new(), Vec::new());
+    let scale = lambda.iter().flatten().map(|l| l.abs()).fold(0.0, f64::max);
+    for i in 0..lambda[0].len() {
+        let x: Vec<f64> = lambda.iter().map(|l| l[i]).collect();
+        let s: Vec<f64> = sigma.iter().map(|s| s[i]).collect();
+        let (mean, err) = weighted_mean(&x, &weights);
+        exponents.push(mean);
+        stderr.push(err);
+        chi2.push(chi2_per_dof(&x, &s, mean, scale));
+    }
+    let varying: Vec<f64> = chi2.iter().copied().filter(|c| c.is_finite()).collect();
+    let mean_chi2_per_dof = varying.iter().sum::<f64>() / varying.len().max(1) as f64;
+    let ks = ks_entropy(&exponents).map(|value| {
+        let per_run: Vec<f64> = lambda.iter().map(|l| l.iter().zip(&exponents).filter(|(_, c)| **c > 0.0).map(|(x, _)| x).sum()).collect();
+        Estimate { value, stderr: weighted_mean(&per_run, &weights).1 }
+    });
+    Ok(Combined {
+        runs: paths.to_vec(),
+        config: RunConfig { steps: runs.iter().map(|r| r.config.steps).sum(), ..first.clone() },
+        seeds: runs.iter().map(|r| r.config.seed).collect(),
+        exponents,
+        stderr,
+        chi2_per_dof: chi2,
+        mean_chi2_per_dof,
+        ks_entropy: ks,
+    })
+}
+
+fn read(path: &Path) -> Result<RunSpectrum> {
+    let file = if path.is_dir() { path.join("spectrum.json") } else { path.to_path_buf() };
+    let text = std::fs::read_to_string(&file).map_err(|e| {
+        if path.is_dir() && e.kind() == std::io::ErrorKind::NotFound {
+            Error::Other(format!("{} has no spectrum.json: the run is not finished (`clv forward --resume {}`) or not a run directory", path.display(), path.display()))
+        } else {
+            Error::io(&file, e)
+        }
+    })?;
+    let run: RunSpectrum = serde_json::from_str(&text).map_err(|e| Error::corrupt(&file, format!("{e}; a spectrum.json written by `clv forward --out` is expected")))?;
+    if run.exponents.len() != run.stderr.len() || run.exponents.len() != run.config.vectors {
+        return Err(Error::corrupt(&file, format!("{} exponents and {} errors for k = {}", run.exponents.len(), run.stderr.len(), run.config.vectors)));
+    }
+    Ok(run)
+}
+
+/// The mean of `x` weighted by `w`, and its error from the spread of `x`:
+/// sqrt(R / (R - 1) * sum_r v_r^2 (x_r - mean)^2) with v_r = w_r / sum w.
+fn weighted_mean(x: &[f64], w: &[f64]) -> (f64, f64) {
+    let total: f64 = w.iter().sum();
+    let mean = x.iter().zip(w).map(|(x, w)| x * w).sum::<f64>() / total;
+    let r = x.len() as f64;
+    let var = x.iter().zip(w).map(|(x, w)| (w / total).powi(2) * (x - mean).powi(2)).sum::<f64>() * r / (r - 1.0);
+    (mean, var.sqrt())
+}
+
+/// sum_r ((x_r - mean) / s_r)^2 / (R - 1); NaN where the runs' own errors are round-off
+/// against `scale`, the spectrum's largest |lambda| (an exponent fixed by a symmetry, such
+/// as the null space of a Hamiltonian system).
+fn chi2_per_dof(x: &[f64], s: &[f64], mean: f64, scale: f64) -> f64 {
+    if s.iter().any(|s| !(*s > 1e-9 * scale)) {
+        return f64::NAN;
+    }
+    x.iter().zip(s).map(|(x, s)| ((x - mean) / s).powi(2)).sum::<f64>() / (x.len() - 1) as f64
+}
+
+impl Combined {
+    /// A plain-text table: index, combined exponent, error between runs, chi^2 / dof.
+    pub fn table(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "{:>6}  {:>14}  {:>10}  {:>9}", "i", "lambda_i", "stderr", "chi2/dof");
+        for (i, ((x, e), c)) in self.exponents.iter().zip(&self.stderr).zip(&self.chi2_per_dof).enumerate() {
+            let c = if c.is_finite() { format!("{c:9.2}") } else { format!("{:>9}", "-") };
+            let _ = writeln!(s, "{:>6}  {:>14.8}  {:>10.2e}  {c}", i + 1, x, e);
+        }
+        if let Some(h) = self.ks_entropy {
+            let _ = writeln!(s, "KS entropy (sum of the positive exponents): {h}");
+        }
+        let _ = writeln!(
+            s,
+            "{} runs (seeds {}), {} steps in all; errors from the spread between the runs",
+            self.runs.len(),
+            self.seeds.iter().map(u64::to_string).collect::<Vec<_>>().join(", "),
+            self.config.steps
+        );
+        let _ = writeln!(
+            s,
+            "mean chi2/dof of the runs about the combined spectrum, with their own errors: {:.2} (about 1 when each run's batch-means errors are right; {} degrees of freedom an exponent)",
+            self.mean_chi2_per_dof,
+            self.runs.len() - 1
+        );
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Equal lengths: the plain mean and the standard error of the mean of R numbers; a
+    /// run twice as long counts twice, as if the runs were laid end to end.
+    #[test]
+    fn weighted_mean_is_the_mean_of_the_runs_laid_end_to_end() {
+        let (m, e) = weighted_mean(&[1.0, 2.0, 3.0, 4.0], &[1.0; 4]);
+        assert_eq!(m, 2.5);
+        let sd = (((1.5f64).powi(2) * 2.0 + (0.5f64).powi(2) * 2.0) / 3.0).sqrt();
+        assert!((e - sd / 2.0).abs() < 1e-15);
+        let (m, _) = weighted_mean(&[1.0, 4.0], &[2.0, 1.0]);
+        assert_eq!(m, (1.0 + 1.0 + 4.0) / 3.0);
+    }
+
+    /// chi^2/dof of normal draws with their true error is about 1 on average; with errors
+    /// three times too small it is about 9; fixed exponents give NaN.
+    #[test]
+    fn chi2_measures_whether_the_errors_are_right() {
+        let mut rng = crate::rng::Rng::new(4);
+        let (mut right, mut small) = (0.0, 0.0);
+        for _ in 0..2000 {
+            let x: Vec<f64> = (0..5).map(|_| 2.0 + 0.1 * rng.normal()).collect();
+            let m = x.iter().sum::<f64>() / 5.0;
+            right += chi2_per_dof(&x, &[0.1; 5], m, 2.0) / 2000.0;
+            small += chi2_per_dof(&x, &[0.1 / 3.0; 5], m, 2.0) / 2000.0;
+        }
+        assert!((right - 1.0).abs() < 0.08 && (small - 9.0).abs() < 0.7, "{right} {small}");
+        assert!(chi2_per_dof(&[1e-16, -1e-16], &[1e-17, 1e-17], 0.0, 2.0).is_nan());
+    }
+}
