@@ -191,6 +191,9 @@ fn archive_results(dir: &RunDir, to: &Path, also: &[&Path]) -> Result<Option<Pat
         }
         std::fs::rename(&from, &dest).map_err(|e| Error::io(&from, e))?;
     }
+    if to.exists() {
+        crate::store::segment::sync_dir(to)?;
+    }
     crate::store::segment::sync_dir(&dir.path)?;
     Ok(to.exists().then(|| to.to_path_buf()))
 }
