@@ -114,6 +114,9 @@ impl RunConfig {
         if self.steps == 0 {
             return Err(Error::param("steps", "must be at least 1"));
         }
+        if self.relax_steps.checked_add(self.steps).is_none_or(|total| total > 1 << 53) {
+            return Err(Error::param("steps", format!("--relax-steps {} plus --steps {} is beyond any run (2^53 steps at most)", self.relax_steps, self.steps)));
+        }
         if self.threads == 0 {
             return Err(Error::param("threads", "must be at least 1"));
         }
@@ -121,6 +124,34 @@ impl RunConfig {
             return Err(Error::param("blocks", "need at least 2 blocks for a standard error"));
         }
         Ok(())
+    }
+
+    /// Bytes a forward pass holds at least: G_n, the QR step's copy of it and its
+    /// workspace (3 D k), R_n and the sums (2 k^2). The backward stage adds its segments.
+    pub fn memory_bytes(&self) -> f64 {
+        let (d, k) = (self.system.dim() as f64, self.vectors as f64);
+        8.0 * (3.0 * d * k + 2.0 * k * k)
+    }
+
+    /// Refuse a run whose tangent vectors this machine cannot hold, before allocating them
+    /// (an allocation that fails aborts the process without a word).
+    pub fn check_memory(&self) -> Result<()> {
+        let need = self.memory_bytes();
+        let Some(have) = crate::machine::available_memory() else { return Ok(()) };
+        if need <= have as f64 {
+            return Ok(());
+        }
+        let d = self.system.dim();
+        let which = if self.vectors == d { format!("all D = {d} vectors") } else { format!("k = {} of D = {d} vectors", self.vectors) };
+        Err(Error::param(
+            "vectors",
+            format!(
+                "{which} need about {} for the tangent vectors and the QR step, and this machine has {} available; \
+                 follow the leading k vectors with --vectors k (about 24 D k bytes; a step then costs O(D k^2)), or choose a smaller system",
+                crate::store::run::human(need.min(u64::MAX as f64) as u64),
+                crate::store::run::human(have)
+            ),
+        ))
     }
 
     /// The system in its initial state, made from the seed.

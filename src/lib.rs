@@ -2,14 +2,16 @@
 //! many-particle systems, after Bosetti & Posch, "Covariant Lyapunov Vectors for Rigid Disk
 //! Systems".
 //!
-//! The folders follow the data flow: [`system`] (what evolves), [`stage`] (forward Gram-Schmidt
-//! pass, and later the backward Ginelli pass and the analyses), [`linalg`] (the QR step),
-//! [`report`] (what a person sees).
+//! The folders follow the data flow: [`system`] (what evolves), [`stage`] (the forward
+//! Gram-Schmidt pass, the backward Ginelli pass, the analyses and the pipeline of all three),
+//! [`store`] (how runs and frames live on disk), [`linalg`] (the QR step and the Ginelli
+//! step's kernels), [`report`] (what a person sees); [`machine`] says what memory there is.
 
 pub mod bench;
 pub mod config;
 pub mod error;
 pub mod linalg;
+pub mod machine;
 pub mod report;
 pub mod rng;
 pub mod stage;

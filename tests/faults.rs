@@ -319,6 +319,9 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
         (vec!["forward", "--n", "4", "--steps", "100", "--relax-steps", "10", "--checkpoint-every", "500", "--out", o], "--checkpoint-every"),
         (vec!["forward", "--n", "4", "--steps", "100", "--clv-steps", "90", "--transient", "50", "--out", o], "--clv-steps"),
         (vec!["forward", "--system", "rossler", "--out", o], "rossler"),
+        // More memory than any machine has: refused, not aborted by a failed allocation.
+        (vec!["forward", "--n", "100000000", "--steps", "100", "--out", o], "--vectors: all D = 400000000 vectors need about"),
+        (vec!["forward", "--n", "4", "--relax-steps", "18446744073709551615", "--steps", "10", "--out", o], "--steps"),
     ];
     for (args, needle) in cases {
         let out = clv(&args);
@@ -327,6 +330,11 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
         assert!(err.contains(needle) && !err.contains("panicked"), "{args:?}: {err}");
         assert!(!out_dir.exists(), "{args:?}: wrote {}", out_dir.display());
     }
+    // A machine with little memory (faked): the run is refused with the way out.
+    let out = clv_env(&["forward", "--n", "16", "--steps", "10", "--out", o], &[("CLV_FAULT_MEMORY_AVAILABLE", "100000")]);
+    let err = stderr(&out);
+    assert!(!out.status.success() && err.contains("100 kB available") && err.contains("--vectors k") && !out_dir.exists(), "{err}");
+    ok(clv_env(&["forward", "--n", "16", "--steps", "10", "--vectors", "4", "--quiet"], &[("CLV_FAULT_MEMORY_AVAILABLE", "100000")]));
     // A frame file where a run directory is expected (clv inspect reads both), and a run
     // from another format version.
     let (dir, _) = reference("bad-ref");

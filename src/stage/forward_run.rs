@@ -54,6 +54,7 @@ pub fn create(path: &Path, meta: &RunMeta, feedback: &mut Feedback) -> Result<Ou
     meta.config.validate()?;
     meta.store.validate(&meta.config)?;
     meta.config.build_system()?; // refuse impossible systems before anything is written
+    meta.config.check_memory()?;
     let dir = RunDir::create(path, meta)?;
     let _lock = dir.lock("forward pass")?;
     let fwd = Forward::new(&meta.config)?;

@@ -10,7 +10,8 @@
 //! between two steps of the store's protocol leaves. Random kills rarely land in the short
 //! windows between those steps; the crash points name every one of them.
 //!
-//! `CLV_FAULT_DISK_FREE=BYTES` fakes the free space of every file system, and
+//! `CLV_FAULT_DISK_FREE=BYTES` fakes the free space of every file system,
+//! `CLV_FAULT_MEMORY_AVAILABLE=BYTES` the memory the machine offers, and
 //! `CLV_FAULT_NO_LOCKS` a file system that cannot lock files.
 
 use std::fs::File;
@@ -63,6 +64,12 @@ impl Seek for Output {
 /// (so that tests can see the warning a too-small disk gets without filling one).
 pub fn fake_free_bytes() -> Option<u64> {
     std::env::var("CLV_FAULT_DISK_FREE").ok().and_then(|v| v.parse().ok())
+}
+
+/// With `CLV_FAULT_MEMORY_AVAILABLE=BYTES`, the memory [`crate::machine::available_memory`]
+/// reports (so that tests can see a run refused for memory without exhausting it).
+pub fn fake_available_memory() -> Option<u64> {
+    std::env::var("CLV_FAULT_MEMORY_AVAILABLE").ok().and_then(|v| v.parse().ok())
 }
 
 /// With `CLV_FAULT_NO_LOCKS=1`, locking a file fails as on a file system without locks
