@@ -710,6 +710,9 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if stored.is_none() || given("out") {
         opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| clv::store::RunDir { path: args.dir.clone() }.frames_path())) };
     }
+    if given("save_every") && args.save_every == 0 && !to_stdout {
+        return Err(Error::param("save-every", "0 would keep no frame in the file; give m >= 1 (the frames of the steps that are multiples of m), or stream with --out - to keep none"));
+    }
     if stored.is_none() || given("save_every") || given("out") {
         // Resuming with --out FILE again keeps the stored --save-every unless it is given.
         let stored_save = stored.as_ref().map(|s| s.save_every).filter(|&s| s > 0);

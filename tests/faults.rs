@@ -340,6 +340,8 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
     let (dir, _) = reference("bad-ref");
     let frames_file = dir.parent().unwrap().join("f.mcap");
     ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--out", frames_file.to_str().unwrap()]));
+    let out = clv(&["backward", dir.to_str().unwrap(), "--save-every", "0", "--out", base.join("none.mcap").to_str().unwrap()]);
+    assert!(!out.status.success() && stderr(&out).contains("--save-every: 0 would keep no frame"), "{}", stderr(&out));
     for cmd in [vec!["backward", frames_file.to_str().unwrap()], vec!["forward", "--resume", frames_file.to_str().unwrap()]] {
         let out = clv(&cmd);
         let err = stderr(&out);
