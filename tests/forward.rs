@@ -128,6 +128,10 @@ fn cli_json_reports_spectrum_configuration_and_statistics() {
         assert!((column.iter().sum::<f64>() / 20.0 - lambda).abs() < 1e-12 * (1.0 + lambda.abs()), "lambda_{}", i + 1);
         assert!((se(&column) - stderr).abs() <= 1e-12 * (1.0 + stderr), "stderr_{}", i + 1);
     }
+    // The table says what the convergence tests of those blocks find.
+    let out = clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "200", "--relax-steps", "10"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("convergence (20 blocks of 10 steps): ") && text.contains(" exponents have |z| > 2"), "{text}");
 }
 
 /// With standard error in a file (a batch job), progress comes as timestamped log lines,

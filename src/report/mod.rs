@@ -101,6 +101,9 @@ impl SpectrumReport {
         if let Some(d) = self.kaplan_yorke_dimension {
             let _ = writeln!(s, "Kaplan-Yorke dimension: {d:.6} (of D = {})", self.config.system.dim());
         }
+        if let Some(d) = crate::stage::analyze::kernels::convergence::diagnose(&self.blocks.exponents) {
+            let _ = writeln!(s, "convergence ({} blocks of {} steps): {}; {}", d.blocks, self.blocks.block_steps, d.numbers(), d.verdict());
+        }
         let _ = write!(s, "{} steps (t = {}), ", st.steps, st.simulated_time);
         if matches!(self.config.system, crate::config::SystemConfig::Disks { .. }) {
             let _ = writeln!(s, "{} collisions, {:.1} s wall, energy drift {:.1e}", st.collisions, st.wall_seconds, st.energy_drift);
