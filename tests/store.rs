@@ -188,6 +188,8 @@ fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
     let extend = |dir: &Path, env: &[(&str, &str)]| common::clv_env(&["forward", "--resume", dir.to_str().unwrap(), "--steps", "1500", "--clv-steps", "800", "--quiet"], env);
     ok(extend(&extended, &[]));
     let kept = extended.join("previous-530-steps");
+    let shown = String::from_utf8(clv(&["inspect", extended.to_str().unwrap()]).stdout).unwrap();
+    assert!(shown.contains("previous-530-steps/  the results of the run before it was extended"), "{shown}");
     for (f, bytes) in &before {
         assert!(std::fs::read(kept.join(f)).unwrap() == *bytes, "{f} of the shorter run is not kept as it was");
         assert!(!extended.join(f).exists() || *f == "spectrum.json", "{f} of the shorter run left in the run");

@@ -34,6 +34,8 @@ pub struct Inspection {
     /// Segments a repair set aside: damaged ones (`.corrupt`, kept for a look, safe to
     /// delete) and intact ones waiting for their replacements (`.superseded`).
     pub set_aside: Vec<String>,
+    /// Directories with the results of the run before it was extended (`previous-N-steps`).
+    pub previous: Vec<String>,
     pub disk_bytes: u64,
     /// Spectrum at the newest intact checkpoint.
     pub exponents: Vec<f64>,
@@ -101,15 +103,19 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     }
     let partial_segments: Vec<String> = dir.partial_segments()?.iter().map(|p| p.display().to_string()).collect();
     let mut disk_bytes = 0;
-    let mut set_aside = Vec::new();
+    let (mut set_aside, mut previous) = (Vec::new(), Vec::new());
     for entry in std::fs::read_dir(&dir.path).map_err(|e| crate::Error::io(&dir.path, e))?.flatten() {
         disk_bytes += entry.metadata().map(|m| m.len()).unwrap_or(0);
         let name = entry.file_name().to_string_lossy().into_owned();
+        if name.starts_with("previous-") && entry.path().is_dir() {
+            previous.push(name.clone());
+        }
         if name.ends_with(".mcap.corrupt") || name.ends_with(".mcap.superseded") {
             set_aside.push(name);
         }
     }
     set_aside.sort();
+    previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));
     let total_steps = meta.config.relax_steps + meta.config.steps;
     let (exponents, stderr) = newest.as_ref().map(|(_, s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
     let convergence = newest.as_ref().and_then(|(_, _, acc)| {
@@ -129,6 +135,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         segments,
         partial_segments,
         set_aside,
+        previous,
         disk_bytes,
         exponents,
         stderr,
@@ -164,6 +171,9 @@ impl Inspection {
         for name in &self.set_aside {
             let why = if name.ends_with(".corrupt") { "damaged, set aside by a repair; not read, safe to delete" } else { "set aside by an interrupted repair; removed by the next --resume" };
             let _ = writeln!(s, "  {name}  {why}");
+        }
+        for name in &self.previous {
+            let _ = writeln!(s, "  {name}/  the results of the run before it was extended");
         }
         if !self.exponents.is_empty() {
             let show: Vec<String> = self.exponents.iter().take(4).map(|x| format!("{x:.5}")).collect();
