@@ -1,5 +1,6 @@
-"""What the studies against N (scaling.py, hyperbolicity.py) share: running clv, the
-backward stage piped into `clv analyze`, the study directory, and a power-law fit."""
+"""What the studies (scaling.py and hyperbolicity.py against N, density.py against the
+density) share: running clv, the backward stage piped into `clv analyze`, the study
+directory, and a power-law fit."""
 import argparse
 import math
 import os
@@ -26,11 +27,11 @@ class Study:
     """A study named `name` (for messages) writing `table` into a directory that must not hold
     one already: the runs of a study are never replaced."""
 
-    def __init__(self, name, a, table, min_n):
+    def __init__(self, name, a, table, min_n, min_count=2):
         self.name, self.clv = name, a.clv_bin
         self.ns = sorted({int(x) for x in a.n.split(",") if x.strip()})
-        if len(self.ns) < 2 or self.ns[0] < min_n:
-            self.fail(f"--n needs at least two numbers of disks, each at least {min_n}")
+        if len(self.ns) < min_count or self.ns[0] < min_n:
+            self.fail(f"--n needs at least {min_count} number(s) of disks, each at least {min_n}")
         self.table = os.path.join(a.out, table)
         if os.path.exists(self.table):
             self.fail(f"{self.table} exists; choose another --out (the runs of a study are not replaced)")

@@ -276,6 +276,33 @@ fn refused_again(script: &str, args: &[String]) {
     assert!(!again.status.success() && String::from_utf8_lossy(&again.stderr).contains("exists"));
 }
 
+/// scripts/density.py: one row per density with the spectrum's lambda_1, h_KS / N and
+/// lambda_(2N-3) (recomputed here from the kept runs), the measured collision frequency
+/// within 10 % of Enskog's (N = 8 is small), and lambda_1 growing with the density.
+#[test]
+fn the_density_study_tabulates_the_spectrum_against_rho() {
+    if !common::python_has("numpy") {
+        return;
+    }
+    let base = scratch("density");
+    let args = ["--n", "8", "--densities", "0.2,0.5,0.8", "--steps", "400", "--clv-bin", env!("CARGO_BIN_EXE_clv"), "--out", base.to_str().unwrap()];
+    ok(Command::new("python3").arg(study_script("density.py")).args(args).output().unwrap());
+    let text = read(&base.join("density.csv"));
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let rows: Vec<Vec<f64>> = text.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.iter().map(|r| r[col("density")]).collect::<Vec<_>>(), [0.2, 0.5, 0.8]);
+    for r in &rows {
+        let run: serde_json::Value = serde_json::from_str(&read(&base.join(format!("runs/rho{}.json", r[0])))).unwrap();
+        assert_eq!(r[col("lambda_1")], run["exponents"][0].as_f64().unwrap());
+        assert_eq!(r[col("lambda_2N-3")], run["exponents"][12].as_f64().unwrap());
+        assert!((r[col("h_KS_per_disk")] * 8.0 - run["ks_entropy"]["value"].as_f64().unwrap()).abs() < 1e-9);
+        assert!((r[col("nu")] / r[col("nu_enskog")] - 1.0).abs() < 0.1, "collision frequency {r:?}");
+    }
+    assert!(rows.windows(2).all(|w| w[1][col("lambda_1")] > w[0][col("lambda_1")]), "lambda_1 against rho: {rows:?}");
+    refused_again("density.py", &args.iter().map(|s| s.to_string()).collect::<Vec<_>>());
+}
+
 /// scripts/scaling.py: one row per N with the run's lambda_1 and the report's W_1, h_KS per
 /// disk for the full spectra, and eta the slope of ln W_1 against ln N (recomputed here);
 /// a second study into the same directory is refused.
