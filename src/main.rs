@@ -197,7 +197,7 @@ struct BackwardArgs {
     #[arg(long)]
     with_gs: bool,
     /// Keep the frames of the steps that are multiples of m in the frame file (the stream on
-    /// stdout always carries all).
+    /// stdout always carries all); 0 without --out: no frame file, only the CLV spectrum.
     #[arg(long, default_value_t = 1)]
     save_every: u64,
     /// Form the covariant vectors V_n = G_n C_n (a quarter of a backward step) only for the
@@ -585,6 +585,10 @@ fn run(args: &RunArgs) -> Result<()> {
         Estimate::or_unknown(clv_report.gs_ks_entropy),
         Estimate::or_unknown(clv_report.ks_entropy)
     ));
+    let gs = clv::report::SpectrumSummary::read(&result.run_dir.join("spectrum.json")).ok();
+    if let Some(d) = gs.and_then(|g| g.blocks).and_then(|b| clv::stage::analyze::kernels::convergence::diagnose(&b.exponents)) {
+        say(format!("convergence of the GS spectrum ({} blocks): {}", d.blocks, d.verdict()));
+    }
     let figures: usize = result.produced.iter().map(|p| p.figures.len()).sum();
     say(format!(
         "done in {:.0} s: {} frames analysed, {figures} figures; open {}",
@@ -710,8 +714,8 @@ fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if stored.is_none() || given("out") {
         opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| clv::store::RunDir { path: args.dir.clone() }.frames_path())) };
     }
-    if given("save_every") && args.save_every == 0 && !to_stdout {
-        return Err(Error::param("save-every", "0 would keep no frame in the file; give m >= 1 (the frames of the steps that are multiples of m), or stream with --out - to keep none"));
+    if given("save_every") && args.save_every == 0 && given("out") && !to_stdout {
+        return Err(Error::param("save-every", "0 would keep no frame in the file --out names; give m >= 1 (the frames of the steps that are multiples of m), or leave out --out to compute only the CLV spectrum"));
     }
     if stored.is_none() || given("save_every") || given("out") {
         // Resuming with --out FILE again keeps the stored --save-every unless it is given.

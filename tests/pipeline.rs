@@ -146,6 +146,7 @@ fn clv_run_on_the_default_preset_writes_the_report() {
     // The closing summary: lambda_1 and h_KS of both spectra, with errors.
     let summary = err.lines().find(|l| l.starts_with("clv run: lambda_1 = ")).unwrap_or_else(|| panic!("no summary in {err}"));
     assert!(summary.contains(" (GS), ") && summary.contains("h_KS = ") && summary.matches(" ± ").count() == 4, "{summary}");
+    assert!(err.contains("clv run: convergence of the GS spectrum (20 blocks): "), "{err}");
     // Another preset into the same --out: refused, the run and its report left as they are.
     let other = clv(&["run", "--preset", "henon", "--out", o, "--quiet"]);
     let err = String::from_utf8_lossy(&other.stderr);
