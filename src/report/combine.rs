@@ -75,13 +75,11 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
         }
     }
     let weights: Vec<f64> = runs.iter().map(|r| r.config.steps as f64).collect();
-    let lambda: Vec<Vec<f64>> = runs.iter().map(|r| r.exponents.clone()).collect();
-    let sigma: Vec<Vec<f64>> = runs.iter().map(|r| r.stderr.clone()).collect();
     let (mut exponents, mut stderr, mut chi2) = (Vec::new(), Vec::new(), Vec::new());
-    let scale = lambda.iter().flatten().map(|l| l.abs()).fold(0.0, f64::max);
-    for i in 0..lambda[0].len() {
-        let x: Vec<f64> = lambda.iter().map(|l| l[i]).collect();
-        let s: Vec<f64> = sigma.iter().map(|s| s[i]).collect();
+    let scale = runs.iter().flat_map(|r| &r.exponents).map(|l| l.abs()).fold(0.0, f64::max);
+    for i in 0..first.vectors {
+        let x: Vec<f64> = runs.iter().map(|r| r.exponents[i]).collect();
+        let s: Vec<f64> = runs.iter().map(|r| r.stderr[i]).collect();
         let (mean, err) = weighted_mean(&x, &weights);
         exponents.push(mean);
         stderr.push(err);
@@ -90,7 +88,8 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
     let varying: Vec<f64> = chi2.iter().copied().filter(|c| c.is_finite()).collect();
     let mean_chi2_per_dof = varying.iter().sum::<f64>() / varying.len().max(1) as f64;
     let ks = ks_entropy(&exponents).map(|value| {
-        let per_run: Vec<f64> = lambda.iter().map(|l| l.iter().zip(&exponents).filter(|(_, c)| **c > 0.0).map(|(x, _)| x).sum()).collect();
+        // Each run's sum over the exponents positive in the combined spectrum.
+        let per_run: Vec<f64> = runs.iter().map(|r| r.exponents.iter().zip(&exponents).filter(|(_, c)| **c > 0.0).map(|(x, _)| x).sum()).collect();
         Estimate { value, stderr: weighted_mean(&per_run, &weights).1 }
     });
     Ok(Combined {
