@@ -38,10 +38,17 @@ impl Diagnostics {
         -1.0 / self.blocks as f64 + 2.0 / (self.blocks as f64).sqrt()
     }
 
-    /// What the two tests say, in words: more than 15 % of the exponents drifting (three
-    /// times chance) means the run is still settling.
+    /// Whether the exponents drift: more than 15 % of them with |z| > 2 (three times
+    /// chance), and a count that chance gives with probability below 1 % (so that one
+    /// exponent of a run with k = 1 that strays by chance does not count).
+    pub fn drifts(&self) -> bool {
+        let count = (self.drifting * self.tested as f64).round() as usize;
+        self.drifting > 0.15 && binomial_tail(count, self.tested, CHANCE) < 0.01
+    }
+
+    /// What the two tests say, in words.
     pub fn verdict(&self) -> &'static str {
-        match (self.drifting > 0.15, self.r1 > self.r1_limit()) {
+        match (self.drifts(), self.r1 > self.r1_limit()) {
             (false, false) => "both as for a converged run with independent blocks",
             (true, _) => "the exponents still drift: the run is too short for its standard errors; extend it",
             (false, true) => "the blocks are correlated: the standard errors are too small; extend the run (its blocks then grow)",
@@ -60,6 +67,15 @@ impl Diagnostics {
             self.r1_limit()
         )
     }
+}
+
+/// P(|z| > 2) for a normal z: the drift test's rate of false alarms per exponent.
+const CHANCE: f64 = 0.0455;
+
+/// P(X >= x) for X binomial with n trials of probability p.
+fn binomial_tail(x: usize, n: usize, p: f64) -> f64 {
+    let ln_choose = |k: usize| -> f64 { (1..=k).map(|j| ((n - k + j) as f64 / j as f64).ln()).sum() };
+    (x..=n).map(|k| (ln_choose(k) + k as f64 * p.ln() + (n - k) as f64 * (1.0 - p).ln()).exp()).sum::<f64>().min(1.0)
 }
 
 /// The running estimate after each block: running[b][i] = mean of a_1^i..a_(b+1)^i.
@@ -136,6 +152,17 @@ mod tests {
                     .collect()
             })
             .collect()
+    }
+
+    /// One exponent of a k = 1 run straying by chance is no drift; a sixth of 154 is.
+    #[test]
+    fn drift_needs_more_strays_than_chance_gives() {
+        assert!((binomial_tail(0, 10, 0.3) - 1.0).abs() < 1e-12);
+        assert!((binomial_tail(2, 2, 0.3) - 0.09).abs() < 1e-12);
+        assert!((binomial_tail(1, 3, 0.5) - 0.875).abs() < 1e-12);
+        let d = |tested: usize, count: usize| Diagnostics { tested, drifting: count as f64 / tested as f64, max_z: 3.0, max_z_index: 0, r1: 0.0, blocks: 20 };
+        assert!(!d(1, 1).drifts() && !d(2, 1).drifts() && !d(154, 10).drifts());
+        assert!(d(154, 26).drifts() && d(20, 10).drifts());
     }
 
     #[test]
