@@ -16,7 +16,6 @@ gives per collision (lambda_1 / nu, h_KS / (N nu)).
 Writes OUT/density.csv and prints it; each run's spectrum (clv forward --json) stays in
 OUT/runs.
 """
-import csv
 import json
 import math
 import os
@@ -72,10 +71,7 @@ def main():
         rows.append(row)
         print(f"rho = {rho:.3f}: lambda_1 = {lam[0]:.4f} +- {err[0]:.1e}, h_KS/N = {row['h_KS_per_disk']:.4f}, lambda_2N-3 = {lam[slow]:.4f}, nu = {nu:.3f} (Enskog {row['nu_enskog']:.3f}), lambda_1/nu = {row['lambda_1_per_collision']:.3f}", file=sys.stderr)
 
-    with open(s.table, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    s.write_table(rows)
     worst = max(abs(r["nu"] / r["nu_enskog"] - 1) for r in rows)
     print(f"{len(rows)} densities for N = {n} ({s.version()}); the collision frequency is within {100 * worst:.1f} % of Enskog's; table {s.table}")
 

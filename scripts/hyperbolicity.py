@@ -105,10 +105,7 @@ def main():
               f"(random subspaces: median {row['random_median_deg']:.2f}); null-space borders swap in {row['border_swaps_shortest']:.3g} of single "
               f"steps, {row['border_swaps_longest']:.3g} of windows of {row['longest_window']}", file=sys.stderr)
 
-    with open(s.table, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    s.write_table(rows)
     x = np.log([r["N"] for r in rows])
     fit = {"clv": s.version(), "density": a.density, "aspect": a.aspect, "steps": a.steps, "clv_steps": a.clv_steps, "every": a.every}
     for key in ["median", "q05"]:

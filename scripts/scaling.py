@@ -54,10 +54,7 @@ def main():
         rows.append(row)
         print(f"N = {n:5d}: lambda_1 = {row['lambda_1']:.4f} +- {row['lambda_1_stderr']:.1e}, W_1 = {w1:.4f} +- {row['W_1_stderr']:.1e}, h_KS/N = {row['h_KS_per_disk']:.4f}", file=sys.stderr)
 
-    with open(s.table, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    s.write_table(rows)
     # ln W_1 = c - eta ln N: least squares, with the standard error of the slope.
     x = np.log([r["N"] for r in rows])
     y = np.log([r["W_1"] for r in rows])

@@ -2,6 +2,7 @@
 density) share: running clv, the backward stage piped into `clv analyze`, the study
 directory, and a power-law fit."""
 import argparse
+import csv
 import math
 import os
 import subprocess
@@ -60,6 +61,13 @@ class Study:
         sweep.stdout.close()
         if sweep.wait() != 0:
             self.fail(f"clv backward {run_dir} failed; its message is above")
+
+    def write_table(self, rows):
+        """The study's table: one CSV row per dict of `rows` (all with the same keys)."""
+        with open(self.table, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
 
     def version(self):
         return self.run(["--version"], stdout=subprocess.PIPE, text=True).stdout.strip()
