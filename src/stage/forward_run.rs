@@ -19,6 +19,25 @@ use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// SIGTERM (a batch system's time limit, before its SIGKILL) or SIGINT (Ctrl-C) asks the
+/// forward stage to stop after the step it is in: it then writes a checkpoint there, closes
+/// its segment and exits with an error naming the step, so that `--resume` loses nothing.
+/// Without it the work since the last finished segment is lost (up to 1000 steps).
+static STOP: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+extern "C" fn request_stop(_: libc::c_int) {
+    STOP.store(true, std::sync::atomic::Ordering::SeqCst);
+}
+
+fn stop_on_signals() {
+    #[cfg(unix)]
+    // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
+    unsafe {
+        libc::signal(libc::SIGTERM, request_stop as *const () as libc::sighandler_t);
+        libc::signal(libc::SIGINT, request_stop as *const () as libc::sighandler_t);
+    }
+}
+
 /// Largest relative energy drift a run may accumulate (round-off over 1e8 collisions is far
 /// below it; anything larger means the dynamics went wrong).
 pub const ENERGY_TOLERANCE: f64 = 1e-8;
@@ -361,6 +380,7 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
     if write_first {
         checkpoint(&fwd, &mut sink)?;
     }
+    stop_on_signals();
     if let Some(bar) = &feedback.bar {
         bar.set_length(total);
         bar.set_position(fwd.step);
@@ -377,6 +397,18 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
         }
         if let Some(bar) = &feedback.bar {
             bar.set_position(n);
+        }
+        if STOP.load(std::sync::atomic::Ordering::SeqCst) && n < total {
+            if !is_cp {
+                sink.send(R.topic, n, encode_r(n, &fwd.r))?;
+                checkpoint(&fwd, &mut sink)?;
+            }
+            sink.close_at_checkpoint()?;
+            return Err(Error::Other(format!(
+                "stopped by a signal after step {n} of {total}; everything up to it is saved in {}: continue with `clv forward --resume {}`",
+                dir.path.display(),
+                dir.path.display()
+            )));
         }
     }
     sink.close()?;

@@ -26,6 +26,9 @@ pub struct Policy {
     pub keep_segments: u64,
 }
 
+/// The topic of the item that tells the writer to finish its segment (never written).
+const FINISH: &str = "";
+
 struct Item {
     topic: &'static str,
     step: u64,
@@ -45,6 +48,12 @@ impl Sink {
             .spawn(move || -> Result<()> {
                 let mut current: Option<SegmentWriter> = None;
                 for item in rx {
+                    if item.topic == FINISH {
+                        if let Some(w) = current.take() {
+                            w.finish()?;
+                        }
+                        continue;
+                    }
                     if current.is_none() {
                         current = Some(SegmentWriter::create(&dir, item.step, &run_json, &RUN_SCHEMAS)?);
                     }
@@ -70,6 +79,13 @@ impl Sink {
             return Err(self.join().err().unwrap_or_else(|| Error::Other("the writer thread stopped".into())));
         }
         Ok(())
+    }
+
+    /// Finish the open segment early (the last message sent must be a checkpoint), then
+    /// [`Sink::close`]: a run stopped between its planned segment ends keeps every step.
+    pub fn close_at_checkpoint(mut self) -> Result<()> {
+        self.send(FINISH, 0, Vec::new())?;
+        self.close()
     }
 
     /// Wait until everything queued is written.

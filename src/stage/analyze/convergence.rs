@@ -93,8 +93,8 @@ impl Analysis for Convergence {
             title: "Convergence of the spectra (beyond the paper)".into(),
             caption: format!(
                 "Running estimates λ_i(t) after each block of the standard error's batch means, as deviations from the final value in units of its standard error σ_i, for the largest, a middle and the smallest positive exponent \
-                 (all exponents in the tables). A converged run with independent blocks stays within ±2 sqrt(T/t - 1) of it, 95 % of the time. Drift test: z_i compares the newer half of the blocks with the older half; a stationary run with independent blocks has |z| > 2 for about 5 % \
-                 of the exponents. Independence test: r_1, the lag-1 autocorrelation of consecutive block averages, averaged over the exponents, is about -1/B for independent blocks; \
+                 (all exponents in the tables). A converged run with independent blocks stays within ±2 sqrt(T/t - 1) of it, 95 % of the time. Drift test: z_i compares the newer half of the blocks with the older half; a stationary run with independent blocks has |z| > 2 for the fraction chance gives (a Student t with 2 (h - 1) degrees of freedom for halves of h blocks; about 5 % \
+                 of the exponents for many blocks), and the run counts as drifting from four times that on. Independence test: r_1, the lag-1 autocorrelation of consecutive block averages, averaged over the exponents, is about -1/B for independent blocks; \
                  above -1/B + 2/sqrt(B) the blocks are shorter than the correlation time. Exponents constant up to round-off (the null space) are not tested. {}",
                 sentences.join(" ")
             ),

@@ -3,8 +3,10 @@
 //! standard errors come from.
 //!
 //! * Drift: z_i = (mean of the newer half of the blocks - mean of the older half) / the
-//!   standard error of that difference. A stationary run with independent blocks has
-//!   |z_i| > 2 for about 5 % of the exponents; a run still settling has many more.
+//!   standard error of that difference, a Student t with 2 (h - 1) degrees of freedom for
+//!   halves of h blocks. A stationary run with independent blocks has |z_i| > 2 for a
+//!   fraction P(|t| > 2) of the exponents (4.6 % for many blocks, 18 % for halves of two);
+//!   a run still settling has many more.
 //! * Independence: r_1, the lag-1 autocorrelation of consecutive block averages, averaged over
 //!   the exponents. Independent blocks give about -1/B, with a spread of about 1/sqrt(B) for
 //!   one exponent. Blocks shorter than the correlation time make r_1 clearly positive; their
@@ -38,12 +40,19 @@ impl Diagnostics {
         -1.0 / self.blocks as f64 + 2.0 / (self.blocks as f64).sqrt()
     }
 
-    /// Whether the exponents drift: more than 15 % of them with |z| > 2 (three times
-    /// chance), and a count that chance gives with probability below 1 % (so that one
-    /// exponent of a run with k = 1 that strays by chance does not count).
+    /// P(|z| > 2) for one exponent of a stationary run: the drift test's chance rate.
+    pub fn chance(&self) -> f64 {
+        let dof = 2.0 * ((self.blocks / 2) as f64 - 1.0);
+        student_t_two_sided(2.0, dof)
+    }
+
+    /// Whether the exponents drift: four times the chance rate of them with |z| > 2 (a
+    /// margin for the exponents' correlations with each other, such as a symplectic
+    /// spectrum's mirrored pairs), in a count that chance gives with probability below 1 %
+    /// (so that one exponent of a run with k = 1 that strays by chance does not count).
     pub fn drifts(&self) -> bool {
         let count = (self.drifting * self.tested as f64).round() as usize;
-        self.drifting > 0.15 && binomial_tail(count, self.tested, CHANCE) < 0.01
+        self.drifting > 4.0 * self.chance() && binomial_tail(count, self.tested, self.chance()) < 0.01
     }
 
     /// What the two tests say, in words.
@@ -58,9 +67,10 @@ impl Diagnostics {
     /// The numbers of both tests, for a report line.
     pub fn numbers(&self) -> String {
         format!(
-            "{:.0} % of {} exponents have |z| > 2 (largest |z| = {:.1}, i = {}); r_1 = {:+.3} (limit {:+.3})",
+            "{:.0} % of {} exponents have |z| > 2 (by chance {:.0} %; largest |z| = {:.1}, i = {}); r_1 = {:+.3} (limit {:+.3})",
             100.0 * self.drifting,
             self.tested,
+            100.0 * self.chance(),
             self.max_z,
             self.max_z_index + 1,
             self.r1,
@@ -69,8 +79,54 @@ impl Diagnostics {
     }
 }
 
-/// P(|z| > 2) for a normal z: the drift test's rate of false alarms per exponent.
-const CHANCE: f64 = 0.0455;
+/// P(|T| > t) for Student's t with `dof` degrees of freedom: the regularised incomplete
+/// beta function I_x(dof/2, 1/2) at x = dof / (dof + t^2).
+fn student_t_two_sided(t: f64, dof: f64) -> f64 {
+    incomplete_beta(dof / (dof + t * t), dof / 2.0, 0.5)
+}
+
+/// The regularised incomplete beta function I_x(a, b), by its continued fraction (modified
+/// Lentz), with the symmetry I_x(a, b) = 1 - I_(1-x)(b, a) where that converges faster.
+fn incomplete_beta(x: f64, a: f64, b: f64) -> f64 {
+    if x <= 0.0 {
+        return 0.0;
+    }
+    if x >= 1.0 {
+        return 1.0;
+    }
+    if x > (a + 1.0) / (a + b + 2.0) {
+        return 1.0 - incomplete_beta(1.0 - x, b, a);
+    }
+    let ln_gamma = |z: f64| -> f64 {
+        // Lanczos (g = 7, n = 9), good to 1e-15 for z > 0.
+        const C: [f64; 9] = [0.999_999_999_999_809_9, 676.520_368_121_885_1, -1_259.139_216_722_402_8, 771.323_428_777_653_1, -176.615_029_162_140_6, 12.507_343_278_686_905, -0.138_571_095_265_720_12, 9.984_369_578_019_572e-6, 1.505_632_735_149_311_6e-7];
+        let z = z - 1.0;
+        let t = z + 7.5;
+        let sum: f64 = C[0] + (1..9).map(|i| C[i] / (z + i as f64)).sum::<f64>();
+        0.5 * (2.0 * std::f64::consts::PI).ln() + (z + 0.5) * t.ln() - t + sum.ln()
+    };
+    let front = (ln_gamma(a + b) - ln_gamma(a) - ln_gamma(b) + a * x.ln() + b * (1.0 - x).ln()).exp() / a;
+    let tiny = 1e-300;
+    let (mut c, mut d) = (1.0, 1.0 - (a + b) * x / (a + 1.0));
+    d = 1.0 / if d.abs() < tiny { tiny } else { d };
+    let mut f = d;
+    for m in 1..300 {
+        let m = m as f64;
+        for numerator in [m * (b - m) * x / ((a + 2.0 * m - 1.0) * (a + 2.0 * m)), -(a + m) * (a + b + m) * x / ((a + 2.0 * m) * (a + 2.0 * m + 1.0))] {
+            d = 1.0 + numerator * d;
+            d = 1.0 / if d.abs() < tiny { tiny } else { d };
+            c = 1.0 + numerator / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            f *= c * d;
+        }
+        if (c * d - 1.0).abs() < 1e-15 {
+            break;
+        }
+    }
+    front * f
+}
 
 /// P(X >= x) for X binomial with n trials of probability p.
 fn binomial_tail(x: usize, n: usize, p: f64) -> f64 {
@@ -154,15 +210,29 @@ mod tests {
             .collect()
     }
 
-    /// One exponent of a k = 1 run straying by chance is no drift; a sixth of 154 is.
+    /// Student's t tails against closed forms (dof 1: 1 - 2 atan(t) / pi; dof 2:
+    /// 1 - t / sqrt(t^2 + 2)) and the normal limit.
+    #[test]
+    fn student_t_tails_are_right() {
+        assert!((student_t_two_sided(2.0, 1.0) - (1.0 - 2.0 * 2f64.atan() / std::f64::consts::PI)).abs() < 1e-12);
+        assert!((student_t_two_sided(2.0, 2.0) - (1.0 - 2.0 / 6f64.sqrt())).abs() < 1e-12);
+        assert!((student_t_two_sided(2.0, 1e6) - 0.04550026).abs() < 1e-6);
+        assert!((student_t_two_sided(0.0, 5.0) - 1.0).abs() < 1e-12);
+    }
+
+    /// One exponent of a k = 1 run straying by chance is no drift; a quarter of 154 is.
     #[test]
     fn drift_needs_more_strays_than_chance_gives() {
         assert!((binomial_tail(0, 10, 0.3) - 1.0).abs() < 1e-12);
         assert!((binomial_tail(2, 2, 0.3) - 0.09).abs() < 1e-12);
         assert!((binomial_tail(1, 3, 0.5) - 0.875).abs() < 1e-12);
         let d = |tested: usize, count: usize| Diagnostics { tested, drifting: count as f64 / tested as f64, max_z: 3.0, max_z_index: 0, r1: 0.0, blocks: 20 };
-        assert!(!d(1, 1).drifts() && !d(2, 1).drifts() && !d(154, 10).drifts());
-        assert!(d(154, 26).drifts() && d(20, 10).drifts());
+        assert!((d(1, 0).chance() - 0.0608).abs() < 1e-3, "t with 18 degrees of freedom: {}", d(1, 0).chance());
+        assert!(!d(1, 1).drifts() && !d(2, 1).drifts() && !d(154, 20).drifts());
+        assert!(d(154, 40).drifts() && d(20, 10).drifts());
+        // Halves of 3 blocks: |t| > 2 for 11.6 % by chance, so 16 % is no drift.
+        let few = Diagnostics { blocks: 7, ..d(58, 9) };
+        assert!(few.chance() > 0.11 && !few.drifts());
     }
 
     #[test]
