@@ -181,6 +181,40 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
     assert!(frames(&part) == frames(&full));
 }
 
+/// A batch system's time limit sends SIGTERM before SIGKILL: the forward stage stops after
+/// the step it is in, with a checkpoint there and its segment finished, so that the run
+/// resumes from that very step (no interrupted segment, nothing recomputed) to the
+/// uninterrupted run's exponents and covariant vectors, bit for bit.
+#[test]
+fn sigterm_stops_the_forward_stage_at_a_checkpoint_of_its_own() {
+    let args = |dir: &Path| -> Vec<String> {
+        ["forward", "--quiet", "--n", "16", "--aspect", "1", "--steps", "40000", "--checkpoint-every", "50", "--clv-steps", "300", "--out", dir.to_str().unwrap()].iter().map(|s| s.to_string()).collect()
+    };
+    let (want, run) = (scratch("faults", "term-ref").join("run"), scratch("faults", "term").join("run"));
+    ok(clv(&args(&want).iter().map(String::as_str).collect::<Vec<_>>()));
+    let child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args(&run)).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    let started = std::time::Instant::now();
+    while (clv::store::RunDir { path: run.clone() }).segments().map_or(true, |s| s.is_empty()) && started.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // SAFETY: a plain kill(2) of the child we spawned.
+    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
+    let out = child.wait_with_output().unwrap();
+    let err = stderr(&out);
+    assert!(!out.status.success() && err.contains("stopped by a signal after step") && err.contains("--resume"), "{err}");
+    let step: u64 = err.split("after step ").nth(1).and_then(|t| t.split(' ').next()).and_then(|n| n.parse().ok()).unwrap();
+    let dir = clv::store::RunDir { path: run.clone() };
+    assert!(dir.partial_segments().unwrap().is_empty(), "an interrupted segment was left");
+    assert_eq!(dir.segments().unwrap().last().unwrap().last, step, "the last segment ends at the stop");
+    let resumed = ok(clv(&["forward", "--resume", run.to_str().unwrap()]));
+    assert!(stderr(&resumed).contains(&format!("resuming {} at step {step} of", run.display())), "{}", stderr(&resumed));
+    assert_eq!(contents(&run).exponents, contents(&want).exponents);
+    for d in [&want, &run] {
+        ok(clv(&["backward", d.to_str().unwrap(), "--quiet"]));
+    }
+    assert!(frames(&run.join("frames.mcap")) == frames(&want.join("frames.mcap")));
+}
+
 #[test]
 fn a_second_writer_is_refused_and_a_killed_one_leaves_no_stale_lock() {
     let dir = scratch("faults", "lock").join("run");
