@@ -29,12 +29,29 @@ extern "C" fn request_stop(_: libc::c_int) {
     STOP.store(true, std::sync::atomic::Ordering::SeqCst);
 }
 
-fn stop_on_signals() {
-    #[cfg(unix)]
-    // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
-    unsafe {
-        libc::signal(libc::SIGTERM, request_stop as *const () as libc::sighandler_t);
-        libc::signal(libc::SIGINT, request_stop as *const () as libc::sighandler_t);
+/// SIGTERM and SIGINT ask for a stop while this lives (the forward loop); afterwards they
+/// do what they did before (the backward stage of `clv run` must stay interruptible).
+struct StopOnSignals {
+    before: [libc::sighandler_t; 2],
+}
+
+const STOP_SIGNALS: [libc::c_int; 2] = [libc::SIGTERM, libc::SIGINT];
+
+impl StopOnSignals {
+    fn install() -> Self {
+        STOP.store(false, std::sync::atomic::Ordering::SeqCst);
+        // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
+        let before = STOP_SIGNALS.map(|sig| unsafe { libc::signal(sig, request_stop as *const () as libc::sighandler_t) });
+        StopOnSignals { before }
+    }
+}
+
+impl Drop for StopOnSignals {
+    fn drop(&mut self) {
+        for (sig, handler) in STOP_SIGNALS.into_iter().zip(self.before) {
+            // SAFETY: puts back the disposition signal(2) returned at install.
+            unsafe { libc::signal(sig, handler) };
+        }
     }
 }
 
@@ -380,7 +397,7 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
     if write_first {
         checkpoint(&fwd, &mut sink)?;
     }
-    stop_on_signals();
+    let _signals = StopOnSignals::install();
     if let Some(bar) = &feedback.bar {
         bar.set_length(total);
         bar.set_position(fwd.step);
