@@ -213,6 +213,23 @@ fn sigterm_stops_the_forward_stage_at_a_checkpoint_of_its_own() {
         ok(clv(&["backward", d.to_str().unwrap(), "--quiet"]));
     }
     assert!(frames(&run.join("frames.mcap")) == frames(&want.join("frames.mcap")));
+
+    // After the forward loop the signals do what they did before: `clv run`'s backward
+    // stage ends at once on SIGTERM (a stop there would have nothing to save).
+    use std::io::BufRead;
+    use std::os::unix::process::ExitStatusExt;
+    let out = scratch("faults", "term-run");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(["run", "--out", out.to_str().unwrap(), "--steps", "4000"]).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    let lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+    for line in lines {
+        if line.unwrap().contains("backward pass and analyses") {
+            break;
+        }
+    }
+    // SAFETY: a plain kill(2) of the child we spawned.
+    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
+    let status = child.wait().unwrap();
+    assert_eq!(status.signal(), Some(libc::SIGTERM), "{status:?}");
 }
 
 #[test]
