@@ -134,7 +134,7 @@ fn weighted_mean(x: &[f64], w: &[f64]) -> (f64, f64) {
 /// against `scale`, the spectrum's largest |lambda| (an exponent fixed by a symmetry, such
 /// as the null space of a Hamiltonian system).
 fn chi2_per_dof(x: &[f64], s: &[f64], mean: f64, scale: f64) -> f64 {
-    if s.iter().any(|s| !(*s > 1e-9 * scale)) {
+    if s.iter().any(|s| s.is_nan() || *s <= 1e-9 * scale) {
         return f64::NAN;
     }
     x.iter().zip(s).map(|(x, s)| ((x - mean) / s).powi(2)).sum::<f64>() / (x.len() - 1) as f64

@@ -255,7 +255,7 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
         feedback.notice(format!("discarding the interrupted segment {} ({what}); they will be recomputed", partial.display()));
         std::fs::remove_file(&partial).map_err(|e| Error::io(&partial, e))?;
     }
-    let Triage { newest_intact, superseded } = triage(&dir, feedback)?;
+    let Triage { newest_intact, superseded } = triage(dir, feedback)?;
     let drop_superseded = || -> Result<()> {
         for aside in &superseded {
             std::fs::remove_file(aside).map_err(|e| Error::io(aside, e))?;
@@ -271,23 +271,23 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
         feedback.notice("no intact checkpoint found; starting the run over from step 0".into());
         let fwd = Forward::new(&meta.config)?;
         let energy0 = fwd.system.invariants().energy;
-        return recomputed(drive(&dir, &meta, fwd, energy0, 0.0, true, feedback)?, 0);
+        return recomputed(drive(dir, meta, fwd, energy0, 0.0, true, feedback)?, 0);
     };
     let last = read_last(&newest)?;
     let step = last.checkpoint.state.step;
     let fwd = Forward::resume(&meta.config, &last.checkpoint.state)?;
     if step >= total {
-        let report = report_of(&meta, &fwd, last.stats.energy_initial, last.stats.wall_seconds);
+        let report = report_of(meta, &fwd, last.stats.energy_initial, last.stats.wall_seconds);
         if !dir.spectrum_path().exists() {
             // Killed after its last segment was finished, before the spectrum was written.
             feedback.notice(format!("the run was complete but {} was not written yet; writing it", dir.spectrum_path().display()));
-            write_spectrum(&dir, &report)?;
+            write_spectrum(dir, &report)?;
         }
         drop_superseded()?;
         return Ok(Outcome { report, resumed_from: Some(step), already_finished: true });
     }
     feedback.notice(format!("resuming {} at step {step} of {total}", path.display()));
-    recomputed(drive(&dir, &meta, fwd, last.stats.energy_initial, last.stats.wall_seconds, false, feedback)?, step)
+    recomputed(drive(dir, meta, fwd, last.stats.energy_initial, last.stats.wall_seconds, false, feedback)?, step)
 }
 
 /// What a resume keeps of the finished segments.

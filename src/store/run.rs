@@ -383,7 +383,7 @@ impl RunDir {
             write_atomic(&copy, pretty.as_bytes())?;
             let show = |m: &RunMeta| serde_json::to_string(&m.config).unwrap_or_default();
             return Err(Error::corrupt(
-                &self.meta_path(),
+                self.meta_path(),
                 format!(
                     "it describes another run ({}) than the one {} was written for ({}); run.json was edited or damaged. \
                      The segment's copy is in {}: move it over run.json to continue this run",
