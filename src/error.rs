@@ -16,6 +16,9 @@ pub enum Error {
     Dynamics(String),
     /// A file is damaged or not what it claims to be.
     Corrupt { path: PathBuf, msg: String },
+    /// The forward stage stopped on a signal (SIGTERM, SIGINT) after `step`, with everything
+    /// up to it saved in the run directory `run`.
+    Stopped { step: u64, total: u64, run: PathBuf },
     /// Anything else, already phrased for the user.
     Other(String),
 }
@@ -46,6 +49,12 @@ impl fmt::Display for Error {
             Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
             Error::Dynamics(msg) => write!(f, "dynamics: {msg}"),
             Error::Corrupt { path, msg } => write!(f, "{}: corrupt or unreadable: {msg}", path.display()),
+            Error::Stopped { step, total, run } => write!(
+                f,
+                "stopped by a signal after step {step} of {total}; everything up to it is saved in {}: continue with `clv forward --resume {}`",
+                run.display(),
+                run.display()
+            ),
             Error::Other(msg) => f.write_str(msg),
         }
     }

@@ -571,7 +571,13 @@ fn run(args: &RunArgs) -> Result<()> {
     say(format!("{origin}{changed}: {}", serde_json::to_string(&config).unwrap_or_default()));
     let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
     let started = Instant::now();
-    let result = clv::stage::pipeline::run(&config, &store, &args.out, &mut feedback, &mut say)?;
+    let result = clv::stage::pipeline::run(&config, &store, &args.out, &mut feedback, &mut say).map_err(|e| match e {
+        Error::Stopped { step, total, run } => Error::Other(format!(
+            "stopped by a signal after step {step} of {total} of the forward pass; everything up to it is saved in {}: give the same `clv run` command again to continue",
+            run.display()
+        )),
+        e => e,
+    })?;
     if let Some(bar) = &feedback.bar {
         bar.finish_and_clear();
     }

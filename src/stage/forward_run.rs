@@ -421,11 +421,7 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
                 checkpoint(&fwd, &mut sink)?;
             }
             sink.close_at_checkpoint()?;
-            return Err(Error::Other(format!(
-                "stopped by a signal after step {n} of {total}; everything up to it is saved in {}: continue with `clv forward --resume {}`",
-                dir.path.display(),
-                dir.path.display()
-            )));
+            return Err(Error::Stopped { step: n, total, run: dir.path.clone() });
         }
     }
     sink.close()?;
