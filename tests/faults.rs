@@ -230,6 +230,18 @@ fn sigterm_stops_the_forward_stage_at_a_checkpoint_of_its_own() {
     unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
     let status = child.wait().unwrap();
     assert_eq!(status.signal(), Some(libc::SIGTERM), "{status:?}");
+    // In its forward pass, `clv run` stops as `clv forward` does, and says to run it again.
+    let out = scratch("faults", "term-run-forward");
+    let child = Command::new(env!("CARGO_BIN_EXE_clv")).args(["run", "--out", out.to_str().unwrap(), "--quiet", "--steps", "100000"]).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    let started = std::time::Instant::now();
+    while (clv::store::RunDir { path: out.join("run") }).segments().map_or(true, |s| s.is_empty()) && started.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // SAFETY: a plain kill(2) of the child we spawned.
+    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
+    let done = child.wait_with_output().unwrap();
+    let err = stderr(&done);
+    assert!(!done.status.success() && err.contains("of the forward pass") && err.contains("give the same `clv run` command again"), "{err}");
 }
 
 #[test]
