@@ -135,7 +135,7 @@ impl RunConfig {
 
     /// Refuse a run whose tangent vectors this machine cannot hold, before allocating them
     /// (an allocation that fails aborts the process without a word).
-    pub fn check_memory(&self) -> Result<()> {
+    fn check_memory(&self) -> Result<()> {
         let need = self.memory_bytes();
         let Some(have) = crate::machine::available_memory() else { return Ok(()) };
         if need <= have as f64 {
@@ -154,9 +154,11 @@ impl RunConfig {
         ))
     }
 
-    /// The system in its initial state, made from the seed.
+    /// The system in its initial state, made from the seed; refused first if the
+    /// configuration is invalid or its tangent vectors would not fit in memory.
     pub fn build_system(&self) -> Result<Box<dyn DynamicalSystem>> {
         self.validate()?;
+        self.check_memory()?;
         Ok(match self.system {
             SystemConfig::Henon { a, b } => {
                 let mut rng = Rng::new(self.seed);

@@ -862,15 +862,22 @@ fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
 /// +1.1 % with one arena (`clv bench`). The forward step allocates nothing and the others
 /// little, so sharing the arena cost no measurable time (forward step 21.0 against 20.9 ms).
 fn one_malloc_arena() {
+    const M_ARENA_MAX: i32 = -8;
+    mallopt(M_ARENA_MAX, 1); // before any other thread exists
+}
+
+/// glibc's mallopt(3); nothing elsewhere.
+fn mallopt(param: i32, value: i32) {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     {
         unsafe extern "C" {
             fn mallopt(param: i32, value: i32) -> i32;
         }
-        const M_ARENA_MAX: i32 = -8;
-        // SAFETY: glibc's mallopt, called before any other thread exists.
-        unsafe { mallopt(M_ARENA_MAX, 1) };
+        // SAFETY: a plain call of glibc's mallopt with one of its documented parameters.
+        unsafe { mallopt(param, value) };
     }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    let _ = (param, value);
 }
 
 /// Serve allocations of 1 MB and more from mmap, so that they go back to the system when
@@ -884,15 +891,8 @@ fn one_malloc_arena() {
 /// the analyses allocate a frame's vectors every step, where fresh mapped pages cost page
 /// faults (a backward pipe took 4 % longer), so they keep glibc's default.
 fn large_allocations_from_mmap() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    {
-        unsafe extern "C" {
-            fn mallopt(param: i32, value: i32) -> i32;
-        }
-        const M_MMAP_THRESHOLD: i32 = -3;
-        // SAFETY: glibc's mallopt, called before the stage starts its threads.
-        unsafe { mallopt(M_MMAP_THRESHOLD, 1 << 20) };
-    }
+    const M_MMAP_THRESHOLD: i32 = -3;
+    mallopt(M_MMAP_THRESHOLD, 1 << 20);
 }
 
 fn main() {

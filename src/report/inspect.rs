@@ -61,14 +61,15 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     let (dir, meta) = RunDir::open(path)?;
     let mut segments = Vec::new();
     let mut meta_mismatch = None;
-    let mut newest: Option<(u64, Stats, Option<crate::stage::forward::Accumulator>)> = None;
+    let mut newest: Option<(Stats, Option<crate::stage::forward::Accumulator>)> = None;
     for seg in dir.segments()? {
         let (mut checkpoints, mut rs) = (0, 0);
         let (mut last_stats, mut last_acc) = (None, None);
         let result = read_segment(&seg.path, crate::store::segment::ReadMode::Strict, |m| {
-            let check = |r: std::result::Result<(), String>| r.map_err(|e| crate::Error::corrupt(&seg.path, format!("step {}: {e}", m.step)));
+            let bad = |e: String| crate::Error::corrupt(&seg.path, format!("step {}: {e}", m.step));
+            let check = |r: std::result::Result<(), String>| r.map_err(bad);
             if m.topic == CHECKPOINT.topic {
-                let cp = Checkpoint::decode(m.data).map_err(|e| crate::Error::corrupt(&seg.path, format!("step {}: {e}", m.step)))?;
+                let cp = Checkpoint::decode(m.data).map_err(bad)?;
                 last_acc = Some(cp.state.acc);
                 checkpoints += 1;
             } else if m.topic == R.topic {
@@ -88,8 +89,8 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         let damage = result.err().map(|e| e.to_string());
         if damage.is_none()
             && let Some(s) = last_stats
-                && newest.as_ref().is_none_or(|(step, _, _)| s.step > *step) {
-                    newest = Some((s.step, s, last_acc));
+                && newest.as_ref().is_none_or(|(n, _)| s.step > n.step) {
+                    newest = Some((s, last_acc));
                 }
         segments.push(SegmentReport {
             file: seg.path.file_name().unwrap_or_default().to_string_lossy().into(),
@@ -117,16 +118,16 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     set_aside.sort();
     previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));
     let total_steps = meta.config.relax_steps + meta.config.steps;
-    let (exponents, stderr) = newest.as_ref().map(|(_, s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
-    let convergence = newest.as_ref().and_then(|(_, _, acc)| {
+    let (exponents, stderr) = newest.as_ref().map(|(s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
+    let convergence = newest.as_ref().and_then(|(_, acc)| {
         let blocks = acc.as_ref()?.block_averages(meta.config.tau);
         let d = crate::stage::analyze::kernels::convergence::diagnose(&blocks.exponents)?;
         Some(Convergence { blocks: d.blocks, block_steps: blocks.block_steps, tests: d.numbers(), verdict: d.verdict().to_string() })
     });
     Ok(Inspection {
         total_steps,
-        steps_done: newest.as_ref().map(|(s, _, _)| *s),
-        finished: dir.spectrum_path().exists() && newest.as_ref().is_some_and(|(s, _, _)| *s == total_steps),
+        steps_done: newest.as_ref().map(|(s, _)| s.step),
+        finished: dir.spectrum_path().exists() && newest.as_ref().is_some_and(|(s, _)| s.step == total_steps),
         checkpoints: segments.iter().map(|s| s.checkpoints).sum(),
         // A segment left unfinished by a kill is the expected trace of an interrupted run,
         // not damage: --resume discards and recomputes it.

@@ -196,8 +196,6 @@ pub struct Forward {
 
 impl Forward {
     pub fn new(config: &RunConfig) -> Result<Self> {
-        config.validate()?;
-        config.check_memory()?;
         let mut system = config.build_system()?;
         system.set_threads(config.threads);
         let (d, k) = (system.dim(), config.vectors);

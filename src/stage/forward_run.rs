@@ -10,7 +10,7 @@ use super::forward::Forward;
 use crate::error::{Error, Result};
 use crate::report::{SpectrumReport, Statistics};
 use crate::store::records::{encode_r, Checkpoint, Stats};
-use crate::store::run::{write_atomic, RunDir, RunMeta, StoreR};
+use crate::store::run::{write_atomic, RunDir, RunLock, RunMeta, StoreR};
 use crate::store::schema::{CHECKPOINT, R, STATS};
 use crate::store::segment::read_segment;
 use crate::store::sink::{Policy, Sink};
@@ -40,8 +40,15 @@ const STOP_SIGNALS: [libc::c_int; 2] = [libc::SIGTERM, libc::SIGINT];
 impl StopOnSignals {
     fn install() -> Self {
         STOP.store(false, std::sync::atomic::Ordering::SeqCst);
-        // SAFETY: the handler only stores to an atomic, which is async-signal-safe.
-        let before = STOP_SIGNALS.map(|sig| unsafe { libc::signal(sig, request_stop as *const () as libc::sighandler_t) });
+        // SAFETY: the handler only stores to an atomic, which is async-signal-safe. A signal
+        // the process was started to ignore (SIGINT of a shell's background job) stays ignored.
+        let before = STOP_SIGNALS.map(|sig| unsafe {
+            let before = libc::signal(sig, request_stop as *const () as libc::sighandler_t);
+            if before == libc::SIG_IGN {
+                libc::signal(sig, libc::SIG_IGN);
+            }
+            before
+        });
         StopOnSignals { before }
     }
 }
@@ -89,8 +96,7 @@ impl Feedback {
 pub fn create(path: &Path, meta: &RunMeta, feedback: &mut Feedback) -> Result<Outcome> {
     meta.config.validate()?;
     meta.store.validate(&meta.config)?;
-    meta.config.build_system()?; // refuse impossible systems before anything is written
-    meta.config.check_memory()?;
+    meta.config.build_system()?; // refuse impossible systems, or too big ones, before anything is written
     let dir = RunDir::create(path, meta)?;
     let _lock = dir.lock("forward pass")?;
     let fwd = Forward::new(&meta.config)?;
@@ -116,13 +122,20 @@ pub fn complete_creation(path: &Path, feedback: &mut Feedback) -> Result<()> {
 /// Continue an interrupted run in `path` (or report a finished one), on `threads` threads
 /// if given, else on the run's (the numbers do not depend on it).
 pub fn resume(path: &Path, threads: Option<usize>, feedback: &mut Feedback) -> Result<Outcome> {
-    complete_creation(path, feedback)?;
-    let (dir, mut meta) = RunDir::open(path)?;
+    let (dir, mut meta, _lock) = open_to_continue(path, feedback)?;
     meta.config.set_threads(threads);
-    let _lock = dir.lock("forward pass")?;
+    continue_locked(&dir, &meta, feedback)
+}
+
+/// The run in `path`, locked for the forward pass, once it is sure this build can continue
+/// it and its run.json still describes its segments.
+fn open_to_continue(path: &Path, feedback: &mut Feedback) -> Result<(RunDir, RunMeta, RunLock)> {
+    complete_creation(path, feedback)?;
+    let (dir, meta) = RunDir::open(path)?;
+    let lock = dir.lock("forward pass")?;
     meta.build.check_can_continue(path)?;
     dir.check_meta(&meta)?;
-    continue_locked(&dir, &meta, feedback)
+    Ok((dir, meta, lock))
 }
 
 /// A run made longer: `steps` accumulated steps in all, a CLV window of `clv_steps` plus
@@ -143,11 +156,7 @@ pub struct Extension {
 /// moved into `path/previous-STEPS-steps/`, never overwritten, and so are the files or
 /// directories in `also` (a report made from them, say).
 pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path], feedback: &mut Feedback) -> Result<Outcome> {
-    complete_creation(path, feedback)?;
-    let (dir, mut meta) = RunDir::open(path)?;
-    let _lock = dir.lock("forward pass")?;
-    meta.build.check_can_continue(path)?;
-    dir.check_meta(&meta)?;
+    let (dir, mut meta, _lock) = open_to_continue(path, feedback)?;
     let old = meta.clone();
     if ext.steps < old.config.steps {
         return Err(Error::param("steps", format!(
