@@ -1,0 +1,76 @@
+//! `clv analyze`: every analysis over a frame file or a stream on standard input.
+
+use clap::Args;
+use clv::{Error, Result};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct AnalyzeArgs {
+    /// Frames: a file written by `clv backward --out FILE`, - for standard input, or a run
+    /// directory (the frames.mcap that `clv backward RUN_DIR` wrote into it).
+    pub source: PathBuf,
+    /// Directory for index.html, figures (PNG, SVG) and tables (CSV, JSON).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Vector statistics use the frames of the steps that are multiples of m (default: about
+    /// 400 frames, and a multiple of the stream's --vectors-every).
+    #[arg(long)]
+    pub every: Option<u64>,
+    /// Lyapunov indices (1-based) for the overlap figures, e.g. 1,200,370 (default: the
+    /// paper's choice scaled to this system's D).
+    #[arg(long, value_delimiter = ',')]
+    pub j: Option<Vec<usize>>,
+    /// Window lengths Delta (steps) for finite-time exponents, e.g. 1,10,100 (default: 1, 2,
+    /// 5, ... up to a quarter of the CLV window).
+    #[arg(long, value_delimiter = ',')]
+    pub deltas: Option<Vec<u64>>,
+    /// Run only these analyses (comma-separated names, e.g. spectrum,localization; an unknown name lists those that apply).
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+    /// Replace the files of an earlier report in --out (without it, a directory that holds
+    /// files is refused).
+    #[arg(long)]
+    pub overwrite: bool,
+    /// No progress bar or closing summary.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+pub fn analyze(args: &AnalyzeArgs) -> Result<()> {
+    if args.source == std::path::Path::new("-") && std::io::IsTerminal::is_terminal(&std::io::stdin()) {
+        return Err(Error::Other(
+            "- reads a frame stream from standard input, which is a terminal; pipe one in (`clv backward RUN_DIR --out - | clv analyze - --out REPORT`) or give a frame file".into(),
+        ));
+    }
+    if args.out.is_file() {
+        return Err(Error::param("out", format!("{} is a file; the report needs a directory", args.out.display())));
+    }
+    // A report can be all that is left of a long run: never replace one by accident.
+    let holds_files = std::fs::read_dir(&args.out).is_ok_and(|mut entries| entries.next().is_some());
+    if holds_files && !args.overwrite {
+        return Err(Error::param(
+            "out",
+            format!("{} already holds files (an earlier report?); choose another --out, or add --overwrite to replace them", args.out.display()),
+        ));
+    }
+    // The number of frames is not known ahead (a stream on stdin): count and rate only.
+    let bar = (!args.quiet).then(|| clv::report::progress::frames("analyze"));
+    let mut on_frame = |frames: u64| {
+        if let Some(bar) = &bar {
+            bar.set_position(frames);
+        }
+    };
+    let result = clv::stage::analyze::analyze_source(&args.source, &args.out, args.every, args.j.clone(), args.deltas.clone(), &args.only, &mut on_frame);
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let clv::stage::analyze::Analysed { produced, frames, warnings } = result?;
+    for w in &warnings {
+        eprintln!("clv analyze: warning: {w}");
+    }
+    if !args.quiet {
+        let figures: usize = produced.iter().map(|p| p.figures.len()).sum();
+        eprintln!("clv analyze: {frames} frames, {} analyses, {figures} figures; open {}", produced.len(), args.out.join("index.html").display());
+    }
+    Ok(())
+}

@@ -1,0 +1,171 @@
+//! `clv backward`: the Ginelli pass over a finished run, frames to a file or standard output.
+
+use super::{print_json, progress};
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Args, ValueEnum};
+use clv::{Error, Result};
+use std::path::PathBuf;
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum CInitArg {
+    Identity,
+    Random,
+}
+
+#[derive(Args)]
+pub struct BackwardArgs {
+    /// The run directory written by `clv forward --out`.
+    pub dir: PathBuf,
+    /// Where the frames go: a file, or - for standard output (an MCAP stream for `clv analyze -`).
+    /// Default: RUN_DIR/frames.mcap.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Backward steps discarded before frames are emitted (default: the run's --transient).
+    #[arg(long)]
+    pub transient: Option<u64>,
+    /// Initial upper-triangular C at the end of the window.
+    #[arg(long, value_enum, default_value = "identity")]
+    pub c_init: CInitArg,
+    /// Include the Gram-Schmidt vectors G_n in every frame (for GS-CLV comparisons).
+    #[arg(long)]
+    pub with_gs: bool,
+    /// Keep the frames of the steps that are multiples of m in the frame file (the stream on
+    /// stdout always carries all); 0 without --out: no frame file, only the CLV spectrum.
+    #[arg(long, default_value_t = 1)]
+    pub save_every: u64,
+    /// Form the covariant vectors V_n = G_n C_n (a quarter of a backward step) only for the
+    /// steps n that are multiples of m; the other frames carry the phase point and the local
+    /// exponents. `clv analyze` then samples those frames (its --every: m by default, or a
+    /// multiple of m), e.g. m = 62 for the paper's 25000 CLV steps (`clv run` does this itself).
+    #[arg(long, default_value_t = 1)]
+    pub vectors_every: u64,
+    /// Continue an interrupted backward sweep from its progress record.
+    #[arg(long)]
+    pub resume: bool,
+    /// Memory budget in MB; segments that do not fit are kept in a scratch file instead.
+    #[arg(long, default_value_t = 4096)]
+    pub memory: u64,
+    /// Threads for the recomputation and the sweep (default: the run's; the numbers do not
+    /// depend on it).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Print one JSON object (CLV and GS spectra, statistics) instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bars or notices.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
+    use clv::stage::backward::{self, BackwardOptions, CInit};
+    use clv::store::frames::{FrameStdout, Flow};
+    if args.threads == Some(0) {
+        return Err(Error::param("threads", "must be at least 1"));
+    }
+    let (dir, meta) = clv::store::RunDir::open(&args.dir)?;
+    let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
+    // A resumed sweep continues with the options it was started with; flags given again
+    // must agree with them (the stage refuses a contradiction).
+    let stored = if args.resume { backward::stored_options(&args.dir) } else { None };
+    let mut opts = stored.clone().unwrap_or_else(|| BackwardOptions::for_run(&meta));
+    if stored.is_none() || given("transient") {
+        opts.transient = args.transient.unwrap_or(BackwardOptions::for_run(&meta).transient);
+    }
+    if stored.is_none() || given("c_init") {
+        opts.c_init = match args.c_init {
+            CInitArg::Identity => CInit::Identity,
+            CInitArg::Random => CInit::Random,
+        };
+    }
+    if stored.is_none() || given("with_gs") {
+        opts.with_gs = args.with_gs;
+    }
+    let to_stdout = match (&stored, given("out")) {
+        (Some(s), false) => s.frames_path.is_none(),
+        _ => args.out.as_deref() == Some(std::path::Path::new("-")),
+    };
+    if to_stdout && std::io::IsTerminal::is_terminal(&std::io::stdout()) {
+        return Err(Error::param("out", "- writes a binary MCAP stream, and standard output is a terminal; pipe it into `clv analyze -` (or another reader), or give a file"));
+    }
+    if stored.is_none() || given("out") {
+        opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| clv::store::RunDir { path: args.dir.clone() }.frames_path())) };
+    }
+    if given("save_every") && args.save_every == 0 && given("out") && !to_stdout {
+        return Err(Error::param("save-every", "0 would keep no frame in the file --out names; give m >= 1 (the frames of the steps that are multiples of m), or leave out --out to compute only the CLV spectrum"));
+    }
+    if stored.is_none() || given("save_every") || given("out") {
+        // Resuming with --out FILE again keeps the stored --save-every unless it is given.
+        let stored_save = stored.as_ref().map(|s| s.save_every).filter(|&s| s > 0);
+        opts.save_every = match (to_stdout, given("save_every"), stored_save) {
+            (true, _, _) => 0,
+            (false, false, Some(s)) => s,
+            _ => args.save_every,
+        };
+    }
+    if stored.is_none() || given("vectors_every") {
+        opts.vectors_every = args.vectors_every;
+    }
+    if let Some(path) = &opts.frames_path
+        && let Some(warning) = clv::store::run::space_warning(path, backward::frame_file_bytes(&meta, &opts)) {
+            eprintln!("clv: {warning} (--save-every m keeps one frame in m)");
+        }
+    let stream_meta = backward::stream_info(&dir, &meta, &opts).metadata();
+    let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
+    // Two bars: segments recomputed (from the checkpoints) and frames emitted by the sweep.
+    let bars = (!args.quiet).then(|| {
+        let multi = clv::report::progress::multi();
+        let recompute = multi.add(progress("recompute", false).expect("not quiet"));
+        recompute.set_length(meta.store.clv_steps + meta.store.transient);
+        let sweep = multi.add(progress("sweep (frames)", false).expect("not quiet"));
+        sweep.set_length(meta.store.clv_steps.saturating_sub(opts.transient.saturating_sub(meta.store.transient)) + 1);
+        (multi, recompute, sweep)
+    });
+    let mut consumer = |frame: std::sync::Arc<clv::stage::frame::Frame>| -> Result<Flow> {
+        match stdout.as_mut() {
+            Some(out) => out.write(&frame),
+            None => Ok(Flow::Continue),
+        }
+    };
+    let mut on_progress = |recomputed: u64, frames: u64| {
+        if let Some((_, recompute, sweep)) = &bars {
+            recompute.set_position(recomputed);
+            sweep.set_position(frames);
+        }
+    };
+    let report = backward::run(&args.dir, &opts, args.resume, args.memory << 20, args.threads, &mut consumer, &mut on_progress)?;
+    if let Some((multi, recompute, sweep)) = &bars {
+        recompute.finish_and_clear();
+        sweep.finish_and_clear();
+        let _ = multi.clear();
+    }
+    if let Some(out) = stdout {
+        out.finish()?;
+    }
+    for note in report.notes.iter().filter(|_| !args.quiet) {
+        eprintln!("clv: {note}");
+    }
+    if report.statistics.stopped_early && !args.quiet {
+        eprintln!("clv: the reader closed the stream after {} frames; stopped (continue later with --resume)", report.statistics.frames);
+    }
+    if args.json {
+        print_json(&report)?;
+    } else if !to_stdout {
+        println!("{:>6}  {:>14}  {:>10}  {:>14}  {:>10}", "i", "lambda_i (CLV)", "stderr", "lambda_i (GS)", "stderr");
+        for i in 0..report.exponents.len() {
+            println!(
+                "{:>6}  {:>14.8}  {:>10.2e}  {:>14.8}  {:>10.2e}",
+                i + 1,
+                report.exponents[i],
+                report.stderr[i],
+                report.gs_exponents.get(i).copied().unwrap_or(f64::NAN),
+                report.gs_stderr.get(i).copied().unwrap_or(f64::NAN)
+            );
+        }
+        use clv::stage::forward::Estimate;
+        println!("KS entropy (sum of the positive exponents): {} (CLV), {} (GS)", Estimate::or_unknown(report.ks_entropy), Estimate::or_unknown(report.gs_ks_entropy));
+        let st = &report.statistics;
+        println!("{} frames (steps {}..{}), {} steps recomputed in {} segments, {:.1} s", st.frames, st.first_frame_step, st.last_frame_step, st.recomputed_steps, st.segments, st.wall_seconds);
+    }
+    Ok(())
+}

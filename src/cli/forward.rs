@@ -1,0 +1,319 @@
+//! `clv forward`: the Gram-Schmidt pass, in memory or into a run directory that can be
+//! resumed and extended; its flags define a run (`clv run` and configuration files reuse them).
+
+use super::{print_json, progress};
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Args, ValueEnum};
+use clv::config::{RunConfig, SystemConfig};
+use clv::report::{SpectrumReport, Statistics};
+use clv::stage::forward::Forward;
+use clv::stage::forward_run::{self, Extension, Feedback};
+use clv::store::run::{BuildInfo, RunMeta, StoreConfig, StoreR, FORMAT};
+use clv::{Error, Result};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SystemKind {
+    Henon,
+    Lorenz,
+    Disks,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum StoreRArg {
+    Checkpoints,
+    All,
+}
+
+#[derive(Args)]
+pub struct ForwardArgs {
+    /// Read settings from a configuration file (TOML; keys are these flags, e.g. `steps =
+    /// 1000`); flags on the command line override it. `clv config` prints one.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// The dynamical system.
+    #[arg(long, value_enum, default_value = "disks")]
+    pub system: SystemKind,
+    /// Number of disks N (D = 4N).
+    #[arg(long, default_value_t = 198)]
+    pub n: usize,
+    /// Number density rho = N/(Lx Ly).
+    #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
+    pub density: f64,
+    /// Aspect ratio Ly/Lx, as a number or a fraction such as 2/11.
+    #[arg(long, default_value = "2/11", value_parser = parse_ratio, allow_negative_numbers = true)]
+    pub aspect: f64,
+    /// Box side Lx (with --ly, instead of --density and --aspect).
+    #[arg(long, requires = "ly", allow_negative_numbers = true)]
+    pub lx: Option<f64>,
+    /// Box side Ly (with --lx).
+    #[arg(long, requires = "lx", allow_negative_numbers = true)]
+    pub ly: Option<f64>,
+    /// Time between re-orthonormalisations (default 0.6 for disks, 1 for Henon, 0.1 for Lorenz).
+    #[arg(long, allow_negative_numbers = true)]
+    pub tau: Option<f64>,
+    /// Relaxation steps before accumulation.
+    #[arg(long, default_value_t = 100)]
+    pub relax_steps: u64,
+    /// Accumulated steps.
+    #[arg(long, default_value_t = 1000)]
+    pub steps: u64,
+    /// Number k of tangent vectors (default: all, k = D).
+    #[arg(long)]
+    pub vectors: Option<usize>,
+    /// Seed of the initial state (positions on the start lattice, velocities).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Threads for the QR step and the tangent updates (2 halves a step at D = 792; the
+    /// numbers do not depend on it).
+    #[arg(long, default_value_t = 1)]
+    pub threads: usize,
+    /// Blocks for the standard error.
+    #[arg(long, default_value_t = 20)]
+    pub blocks: usize,
+    /// Write a run directory (checkpoints, R matrices, running spectrum) for the backward stage.
+    #[arg(long, conflicts_with = "resume")]
+    pub out: Option<PathBuf>,
+    /// Continue the interrupted run in this directory (its configuration is read from it); with a larger --steps, make the run longer.
+    #[arg(long)]
+    pub resume: Option<PathBuf>,
+    /// Steps between checkpoints.
+    #[arg(long, default_value_t = 100)]
+    pub checkpoint_every: u64,
+    /// Checkpoints per segment file.
+    #[arg(long, default_value_t = 10)]
+    pub segment_checkpoints: u64,
+    /// Close a segment file once it holds this many MB.
+    #[arg(long, default_value_t = 1024)]
+    pub segment_mb: u64,
+    /// Which R matrices to store: at checkpoints, or at every step of the CLV window too.
+    #[arg(long, value_enum, default_value = "checkpoints")]
+    pub store_r: StoreRArg,
+    /// Steps at the end of the run for which covariant vectors are wanted (default steps/10).
+    #[arg(long)]
+    pub clv_steps: Option<u64>,
+    /// Backward-sweep steps discarded before the CLV window (default clv-steps/2).
+    #[arg(long)]
+    pub transient: Option<u64>,
+    /// Print one JSON object to stdout instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bar or notices.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn parse_ratio(s: &str) -> std::result::Result<f64, String> {
+    let num = |x: &str| x.trim().parse::<f64>().map_err(|e| format!("{x:?}: {e}"));
+    let value = match s.split_once('/') {
+        Some((a, b)) => num(a)? / num(b)?,
+        None => num(s)?,
+    };
+    if value.is_finite() && value > 0.0 { Ok(value) } else { Err(format!("must be a positive number or fraction, got {s}")) }
+}
+
+impl ForwardArgs {
+    pub fn config(&self) -> Result<RunConfig> {
+        let (system, tau) = match self.system {
+            SystemKind::Henon => (SystemConfig::henon(), self.tau.unwrap_or(1.0)),
+            SystemKind::Lorenz => (SystemConfig::lorenz(), self.tau.unwrap_or(0.1)),
+            SystemKind::Disks => {
+                let system = match (self.lx, self.ly) {
+                    (Some(lx), Some(ly)) => SystemConfig::disks_in_box(self.n, lx, ly),
+                    _ => SystemConfig::disks(self.n, self.density, self.aspect)?,
+                };
+                (system, self.tau.unwrap_or(0.6))
+            }
+        };
+        let vectors = self.vectors.unwrap_or(system.dim());
+        let config = RunConfig {
+            system,
+            tau,
+            relax_steps: self.relax_steps,
+            steps: self.steps,
+            vectors,
+            seed: self.seed,
+            threads: self.threads,
+            blocks: self.blocks,
+        };
+        config.validate()?;
+        Ok(config)
+    }
+
+    pub fn meta(&self) -> Result<RunMeta> {
+        let config = self.config()?;
+        let mut store = StoreConfig::for_run(&config);
+        store.checkpoint_every = self.checkpoint_every;
+        store.segment_checkpoints = self.segment_checkpoints;
+        store.segment_bytes = self.segment_mb.saturating_mul(1 << 20);
+        store.store_r = match self.store_r {
+            StoreRArg::Checkpoints => StoreR::Checkpoints,
+            StoreRArg::All => StoreR::All,
+        };
+        if let Some(c) = self.clv_steps {
+            store.clv_steps = c;
+            store.transient = (c / 2).max(1);
+        }
+        if let Some(t) = self.transient {
+            store.transient = t;
+        }
+        store.validate(&config)?;
+        Ok(RunMeta { format: FORMAT.into(), config, store, build: BuildInfo::current() })
+    }
+}
+
+/// The values of the flags that define a run, as they would be given on the command line.
+pub fn flag_values(m: &RunMeta) -> Vec<(&'static str, String)> {
+    let c = &m.config;
+    let mut v = vec![
+        ("tau", c.tau.to_string()),
+        ("relax_steps", c.relax_steps.to_string()),
+        ("steps", c.steps.to_string()),
+        ("vectors", c.vectors.to_string()),
+        ("seed", c.seed.to_string()),
+        ("blocks", c.blocks.to_string()),
+        ("checkpoint_every", m.store.checkpoint_every.to_string()),
+        ("segment_checkpoints", m.store.segment_checkpoints.to_string()),
+        ("segment_mb", (m.store.segment_bytes >> 20).to_string()),
+        ("store_r", format!("{:?}", m.store.store_r)),
+        ("clv_steps", m.store.clv_steps.to_string()),
+        ("transient", m.store.transient.to_string()),
+    ];
+    match &c.system {
+        SystemConfig::Henon { .. } => v.push(("system", "henon".into())),
+        SystemConfig::Lorenz { .. } => v.push(("system", "lorenz".into())),
+        SystemConfig::Disks { n, lx, ly, density, aspect } => v.extend([
+            ("system", "disks".into()),
+            ("n", n.to_string()),
+            ("lx", lx.to_string()),
+            ("ly", ly.to_string()),
+            ("density", density.to_string()),
+            ("aspect", aspect.to_string()),
+        ]),
+    }
+    v
+}
+
+/// Refuse flags given with --resume that disagree with the stored run, except a longer
+/// --steps (with a new --clv-steps or --transient): that extends the run.
+fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path::Path) -> Result<Option<Extension>> {
+    let (_, stored) = clv::store::RunDir::open(dir)?;
+    let given: Vec<&str> = flag_values(&stored)
+        .iter()
+        .map(|(id, _)| *id)
+        .chain(["system"])
+        .filter(|id| matches.value_source(id) == Some(ValueSource::CommandLine))
+        .collect();
+    let extending = given.contains(&"steps") && args.steps > stored.config.steps;
+    if given.is_empty() {
+        return Ok(None);
+    }
+    let wanted_meta = args.meta()?;
+    let wanted = flag_values(&wanted_meta);
+    let stored_flags = flag_values(&stored);
+    for id in given {
+        if extending && ["steps", "clv_steps", "transient"].contains(&id) {
+            continue;
+        }
+        let w = wanted.iter().find(|(k, _)| *k == id).map(|(_, v)| v.as_str());
+        let s = stored_flags.iter().find(|(k, _)| *k == id).map(|(_, v)| v.as_str());
+        if w != s {
+            let flag = id.replace('_', "-");
+            let extend = if id == "steps" { ", give a larger --steps to extend it" } else { "" };
+            return Err(Error::param(
+                "resume",
+                format!(
+                    "--{flag} {} conflicts with the run in {}, which was made with --{flag} {}; drop the flag to resume it{extend}, or start a new run with --out",
+                    w.unwrap_or("?"),
+                    dir.display(),
+                    s.unwrap_or("(not set)")
+                ),
+            ));
+        }
+    }
+    // A new --clv-steps brings its default transient, as in a new run.
+    let transient = args.transient.or(args.clv_steps.map(|_| wanted_meta.store.transient));
+    Ok(extending.then_some(Extension { steps: args.steps, clv_steps: args.clv_steps, transient }))
+}
+
+/// Refuse a flag that sets up hard disks (`given` tells which were given) for the Henon map,
+/// which would otherwise ignore it.
+pub fn no_disk_flags_for_henon(system: SystemKind, given: impl Fn(&str) -> bool) -> Result<()> {
+    match ["n", "density", "aspect", "lx", "ly"].into_iter().find(|id| given(id)) {
+        Some(flag) if system != SystemKind::Disks => Err(Error::param(flag, "sets up hard disks; the Henon map and the Lorenz flow (--system henon, lorenz) have no such setting")),
+        _ => Ok(()),
+    }
+}
+
+pub fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
+    no_disk_flags_for_henon(args.system, |id| matches.value_source(id) == Some(ValueSource::CommandLine))?;
+    if let Some(dir) = &args.resume {
+        let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
+        forward_run::complete_creation(dir, &mut feedback)?;
+        let extension = check_resume_flags(args, matches, dir)?;
+        let threads = (matches.value_source("threads") == Some(ValueSource::CommandLine)).then_some(args.threads);
+        if threads == Some(0) {
+            return Err(Error::param("threads", "must be at least 1"));
+        }
+        let outcome = match extension {
+            Some(ext) => forward_run::extend(dir, ext, threads, &[], &mut feedback)?,
+            None => forward_run::resume(dir, threads, &mut feedback)?,
+        };
+        if let Some(bar) = &feedback.bar {
+            bar.finish_and_clear();
+        }
+        if outcome.already_finished && !args.quiet {
+            eprintln!("clv: the run in {} is already complete; nothing to do", dir.display());
+        }
+        return print_report(&outcome.report, args.json);
+    }
+    if let Some(dir) = &args.out {
+        if dir.is_file() {
+            return Err(Error::param("out", format!("{} is a file; a run needs a directory (a new path, or an empty directory)", dir.display())));
+        }
+        let meta = args.meta()?;
+        if !args.quiet {
+            eprintln!("clv: configuration: {}", serde_json::to_string(&meta.config).unwrap_or_default());
+            eprintln!("clv: writing {}: {}", dir.display(), meta.store.footprint(&meta.config).1);
+        }
+        if let Some(warning) = clv::store::run::space_warning(dir, meta.store.footprint(&meta.config).0) {
+            eprintln!("clv: {warning}");
+        }
+        let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
+        let outcome = forward_run::create(dir, &meta, &mut feedback)?;
+        if let Some(bar) = &feedback.bar {
+            bar.finish_and_clear();
+        }
+        return print_report(&outcome.report, args.json);
+    }
+    spectrum(args.config()?, args.json, args.quiet)
+}
+
+fn print_report(report: &SpectrumReport, json: bool) -> Result<()> {
+    if json { print_json(report) } else { Ok(print!("{}", report.table())) }
+}
+
+/// The forward pass in memory, nothing written.
+fn spectrum(config: RunConfig, json: bool, quiet: bool) -> Result<()> {
+    let started = Instant::now();
+    let mut fwd = Forward::new(&config)?;
+    let start = fwd.system.invariants();
+    let total = config.relax_steps + config.steps;
+    let bar = progress("forward", quiet);
+    if let Some(bar) = &bar {
+        bar.set_length(total);
+    }
+    while fwd.step < total {
+        fwd.step()?;
+        if let Some(bar) = &bar {
+            bar.inc(1);
+        }
+    }
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    let statistics = Statistics::new(&config, &start, &fwd.system.invariants(), started.elapsed().as_secs_f64());
+    let report = SpectrumReport::new(config, &fwd.acc, statistics);
+    print_report(&report, json)
+}

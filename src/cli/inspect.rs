@@ -1,0 +1,39 @@
+//! `clv inspect`: what a run directory or a frame file holds, and whether it is intact.
+
+use super::print_json;
+use clap::Args;
+use clv::report::inspect;
+use clv::{Error, Result};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct InspectArgs {
+    /// A run directory, or a frame file written by `clv backward --out FILE`.
+    pub dir: PathBuf,
+    /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn inspect(args: &InspectArgs) -> Result<()> {
+    if args.dir.is_file() {
+        let found = inspect::inspect_frames(&args.dir)?;
+        print_inspection(&found, found.text(), args.json)?;
+        return match &found.damage {
+            None => Ok(()),
+            Some(_) => Err(Error::Other(format!(
+                "{}: damaged or cut short; its {} complete frames can still be analysed, and `clv backward RUN_DIR --out FILE --resume` continues a sweep that was interrupted",
+                args.dir.display(),
+                found.frames
+            ))),
+        };
+    }
+    let found = inspect::inspect(&args.dir)?;
+    print_inspection(&found, found.text(), args.json)?;
+    if found.intact { Ok(()) } else { Err(Error::Other(format!("{}: damaged files found (see above); repair them with `clv forward --resume {}`", args.dir.display(), args.dir.display()))) }
+}
+
+/// An inspection as one JSON object, or as its text.
+fn print_inspection<T: serde::Serialize>(found: &T, text: String, json: bool) -> Result<()> {
+    if json { print_json(found) } else { Ok(print!("{text}")) }
+}

@@ -1,0 +1,153 @@
+//! The `clv` command line: flags are parsed into configurations and handed to the stages.
+//! Each subcommand's file holds its flags and what it does with them; this one the command
+//! table, the expansion of `--config FILE`, and what the subcommands share.
+
+mod analyze;
+mod backward;
+mod bench;
+mod forward;
+mod inspect;
+mod run;
+
+use analyze::AnalyzeArgs;
+use backward::BackwardArgs;
+use bench::BenchArgs;
+use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand};
+use clv::config::RunConfig;
+use clv::{Error, Result};
+use forward::ForwardArgs;
+use indicatif::ProgressBar;
+use inspect::InspectArgs;
+use run::RunArgs;
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(name = "clv", version, about = "Lyapunov spectra, Gram-Schmidt and covariant Lyapunov vectors of hard disks and maps")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Forward Gram-Schmidt pass: the Lyapunov spectrum; with --out, a resumable run directory.
+    #[command(args_override_self = true)]
+    Forward(ForwardArgs),
+    /// Backward Ginelli pass over a finished run: covariant Lyapunov vectors, frame by frame.
+    Backward(BackwardArgs),
+    /// What a run directory or a frame file holds, and whether every file is intact.
+    Inspect(InspectArgs),
+    /// Every analysis of the paper over a frame stream (a file written by `clv backward`, or -).
+    Analyze(AnalyzeArgs),
+    /// The whole pipeline (forward, backward, all analyses) on an embedded preset.
+    Run(RunArgs),
+    /// One spectrum from independent runs of one system (other seeds): errors from the spread between them.
+    Combine(CombineArgs),
+    /// Measure kernels and stages side by side on this machine (medians, ratios, memory).
+    Bench(BenchArgs),
+    /// Print a configuration file to start from (keys are the flags of `clv forward`).
+    Config(ConfigArgs),
+}
+
+#[derive(Args)]
+pub struct CombineArgs {
+    /// Finished runs: run directories or their spectrum.json files (e.g. runs/seed-*).
+    #[arg(required = true)]
+    pub runs: Vec<PathBuf>,
+    /// Print one JSON object to stdout instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args)]
+pub struct ConfigArgs {
+    /// Embedded configuration: default, paper, henon or lorenz.
+    #[arg(long, default_value = "default")]
+    pub preset: String,
+}
+
+pub fn progress(what: &str, quiet: bool) -> Option<ProgressBar> {
+    if quiet {
+        return None;
+    }
+    Some(clv::report::progress::steps(what))
+}
+
+pub fn first_line(e: &clap::Error) -> String {
+    e.to_string().lines().next().unwrap_or_default().trim_start_matches("error: ").to_string()
+}
+
+/// The settings a configuration file may hold: the flags of `clv forward` that define a run.
+pub fn config_keys() -> Vec<String> {
+    let cmd = Cli::command();
+    let forward = cmd.find_subcommand("forward").expect("forward exists");
+    forward
+        .get_arguments()
+        .filter_map(|a| a.get_long())
+        .filter(|l| !["config", "out", "resume", "json", "quiet", "help"].contains(l))
+        .map(String::from)
+        .collect()
+}
+
+/// The command line with a `--config FILE` of `clv forward` expanded into flags, placed
+/// before the command line's own so that those override the file.
+fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
+    if raw.get(1).map(String::as_str) != Some("forward") {
+        return Ok(raw);
+    }
+    let mut rest = Vec::new();
+    let mut file = None;
+    let mut it = raw[2..].iter();
+    while let Some(a) = it.next() {
+        if a == "--config" {
+            file = it.next().cloned();
+        } else if let Some(f) = a.strip_prefix("--config=") {
+            file = Some(f.to_string());
+        } else {
+            rest.push(a.clone());
+        }
+    }
+    let Some(file) = file else { return Ok(raw) };
+    let mut argv = raw[..2].to_vec();
+    argv.extend(clv::report::config_file::expand(std::path::Path::new(&file), &config_keys())?);
+    // A bad value in the file is the file's error, not the command line's.
+    if let Err(e) = Cli::try_parse_from(&argv) {
+        return Err(Error::Other(format!("{file}: {}", first_line(&e))));
+    }
+    argv.extend(rest);
+    Ok(argv)
+}
+
+
+/// The command line, with a `--config FILE` of `clv forward` expanded. Clap's own errors
+/// (and --help, --version) exit here, as clap does.
+pub fn parse(raw: Vec<String>) -> Result<(Cli, ArgMatches)> {
+    let matches = Cli::command().get_matches_from(expand_config(raw)?);
+    match Cli::from_arg_matches(&matches) {
+        Ok(cli) => Ok((cli, matches)),
+        Err(e) => e.exit(),
+    }
+}
+
+/// Run the parsed subcommand.
+pub fn execute(cli: &Cli, matches: &ArgMatches) -> Result<()> {
+    let sub = |name| matches.subcommand_matches(name).expect("subcommand parsed");
+    match &cli.command {
+        Command::Forward(args) => forward::forward(args, sub("forward")),
+        Command::Backward(args) => backward::backward(args, sub("backward")),
+        Command::Inspect(args) => inspect::inspect(args),
+        Command::Analyze(args) => analyze::analyze(args),
+        Command::Run(args) => run::run(args),
+        Command::Combine(args) => clv::report::combine::combine(&args.runs).and_then(|c| if args.json { print_json(&c) } else { Ok(print!("{}", c.table())) }),
+        Command::Bench(args) => bench::bench(args),
+        Command::Config(args) => RunConfig::preset(&args.preset).map(|c| {
+            print!("{}", clv::report::config_file::render(&args.preset, &c, &clv::store::run::StoreConfig::for_run(&c)));
+        }),
+    }
+}
+
+/// `found` as one JSON object on standard output (every subcommand's --json).
+pub fn print_json<T: serde::Serialize>(found: &T) -> Result<()> {
+    println!("{}", serde_json::to_string(found).map_err(|e| Error::Other(e.to_string()))?);
+    Ok(())
+}

@@ -1,0 +1,153 @@
+//! `clv run`: the whole pipeline on a preset or a configuration file, changed by settings
+//! given as `clv forward` flags.
+
+use super::forward::{flag_values, no_disk_flags_for_henon};
+use super::{config_keys, first_line, progress, Cli, Command};
+use clap::{Args, CommandFactory, FromArgMatches, Parser};
+use clv::config::RunConfig;
+use clv::stage::forward_run::Feedback;
+use clv::store::run::{BuildInfo, RunMeta, StoreConfig, FORMAT};
+use clv::{Error, Result};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct RunArgs {
+    /// Embedded configuration: default, paper, henon or lorenz.
+    #[arg(long, default_value = "default")]
+    pub preset: String,
+    /// A configuration file (as printed by `clv config`) instead of a preset.
+    #[arg(long, value_name = "FILE", conflicts_with = "preset")]
+    pub config: Option<PathBuf>,
+    /// Output directory: OUT/run (the run) and OUT/report (index.html, figures, tables).
+    #[arg(long, default_value = "clv-out")]
+    pub out: PathBuf,
+    /// No progress bars or notices.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Settings that change the preset's or the file's, as flags of `clv forward` after the
+    /// others, e.g. `clv run --preset paper --steps 50000 --threads 4` (`clv config` lists
+    /// them). The store's window (--clv-steps, --transient) follows --steps unless given.
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, value_name = "SETTINGS")]
+    pub settings: Vec<String>,
+}
+
+/// The flags of `clv forward` that set up `config` (a preset): the system (by density and
+/// aspect) and the run, not the store, whose window then follows the run's length; all
+/// vectors (k = D) by leaving --vectors out, so that they follow a changed --n. Parsed back
+/// they give `config`.
+fn config_flags(config: &RunConfig) -> Vec<String> {
+    let meta = RunMeta { format: FORMAT.into(), config: config.clone(), store: StoreConfig::for_run(config), build: BuildInfo::current() };
+    let left_out = ["lx", "ly", "checkpoint_every", "segment_checkpoints", "segment_mb", "store_r", "clv_steps", "transient"];
+    flag_values(&meta)
+        .into_iter()
+        .filter(|(id, _)| !left_out.contains(id) && (*id != "vectors" || config.vectors != config.system.dim()))
+        .chain([("threads", config.threads.to_string())])
+        .flat_map(|(id, value)| [format!("--{}", id.replace('_', "-")), value])
+        .collect()
+}
+
+/// What `clv run` runs: the preset or the configuration file, changed by the settings on
+/// its command line, read through `clv forward`'s flags.
+fn run_meta(args: &RunArgs) -> Result<RunMeta> {
+    let keys = config_keys();
+    let mut argv = vec!["clv".to_string(), "forward".to_string()];
+    match &args.config {
+        Some(path) => {
+            argv.extend(clv::report::config_file::expand(path, &keys)?);
+            // A bad value in the file is the file's error, not the command line's.
+            Cli::try_parse_from(&argv).map_err(|e| Error::Other(format!("{}: {}", path.display(), first_line(&e))))?;
+        }
+        None => argv.extend(config_flags(&RunConfig::preset(&args.preset)?)),
+    }
+    for setting in &args.settings {
+        if let Some(flag) = setting.strip_prefix("--") {
+            let key = flag.split('=').next().unwrap_or_default();
+            if !keys.iter().any(|k| k == key) {
+                return Err(Error::param(
+                    "settings",
+                    format!("--{key} is not a setting of a run; give `clv run` its own options (--preset, --config, --out, --quiet) before the settings, which are: --{}", keys.join(", --")),
+                ));
+            }
+        }
+    }
+    argv.extend(args.settings.iter().cloned());
+    let matches = Cli::command().try_get_matches_from(&argv).map_err(|e| Error::Other(format!("settings: {}", first_line(&e))))?;
+    let Ok(Cli { command: Command::Forward(forward), .. }) = Cli::from_arg_matches(&matches) else {
+        return Err(Error::Other("settings: not the flags of a run".into()));
+    };
+    no_disk_flags_for_henon(forward.system, |id| args.settings.iter().any(|s| s == &format!("--{id}") || s.starts_with(&format!("--{id}="))))?;
+    forward.meta()
+}
+
+pub fn run(args: &RunArgs) -> Result<()> {
+    let RunMeta { config, store, .. } = run_meta(args)?;
+    if args.out.is_file() {
+        return Err(Error::param("out", format!("{} is a file; `clv run` writes a directory (run/ and report/ in it)", args.out.display())));
+    }
+    let quiet = args.quiet;
+    let mut say = |msg: String| {
+        if !quiet {
+            eprintln!("clv run: {msg}");
+        }
+    };
+    let origin = match &args.config {
+        Some(path) => format!("{}", path.display()),
+        None => format!("preset {:?}", args.preset),
+    };
+    let changed = if args.settings.is_empty() { String::new() } else { format!(" with {}", args.settings.join(" ")) };
+    say(format!("{origin}{changed}: {}", serde_json::to_string(&config).unwrap_or_default()));
+    let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
+    let started = Instant::now();
+    let result = clv::stage::pipeline::run(&config, &store, &args.out, &mut feedback, &mut say).map_err(|e| match e {
+        Error::Stopped { step, total, run } => Error::Other(format!(
+            "stopped by a signal after step {step} of {total} of the forward pass; everything up to it is saved in {}: give the same `clv run` command again to continue",
+            run.display()
+        )),
+        e => e,
+    })?;
+    if let Some(bar) = &feedback.bar {
+        bar.finish_and_clear();
+    }
+    let clv_report = &result.clv;
+    use clv::stage::forward::Estimate;
+    let first = |v: &[f64], e: &[f64]| Estimate::or_unknown(v.first().zip(e.first()).map(|(&value, &stderr)| Estimate { value, stderr }));
+    say(format!(
+        "lambda_1 = {} (GS), {} (CLV); h_KS = {} (GS), {} (CLV)",
+        first(&clv_report.gs_exponents, &clv_report.gs_stderr),
+        first(&clv_report.exponents, &clv_report.stderr),
+        Estimate::or_unknown(clv_report.gs_ks_entropy),
+        Estimate::or_unknown(clv_report.ks_entropy)
+    ));
+    let gs = clv::report::SpectrumSummary::read(&result.run_dir.join("spectrum.json")).ok();
+    if let Some(d) = gs.and_then(|g| g.blocks).and_then(|b| clv::stage::analyze::kernels::convergence::diagnose(&b.exponents)) {
+        say(format!("convergence of the GS spectrum ({} blocks): {}", d.blocks, d.verdict()));
+    }
+    let figures: usize = result.produced.iter().map(|p| p.figures.len()).sum();
+    say(format!(
+        "done in {:.0} s: {} frames analysed, {figures} figures; open {}",
+        started.elapsed().as_secs_f64(),
+        result.clv.statistics.frames,
+        result.report_dir.join("index.html").display()
+    ));
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `clv run` on a preset without settings runs exactly the preset, with the store
+    /// settings derived from it, as it did before it took settings (so that it continues
+    /// the runs it made then).
+    #[test]
+    fn a_preset_read_through_its_flags_is_the_preset() {
+        for preset in clv::config::PRESETS {
+            let args = RunArgs { preset: preset.into(), config: None, out: "clv-out".into(), quiet: true, settings: Vec::new() };
+            let meta = run_meta(&args).unwrap();
+            let want = RunConfig::preset(preset).unwrap();
+            assert_eq!(meta.config, want, "{preset}");
+            assert_eq!(meta.store, StoreConfig::for_run(&want), "{preset}");
+        }
+    }
+}
