@@ -528,16 +528,13 @@ fn recompute(config: &RunConfig, store_r_all: bool, reads_g: &dyn Fn(u64) -> boo
 /// About how many bytes the frame file of a sweep with `opts` takes (nothing without one):
 /// 8 (D + k) a frame, and 8 D k more for V_n, and again for G_n, where they are formed.
 pub fn frame_file_bytes(meta: &RunMeta, opts: &BackwardOptions) -> u64 {
+    let Ok(window) = Window::of(meta, opts) else { return 0 };
     if opts.frames_path.is_none() || opts.save_every == 0 {
         return 0;
     }
-    let (config, store) = (&meta.config, &meta.store);
-    let total = config.relax_steps + config.steps;
-    let first = total.saturating_sub(store.clv_steps + store.transient);
-    let last = total.saturating_sub(opts.transient);
-    let (d, k) = (config.system.dim() as u64, config.vectors as u64);
+    let (d, k) = (meta.config.system.dim() as u64, meta.config.vectors as u64);
     let vectors = 8 * d * k * (1 + u64::from(opts.with_gs));
-    (first..=last).filter(|&n| on_stride(n, opts.save_every)).map(|n| 8 * (d + k) + if on_stride(n, opts.vectors_every) { vectors } else { 0 }).sum()
+    (window.first..=window.last).filter(|&n| on_stride(n, opts.save_every)).map(|n| 8 * (d + k) + if on_stride(n, opts.vectors_every) { vectors } else { 0 }).sum()
 }
 
 /// Progress hooks: called with (steps recomputed, frames emitted) as the sweep advances.

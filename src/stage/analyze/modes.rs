@@ -431,11 +431,30 @@ impl Analysis for Modes {
                 found.join("; ")
             ),
         };
+        let caption = match y_modes_note(ctx.lx, ctx.ly) {
+            Some(note) if why.is_none() => format!("{caption} {note}"),
+            _ => caption,
+        };
         produced.push(Produced { title: "Lyapunov modes (Table IV)".into(), caption, figures: vec![], tables });
         produced.extend(pattern_entries);
         produced.extend(dispersion(ctx, &rows, out)?);
         Ok(produced)
     }
+}
+
+/// A warning for boxes in which modes along y compete with the candidates: those have wave
+/// numbers 2 pi n_y / L_y, and only (n_x, 0) modes are tried, as in the paper, whose narrow box
+/// (L_y = 2/11 L_x) puts the first y mode beyond n_x = 5 (paper Sec. 5.5). None when
+/// 2 pi / L_y exceeds the largest candidate wave number 2 pi MAX_N / L_x.
+fn y_modes_note(lx: f64, ly: f64) -> Option<String> {
+    let (k_y, k_max) = (km::wave_number(1, ly), km::wave_number(MAX_N, lx));
+    (k_y <= k_max).then(|| {
+        format!(
+            "Caution: in this box (L_y/L_x = {:.3}) modes along y, (0, n_y) with k = 2π n_y/L_y = {k_y:.3} for n_y = 1, lie among the candidates' wave numbers (up to {k_max:.3}) but are not tried, \
+             and modes of equal k along x and y form steps of 4 or 8 exponents: steps here may be unclassified or misnamed. The classification is made for narrow boxes, L_y < L_x/{MAX_N}, like the paper's.",
+            ly / lx
+        )
+    })
 }
 
 /// Least-squares line through the origin, y = c x: c and its standard error from the
@@ -708,6 +727,17 @@ mod tests {
         }
         let produced = a.finish(&out, frames.len() as u64).unwrap();
         (out, produced)
+    }
+
+    #[test]
+    fn only_boxes_with_competing_y_modes_get_the_caution() {
+        // the paper's box: 2 pi / L_y is 5.5 times 2 pi / L_x
+        assert!(y_modes_note(39.4425, 39.4425 * 2.0 / 11.0).is_none());
+        let note = y_modes_note(20.0, 20.0).expect("a square box");
+        assert!(note.contains("L_y/L_x = 1.000") && note.contains(&format!("{:.3}", std::f64::consts::TAU / 20.0)), "{note}");
+        // the border: L_y = L_x / MAX_N puts the first y mode at the largest candidate
+        assert!(y_modes_note(40.0, 40.0 / MAX_N as f64).is_some());
+        assert!(y_modes_note(40.0, 40.0 / MAX_N as f64 * 0.99).is_none());
     }
 
     #[test]
