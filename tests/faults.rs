@@ -461,10 +461,18 @@ fn damaged_frame_files_and_cut_streams_are_reported() {
         }
         let path = dir.parent().unwrap().join(format!("damaged-{i}.mcap"));
         std::fs::write(&path, &damaged).unwrap();
-        let out = clv(&["analyze", path.to_str().unwrap(), "--out", dir.parent().unwrap().join(format!("an-{i}")).to_str().unwrap()]);
+        let report = dir.parent().unwrap().join(format!("an-{i}"));
+        let out = clv(&["analyze", path.to_str().unwrap(), "--out", report.to_str().unwrap()]);
         let err = stderr(&out);
         assert!(!out.status.success(), "damage {i} at byte {at} went unnoticed");
         assert!(err.contains(&format!("damaged-{i}.mcap")) && !err.contains("panicked"), "{err}");
+        // A report made of the frames before the damage says so at its head; no frame of a
+        // damaged chunk reaches it (chunks are checked whole before their messages are read).
+        if let Ok(summary) = std::fs::read(report.join("summary.json")) {
+            let v: serde_json::Value = serde_json::from_slice(&summary).unwrap();
+            assert!(v["warnings"][0].as_str().is_some_and(|w| w.contains("damaged")), "damage {i} at byte {at}: {v}");
+            assert!(std::fs::read_to_string(report.join("index.html")).unwrap().contains("Incomplete stream"));
+        }
         // clv inspect finds the same damage.
         let seen = clv(&["inspect", path.to_str().unwrap()]);
         assert!(!seen.status.success() && !stderr(&seen).contains("panicked"), "inspect missed damage {i} at byte {at}");
@@ -489,4 +497,45 @@ fn damaged_frame_files_and_cut_streams_are_reported() {
     let out = child.wait_with_output().unwrap();
     let err = stderr(&out);
     assert!(!out.status.success() && err.contains("complete frames") && err.contains("<stdin>"), "{err}");
+}
+
+/// A bit flipped anywhere in the segment the backward stage reads: it stops with an error
+/// that names the file and the repair, or, where the damage is outside what it reads, gives
+/// the undamaged run's exponents. It never panics, aborts, or reports other numbers.
+#[test]
+fn a_damaged_segment_stops_the_backward_stage_and_names_the_repair() {
+    let (dir, _) = reference("segment-damage");
+    let clean = ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--json", "--save-every", "0"]));
+    let want: serde_json::Value = serde_json::from_slice(&clean.stdout).unwrap();
+    let mut segments: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|x| x == "mcap")).collect();
+    segments.sort();
+    let newest = segments.last().unwrap().file_name().unwrap().to_owned();
+    let bytes = std::fs::read(dir.join(&newest)).unwrap();
+    let mut rng = Rng::new(11);
+    let (mut stopped, mut trials) = (0, 0);
+    for i in 0..12 {
+        let copy = dir.parent().unwrap().join(format!("damaged-{i}"));
+        copy_dir(&dir, &copy);
+        let _ = std::fs::remove_file(copy.join("backward.json"));
+        let mut damaged = bytes.clone();
+        let at = rng.below(bytes.len());
+        damaged[at] ^= 1 << rng.below(8);
+        std::fs::write(copy.join(&newest), &damaged).unwrap();
+        let out = clv(&["backward", copy.to_str().unwrap(), "--quiet", "--json", "--save-every", "0"]);
+        let err = stderr(&out);
+        trials += 1;
+        match out.status.code() {
+            Some(0) => {
+                let got: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+                assert_eq!(got["exponents"], want["exponents"], "damage at byte {at} changed the numbers");
+            }
+            Some(1) => {
+                stopped += 1;
+                assert!(err.contains(newest.to_str().unwrap()) && err.contains("clv forward --resume"), "damage at byte {at}: {err}");
+            }
+            code => panic!("damage at byte {at}: exit {code:?}: {err}"),
+        }
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    assert!(stopped > trials / 2, "only {stopped} of {trials} flipped bits were noticed");
 }

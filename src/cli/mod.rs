@@ -66,6 +66,7 @@ pub struct ConfigArgs {
     pub preset: String,
 }
 
+/// A progress bar for `what`, unless the command is --quiet.
 pub fn progress(what: &str, quiet: bool) -> Option<ProgressBar> {
     if quiet {
         return None;
@@ -73,6 +74,7 @@ pub fn progress(what: &str, quiet: bool) -> Option<ProgressBar> {
     Some(clv::report::progress::steps(what))
 }
 
+/// The one line of a clap error that says what is wrong (without usage and hints).
 pub fn first_line(e: &clap::Error) -> String {
     e.to_string().lines().next().unwrap_or_default().trim_start_matches("error: ").to_string()
 }
@@ -117,7 +119,6 @@ fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
     argv.extend(rest);
     Ok(argv)
 }
-
 
 /// The command line, with a `--config FILE` of `clv forward` expanded. Clap's own errors
 /// (and --help, --version) exit here, as clap does.

@@ -320,16 +320,45 @@ fn damaged(e: Error) -> Error {
 /// the file whole). A damaged chunk here cannot pass unnoticed: it fails to decode, or the
 /// recomputation from it fails the bitwise check against the next checkpoint.
 fn indexed_checkpoint(path: &Path, step: u64) -> Option<Vec<u8>> {
+    // The index and chunk headers are checked below before anything is decompressed; a
+    // panic of the mcap crate on damage they do not catch is the strict read's to report.
+    std::panic::catch_unwind(|| indexed_checkpoint_unguarded(path, step)).ok().flatten()
+}
+
+fn indexed_checkpoint_unguarded(path: &Path, step: u64) -> Option<Vec<u8>> {
     let file = std::fs::File::open(path).ok()?;
     // SAFETY: finished segments are never modified (written under a temporary name, renamed).
     let map = unsafe { memmap2::Mmap::map(&file) }.ok()?;
     let summary = mcap::Summary::read(&map).ok()??;
     let channel = summary.channels.values().find(|c| c.topic == CHECKPOINT.topic)?.id;
+    let limit = crate::store::segment::record_limit(map.len() as u64);
     for index in summary.chunk_indexes.iter().filter(|c| c.message_start_time <= step && step <= c.message_end_time) {
-        for message in summary.stream_chunk(&map, index).ok()? {
-            let message = message.ok()?;
-            if message.channel.id == channel && message.log_time == step {
-                return Some(message.data.into_owned());
+        // The chunk is decompressed here, into at most its stated size, and its CRC checked
+        // before a record in it is parsed: the mcap crate's chunk reader trusts the lengths
+        // inside a chunk, and a damaged one would make it ask for impossible memory.
+        let start = usize::try_from(index.chunk_start_offset).ok()?;
+        let end = start.checked_add(usize::try_from(index.chunk_length).ok()?)?;
+        let record = map.get(start.checked_add(9)?..end)?;
+        let mcap::records::Record::Chunk { header, data } = mcap::parse_record(mcap::records::op::CHUNK, record).ok()? else { return None };
+        if header.compression != "zstd" || header.uncompressed_size > limit {
+            return None;
+        }
+        let raw = zstd::bulk::decompress(&data, usize::try_from(header.uncompressed_size).ok()?).ok()?;
+        if raw.len() as u64 != header.uncompressed_size || crc32fast::hash(&raw) != header.uncompressed_crc {
+            return None;
+        }
+        let mut rest = &raw[..];
+        while let Some((&opcode, after)) = rest.split_first() {
+            let len = usize::try_from(u64::from_le_bytes(after.get(..8)?.try_into().ok()?)).ok()?;
+            let body = after.get(8..8usize.checked_add(len)?)?;
+            rest = &after[8 + len..];
+            // a message: channel id (u16), sequence (u32), log time (u64), publish time (u64), data
+            if opcode == mcap::records::op::MESSAGE && body.len() >= 22 {
+                let channel_id = u16::from_le_bytes(body[..2].try_into().ok()?);
+                let log_time = u64::from_le_bytes(body[6..14].try_into().ok()?);
+                if channel_id == channel && log_time == step {
+                    return Some(body[22..].to_vec());
+                }
             }
         }
     }
@@ -692,6 +721,7 @@ pub fn run(
     let producer_config = config.clone();
     let segments = dir.segments()?;
     let producer_todo = todo.clone();
+    let (planned, swept_before) = (todo.len() as u64, stats.segments);
     let producer_cores = cores.clone();
     let vectors_every = opts.vectors_every;
     let reads_g = move |n: u64| n >= window.first && n <= window.last && on_stride(n, vectors_every);
@@ -816,9 +846,23 @@ pub fn run(
         cores.set_sweeping(false);
     }
     drop(rx);
-    let _ = producer.join();
+    let joined = producer.join();
     if let Some(e) = failure {
         return Err(e);
+    }
+    // The recomputation ends early only with an error it sends, or by a bug: never take
+    // its silence for the end of the window.
+    if !stopped && (joined.is_err() || stats.segments - swept_before < planned) {
+        let why = match joined {
+            Err(panic) => panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default(),
+            Ok(()) => "it stopped without an error".into(),
+        };
+        return Err(Error::Other(format!(
+            "the recomputation of the run's segments failed after {} of {planned} segments ({why}); nothing was marked finished. \
+             Check the run with `clv inspect {}` (a damaged segment is recomputed by `clv forward --resume`), then give this command again with --resume",
+            stats.segments - swept_before,
+            dir.path.display()
+        )));
     }
     stats.stopped_early = stopped;
     stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();

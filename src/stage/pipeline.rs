@@ -87,7 +87,7 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
     };
     let clv = backward::run(&run_dir, &opts, false, 4096 << 20, Some(config.threads), &mut consumer, &mut on_progress)?;
     let produced = match analyzer {
-        Some(a) => a.finish()?.produced,
+        Some(a) => a.finish(None)?.produced,
         None => Vec::new(),
     };
     Ok(PipelineResult { run_dir, report_dir, produced, clv })

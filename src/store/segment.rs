@@ -162,12 +162,20 @@ pub enum ReadMode {
 pub fn read_segment(path: &Path, mode: ReadMode, visit: impl FnMut(Message) -> Result<()>) -> Result<ReadReport> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     let len = file.metadata().map(|m| m.len()).unwrap_or(u64::MAX);
-    read_stream_limited(path, std::io::BufReader::with_capacity(1 << 20, file), mode, len, visit)
+    read_stream_limited(path, std::io::BufReader::with_capacity(1 << 20, file), mode, record_limit(len), visit)
 }
 
 /// Largest record accepted from a stream of unknown length (a record length field beyond
 /// it is damage, not a reason to allocate).
 const STREAM_RECORD_LIMIT: u64 = 1 << 32;
+
+/// Largest record, and largest decompressed chunk, accepted from a file of `len` bytes: a
+/// chunk may decompress to more than the file holds (our chunks are a few MB, or one frame,
+/// and floating-point data compresses little), so the bound is generous, but a damaged length
+/// field can no longer ask for more memory than that.
+pub fn record_limit(len: u64) -> u64 {
+    len.saturating_mul(64).max(256 << 20).min(STREAM_RECORD_LIMIT)
+}
 
 /// [`read_segment`] over any byte stream (a file, or standard input); `name` is used in errors.
 pub fn read_stream(name: &Path, input: impl Read, mode: ReadMode, visit: impl FnMut(Message) -> Result<()>) -> Result<ReadReport> {
@@ -177,12 +185,14 @@ pub fn read_stream(name: &Path, input: impl Read, mode: ReadMode, visit: impl Fn
 /// The bytes every MCAP file begins (and ends) with.
 const MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
-/// [`read_stream`] refusing records longer than `max_record` bytes (for a file: its size).
+/// [`read_stream`] refusing records (and decompressed chunks) longer than `max_record` bytes.
 fn read_stream_limited(name: &Path, mut input: impl Read, mode: ReadMode, max_record: u64, mut visit: impl FnMut(Message) -> Result<()>) -> Result<ReadReport> {
     let partial = mode == ReadMode::Salvage;
     let options = LinearReaderOptions::default()
         .with_skip_end_magic(partial)
-        .with_validate_chunk_crcs(true)
+        // A chunk is checked whole before any of its messages is handed on: a damaged chunk
+        // must not feed an analysis some of its messages first.
+        .with_prevalidate_chunk_crcs(true)
         .with_validate_data_section_crc(!partial)
         .with_validate_summary_section_crc(!partial)
         .with_record_length_limit(max_record.min(STREAM_RECORD_LIMIT) as usize);

@@ -337,7 +337,9 @@ impl Analyzer {
     }
 
     /// Wait for every analysis, then write index.html and summary.json.
-    pub fn finish(mut self) -> Result<Analysed> {
+    /// Join the analyses and write the index; `damage` (the stream ended early or broke) is
+    /// put at the head of the index and of summary.json's warnings.
+    pub fn finish(mut self, damage: Option<&str>) -> Result<Analysed> {
         let mut produced = Vec::new();
         let mut errors = Vec::new();
         for w in &mut self.workers {
@@ -350,7 +352,9 @@ impl Analyzer {
                 Err(_) => errors.push(format!("analysis {} panicked", w.name)),
             }
         }
-        let warnings: Vec<String> = self.ctx.coverage_warning(self.first_step, self.last_step).into_iter().filter(|_| self.frames > 0).collect();
+        let damaged = damage.map(|d| format!("The stream ends early or is damaged ({d}); every result here is from the {} complete frames before that point.", self.frames));
+        let coverage = self.ctx.coverage_warning(self.first_step, self.last_step).filter(|_| self.frames > 0);
+        let warnings: Vec<String> = damaged.into_iter().chain(coverage).collect();
         write_index(&self.ctx, &self.out, &produced, &warnings, self.frames, self.first_step, self.last_step)?;
         if !errors.is_empty() {
             return Err(Error::Other(errors.join("; ")));
@@ -530,7 +534,7 @@ pub fn analyze_source(
             None => format!("{name}: no frames in the stream: its writer sent none (`clv backward --resume` of a sweep that had finished sends none; start it without --resume)"),
         }));
     };
-    let analysed = analyzer.finish()?;
+    let analysed = analyzer.finish(damage.as_deref())?;
     if let Some(d) = damage {
         return Err(Error::corrupt(
             &name,
