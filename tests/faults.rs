@@ -539,3 +539,58 @@ fn a_damaged_segment_stops_the_backward_stage_and_names_the_repair() {
     }
     assert!(stopped > trials / 2, "only {stopped} of {trials} flipped bits were noticed");
 }
+
+/// A segment that cannot be read (a directory in its place here, a file without read
+/// permission when not run as root) is not damage: resume and inspect stop and say so,
+/// and nothing is moved aside or recomputed.
+#[test]
+fn an_unreadable_segment_is_not_taken_for_damage() {
+    let (dir, before) = reference("unreadable");
+    let d = dir.to_str().unwrap();
+    let mut segments: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|x| x == "mcap")).collect();
+    segments.sort();
+    let first = segments[0].clone();
+    let kept = dir.parent().unwrap().join("kept.mcap");
+    let as_root = unsafe { libc::geteuid() } == 0;
+    let make_unreadable = |how: usize| {
+        if how == 0 {
+            std::fs::rename(&first, &kept).unwrap();
+            std::fs::create_dir(&first).unwrap();
+        } else {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&first, std::fs::Permissions::from_mode(0o000)).unwrap();
+        }
+    };
+    let restore = |how: usize| {
+        if how == 0 {
+            std::fs::remove_dir(&first).unwrap();
+            std::fs::rename(&kept, &first).unwrap();
+        } else {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&first, std::fs::Permissions::from_mode(0o644)).unwrap();
+        }
+    };
+    for how in if as_root { vec![0] } else { vec![0, 1] } {
+        make_unreadable(how);
+        let out = clv(&["forward", "--resume", d, "--quiet"]);
+        let err = stderr(&out);
+        assert!(!out.status.success() && err.contains(first.file_name().unwrap().to_str().unwrap()) && err.contains("nothing was changed"), "{err}");
+        let out = clv(&["inspect", d]);
+        assert!(!out.status.success() && stderr(&out).contains("cannot be read"), "{}", stderr(&out));
+        restore(how);
+        assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().contains(".corrupt")), "a segment was set aside");
+        assert!(contents(&dir) == before, "the run changed");
+    }
+}
+
+/// A reader that has gone before the table is printed (`clv forward ... | head -0`) ends
+/// nothing badly: the command exits 0 without a panic.
+#[test]
+fn a_closed_standard_output_is_no_error() {
+    for args in [&["forward", "--n", "8", "--aspect", "1", "--steps", "5000", "--quiet"][..], &["forward", "--n", "8", "--aspect", "1", "--steps", "5000", "--quiet", "--json"]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        assert!(out.status.success() && !stderr(&out).contains("panicked"), "{args:?}: {:?} {}", out.status, stderr(&out));
+    }
+}

@@ -408,6 +408,18 @@ fn vectors_for_every_mth_frame_give_the_analyses_of_the_full_stream() {
     let err = common::stderr(&out);
     assert!(!out.status.success() && err.contains("--every") && err.contains("--vectors-every 3"), "{err}");
     assert!(!base.join("x").join("index.html").exists());
+    // A stride that no frame of the stream is on is refused before anything is written.
+    let out = clv(&["analyze", full.to_str().unwrap(), "--out", base.join("y").to_str().unwrap(), "--every", "300000"]);
+    let err = common::stderr(&out);
+    assert!(!out.status.success() && err.contains("--every") && err.contains("no step among them"), "{err}");
+    assert!(!base.join("y").exists());
+    // A window length longer than the stream measures nothing, and the verdict on domination
+    // is taken from the lengths that fit.
+    let z = base.join("z");
+    ok(clv(&["analyze", full.to_str().unwrap(), "--out", z.to_str().unwrap(), "--only", "local_exponents", "--deltas", "1,100000"]));
+    let summary: serde_json::Value = serde_json::from_str(&read(&z.join("summary.json"))).unwrap();
+    let caption = summary["produced"].as_array().unwrap().iter().find(|p| p["title"].as_str().is_some_and(|t| t.contains("Domination"))).unwrap()["caption"].as_str().unwrap().to_string();
+    assert!(!caption.contains(": NaN") && !caption.contains("NaN of the windows") && !caption.contains("at Δ = 100000") && caption.contains("never swap"), "{caption}");
 }
 
 #[test]

@@ -1,6 +1,6 @@
 //! `clv backward`: the Ginelli pass over a finished run, frames to a file or standard output.
 
-use super::{print_json, progress};
+use super::{emit, print_json, progress};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 use clv::{Error, Result};
@@ -151,9 +151,11 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if args.json {
         print_json(&report)?;
     } else if !to_stdout {
-        println!("{:>6}  {:>14}  {:>10}  {:>14}  {:>10}", "i", "lambda_i (CLV)", "stderr", "lambda_i (GS)", "stderr");
+        use std::fmt::Write;
+        let mut table = format!("{:>6}  {:>14}  {:>10}  {:>14}  {:>10}\n", "i", "lambda_i (CLV)", "stderr", "lambda_i (GS)", "stderr");
         for i in 0..report.exponents.len() {
-            println!(
+            let _ = writeln!(
+                table,
                 "{:>6}  {:>14.8}  {:>10.2e}  {:>14.8}  {:>10.2e}",
                 i + 1,
                 report.exponents[i],
@@ -163,9 +165,10 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
             );
         }
         use clv::stage::forward::Estimate;
-        println!("KS entropy (sum of the positive exponents): {} (CLV), {} (GS)", Estimate::or_unknown(report.ks_entropy), Estimate::or_unknown(report.gs_ks_entropy));
+        let _ = writeln!(table, "KS entropy (sum of the positive exponents): {} (CLV), {} (GS)", Estimate::or_unknown(report.ks_entropy), Estimate::or_unknown(report.gs_ks_entropy));
         let st = &report.statistics;
-        println!("{} frames (steps {}..{}), {} steps recomputed in {} segments, {:.1} s", st.frames, st.first_frame_step, st.last_frame_step, st.recomputed_steps, st.segments, st.wall_seconds);
+        let _ = writeln!(table, "{} frames (steps {}..{}), {} steps recomputed in {} segments, {:.1} s", st.frames, st.first_frame_step, st.last_frame_step, st.recomputed_steps, st.segments, st.wall_seconds);
+        emit(&table)?;
     }
     Ok(())
 }

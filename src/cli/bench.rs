@@ -1,6 +1,6 @@
 //! `clv bench`: kernels and stages measured side by side on this machine.
 
-use super::print_json;
+use super::{emit, print_json};
 use clap::Args;
 use clv::Result;
 
@@ -39,5 +39,5 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         exe: if args.no_rss { None } else { std::env::current_exe().ok() },
     };
     let report = clv::bench::run(&opts, &mut |what| eprintln!("clv bench: {what}"))?;
-    if args.json { print_json(&report) } else { Ok(print!("{}", report.table())) }
+    if args.json { print_json(&report) } else { emit(&report.table()) }
 }

@@ -1,7 +1,7 @@
 //! `clv forward`: the Gram-Schmidt pass, in memory or into a run directory that can be
 //! resumed and extended; its flags define a run (`clv run` and configuration files reuse them).
 
-use super::{print_json, progress};
+use super::{emit, print_json, progress};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 use clv::config::{RunConfig, SystemConfig};
@@ -291,7 +291,7 @@ pub fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
 }
 
 fn print_report(report: &SpectrumReport, json: bool) -> Result<()> {
-    if json { print_json(report) } else { Ok(print!("{}", report.table())) }
+    if json { print_json(report) } else { emit(&report.table()) }
 }
 
 /// The forward pass in memory, nothing written.

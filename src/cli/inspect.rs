@@ -1,6 +1,6 @@
 //! `clv inspect`: what a run directory or a frame file holds, and whether it is intact.
 
-use super::print_json;
+use super::{emit, print_json};
 use clap::Args;
 use clv::report::inspect;
 use clv::{Error, Result};
@@ -35,5 +35,5 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
 
 /// An inspection as one JSON object, or as its text.
 fn print_inspection<T: serde::Serialize>(found: &T, text: String, json: bool) -> Result<()> {
-    if json { print_json(found) } else { Ok(print!("{text}")) }
+    if json { print_json(found) } else { emit(&text) }
 }

@@ -139,16 +139,24 @@ pub fn execute(cli: &Cli, matches: &ArgMatches) -> Result<()> {
         Command::Inspect(args) => inspect::inspect(args),
         Command::Analyze(args) => analyze::analyze(args),
         Command::Run(args) => run::run(args),
-        Command::Combine(args) => clv::report::combine::combine(&args.runs).and_then(|c| if args.json { print_json(&c) } else { Ok(print!("{}", c.table())) }),
+        Command::Combine(args) => clv::report::combine::combine(&args.runs).and_then(|c| if args.json { print_json(&c) } else { emit(&c.table()) }),
         Command::Bench(args) => bench::bench(args),
-        Command::Config(args) => RunConfig::preset(&args.preset).map(|c| {
-            print!("{}", clv::report::config_file::render(&args.preset, &c, &clv::store::run::StoreConfig::for_run(&c)));
-        }),
+        Command::Config(args) => RunConfig::preset(&args.preset).and_then(|c| emit(&clv::report::config_file::render(&args.preset, &c, &clv::store::run::StoreConfig::for_run(&c)))),
     }
 }
 
 /// `found` as one JSON object on standard output (every subcommand's --json).
 pub fn print_json<T: serde::Serialize>(found: &T) -> Result<()> {
-    println!("{}", serde_json::to_string(found).map_err(|e| Error::Other(e.to_string()))?);
-    Ok(())
+    emit(&(serde_json::to_string(found).map_err(|e| Error::Other(e.to_string()))? + "\n"))
+}
+
+/// `text` on standard output. A reader that has gone (`clv inspect RUN | head -1`) is no
+/// error: what it did not read was not wanted.
+pub fn emit(text: &str) -> Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        written => written.map_err(|e| Error::io("<standard output>", e)),
+    }
 }

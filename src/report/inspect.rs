@@ -80,6 +80,9 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             }
             Ok(())
         });
+        if let Err(e @ crate::Error::Io { .. }) = result {
+            return Err(crate::Error::Other(format!("{e}: the file cannot be read, which is not damage (its permissions, the disk?); nothing was checked")));
+        }
         if let Ok(report) = &result
             && let Some(theirs) = report.run_json.as_deref().and_then(|j| serde_json::from_str::<RunMeta>(j).ok())
             && !meta.same_trajectory(&theirs)

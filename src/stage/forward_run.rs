@@ -314,7 +314,17 @@ struct Triage {
 /// them as `.superseded`, together with any a repair that was itself interrupted left.
 fn triage(dir: &RunDir, feedback: &mut Feedback) -> Result<Triage> {
     let segments = dir.segments()?;
-    let reads: Vec<Result<()>> = segments.iter().map(|seg| read_last(&seg.path).map(drop)).collect();
+    let mut reads = Vec::with_capacity(segments.len());
+    for seg in &segments {
+        match read_last(&seg.path) {
+            // A file that cannot be read (permissions, a failing disk) is not damaged:
+            // recomputing it and everything after it would cost hours for nothing.
+            Err(e @ Error::Io { .. }) => {
+                return Err(Error::Other(format!("{e}; nothing was changed: make the file readable (its permissions, the disk) and resume again")));
+            }
+            read => reads.push(read.map(drop)),
+        }
+    }
     let intact = reads.iter().position(Result::is_err).unwrap_or(segments.len());
     let mut superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
         .map_err(|e| Error::io(&dir.path, e))?

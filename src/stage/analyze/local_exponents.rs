@@ -277,6 +277,8 @@ impl Analysis for LocalExponents {
         }
         fig.hline(0.0);
         save_figure(&fig, out, "domination")?;
+        // The longest window length that fits in the frames (NaN rows measure nothing).
+        let longest = (0..self.deltas.len()).rev().find(|&w| self.deltas[w] <= frames_n).unwrap_or(0);
         // Domination at the borders of the null space: the smallest measured Delta from which
         // neither border pair swaps again.
         let borders_text = if borders.is_empty() {
@@ -285,28 +287,32 @@ impl Analysis for LocalExponents {
             let at = |w: usize| borders.iter().map(|&(_, i)| format!("{:.3e}", pairs[w][i])).collect::<Vec<_>>().join(" and ");
             let quiet = |w: usize| borders.iter().all(|&(_, i)| pairs[w][i] == 0.0);
             let names = format!("the pairs ({}, {}) between E^u and E^0 and ({}, {}) between E^0 and E^s", borders[0].1 + 1, borders[0].1 + 2, borders[1].1 + 1, borders[1].1 + 2);
-            match (0..self.deltas.len()).find(|&w| (w..self.deltas.len()).all(quiet)) {
+            // Only the window lengths that fit in the frames measure anything.
+            let measured: Vec<usize> = (0..self.deltas.len()).filter(|&w| self.deltas[w] <= frames_n).collect();
+            match measured.iter().position(|&from| measured.iter().filter(|&&w| w >= from).all(|&w| quiet(w))) {
                 Some(0) => format!(" At the borders of the null space, {names} never swap, not even in single steps: E^u ⊕ E^0 ⊕ E^s is dominated in these frames."),
-                Some(w) => format!(
+                Some(p) => format!(
                     " At the borders of the null space, {names} swap in {} of the windows at Δ = {} and in none from Δ = {} on: E^u ⊕ E^0 ⊕ E^s is dominated in these frames, with Δ_0 <= {}.",
-                    at(0),
-                    self.deltas[0],
-                    self.deltas[w],
-                    self.deltas[w]
+                    at(measured[0]),
+                    self.deltas[measured[0]],
+                    self.deltas[measured[p]],
+                    self.deltas[measured[p]]
                 ),
-                None => format!(" At the borders of the null space, {names} still swap at Δ = {}, in {} of the windows: no domination of E^u ⊕ E^0 ⊕ E^s is seen in these frames.", self.deltas[self.deltas.len() - 1], at(self.deltas.len() - 1)),
+                None => match measured.last() {
+                    Some(&w) => format!(" At the borders of the null space, {names} still swap at Δ = {}, in {} of the windows: no domination of E^u ⊕ E^0 ⊕ E^s is seen in these frames.", self.deltas[w], at(w)),
+                    None => format!(" No window length Δ fits in the {frames_n} frames, so nothing is said about the borders of the null space."),
+                },
             }
         };
         produced.push(Produced {
             title: "Domination of the Oseledec splitting (Sec. 6)".into(),
             caption: format!(
-                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over all {} adjacent pairs{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0 (degenerate exponents, as in the null space and the modes, swap for every Δ). Overall fraction at Δ = {}: {:.3e}; at Δ = {}: {:.3e}.{borders_text}{unfilled}{caveat}",
+                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over all {} adjacent pairs{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0 (degenerate exponents, as in the null space and the modes, swap for every Δ). Overall fraction at Δ = {}: {:.3e}{}.{borders_text}{unfilled}{caveat}",
                 ctx.k.saturating_sub(1),
                 if ctx.is_disks() { ", averaged over the pairs outside the null space" } else { "" },
                 self.deltas[0],
                 overall[0],
-                self.deltas[self.deltas.len() - 1],
-                overall[overall.len() - 1],
+                if longest > 0 { format!("; at Δ = {}: {:.3e}", self.deltas[longest], overall[longest]) } else { String::new() },
             ),
             figures: vec!["domination".into()],
             tables: vec!["domination.csv".into(), "domination_pairs.csv".into()],

@@ -142,6 +142,15 @@ impl Context {
         if deltas.contains(&0) {
             return Err(Error::param("deltas", "window lengths must be at least 1 step"));
         }
+        let frame_steps = run.as_ref().zip(backward.as_ref()).and_then(|(m, o)| Window::of(m, o).ok()?.frame_steps(o));
+        if let Some((oldest, newest)) = frame_steps
+            && newest / every * every < oldest
+        {
+            return Err(Error::param(
+                "every",
+                format!("{source} holds the frames of steps {oldest}..{newest}, and no step among them is a multiple of {every}: the vector statistics would have no frame; give a smaller m (by default about 400 frames are sampled)"),
+            ));
+        }
         Ok(Context {
             gs,
             system,
@@ -154,7 +163,7 @@ impl Context {
             with_gs,
             options: Options { every, j, deltas },
             source: source.to_string(),
-            frame_steps: run.as_ref().zip(backward.as_ref()).and_then(|(m, o)| Window::of(m, o).ok()?.frame_steps(o)),
+            frame_steps,
             run,
         })
     }
@@ -274,6 +283,8 @@ pub struct Analyzer {
     out: PathBuf,
     workers: Vec<Worker>,
     frames: u64,
+    /// Frames on the stride `--every`: those the vector statistics read.
+    sampled: u64,
     first_step: u64,
     last_step: u64,
 }
@@ -303,7 +314,7 @@ impl Analyzer {
                 .map_err(|e| Error::Other(format!("cannot start analysis {name}: {e}")))?;
             workers.push(Worker { name, tx: Some(tx), handle });
         }
-        Ok(Analyzer { ctx, out: out.to_path_buf(), workers, frames: 0, first_step: u64::MAX, last_step: 0 })
+        Ok(Analyzer { ctx, out: out.to_path_buf(), workers, frames: 0, sampled: 0, first_step: u64::MAX, last_step: 0 })
     }
 
     /// Hand a frame to every analysis. A failed analysis stops the stream with its error.
@@ -319,6 +330,7 @@ impl Analyzer {
             ));
         }
         self.frames += 1;
+        self.sampled += u64::from(on_stride(frame.step, self.ctx.options.every));
         self.first_step = self.first_step.min(frame.step);
         self.last_step = self.last_step.max(frame.step);
         for i in 0..self.workers.len() {
@@ -336,7 +348,6 @@ impl Analyzer {
         Ok(Flow::Continue)
     }
 
-    /// Wait for every analysis, then write index.html and summary.json.
     /// Join the analyses and write the index; `damage` (the stream ended early or broke) is
     /// put at the head of the index and of summary.json's warnings.
     pub fn finish(mut self, damage: Option<&str>) -> Result<Analysed> {
@@ -354,7 +365,13 @@ impl Analyzer {
         }
         let damaged = damage.map(|d| format!("The stream ends early or is damaged ({d}); every result here is from the {} complete frames before that point.", self.frames));
         let coverage = self.ctx.coverage_warning(self.first_step, self.last_step).filter(|_| self.frames > 0);
-        let warnings: Vec<String> = damaged.into_iter().chain(coverage).collect();
+        let unsampled = (self.frames > 0 && self.sampled == 0).then(|| {
+            format!(
+                "No frame of this stream (steps {}..{}) is on the stride --every {}: the analyses of vector statistics had no frame to read, and their tables are empty; give a smaller --every.",
+                self.first_step, self.last_step, self.ctx.options.every
+            )
+        });
+        let warnings: Vec<String> = damaged.into_iter().chain(coverage).chain(unsampled).collect();
         write_index(&self.ctx, &self.out, &produced, &warnings, self.frames, self.first_step, self.last_step)?;
         if !errors.is_empty() {
             return Err(Error::Other(errors.join("; ")));
