@@ -208,6 +208,23 @@ fn relaxed_forward(config: &RunConfig) -> Result<Forward> {
     Ok(f)
 }
 
+/// Refuse a system size the bench cannot build: it puts N disks in the paper's box (density
+/// 0.7, Ly/Lx = 2/11), whose short side must exceed a diameter, and it must fit in memory
+/// (a kilobyte a disk is allowed; 10^6 disks without tangent vectors took 0.18 kB each).
+fn check_size(flag: &'static str, size: usize) -> Result<()> {
+    let (_, ly) = box_sides(size, 0.7, 2.0 / 11.0);
+    if ly <= 1.0 {
+        return Err(Error::param(flag, format!("{size} disks: the bench's box (the paper's shape, Ly/Lx = 2/11, at density 0.7) would be {ly:.2} disk diameters high, too narrow for a disk; give more disks")));
+    }
+    let need = 1024.0 * size as f64;
+    if let Some(have) = crate::machine::available_memory()
+        && need > have as f64
+    {
+        return Err(Error::param(flag, format!("{size} disks need about {:.1} GB, more than the {:.1} GB this machine has available; give fewer", need / 1e9, have as f64 / 1e9)));
+    }
+    Ok(())
+}
+
 pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     let (n, threads, reps) = (o.n, o.threads, o.reps);
     for (name, value) in [("threads", threads), ("reps", reps), ("n", n)] {
@@ -221,6 +238,10 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     }
     if let Some(&bad) = o.collision_sizes.iter().find(|&&size| size < 2) {
         return Err(Error::param("collision-sizes", format!("{bad} disks cannot collide with each other; give sizes of at least 2")));
+    }
+    check_size("n", n)?;
+    for &size in &o.collision_sizes {
+        check_size("collision-sizes", size)?;
     }
     let k = o.k.unwrap_or(d);
     let p = par(threads);

@@ -50,6 +50,10 @@ fn bench_refuses_options_that_measure_nothing() {
         (&["--n", "0"], "--n"),
         (&["--vectors", "5000"], "--vectors"),
         (&["--collision-sizes", "8,1"], "--collision-sizes"),
+        // too few disks for the bench's box, and more than any memory holds
+        (&["--n", "3"], "--n"),
+        (&["--n", "8", "--collision-sizes", "5"], "--collision-sizes"),
+        (&["--n", "8", "--collision-sizes", "200000000000"], "--collision-sizes"),
     ] {
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_clv")).arg("bench").args(args).output().unwrap();
         let err = String::from_utf8_lossy(&out.stderr);

@@ -385,6 +385,10 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
         // More memory than any machine has: refused, not aborted by a failed allocation.
         (vec!["forward", "--n", "100000000", "--steps", "100", "--out", o], "--vectors: all D = 400000000 vectors need about"),
         (vec!["forward", "--n", "4", "--relax-steps", "18446744073709551615", "--steps", "10", "--out", o], "--steps"),
+        // A box given by its sides and by density at once; sides too large for the positions.
+        (vec!["forward", "--n", "8", "--lx", "5", "--ly", "5", "--density", "0.5", "--out", o], "--density"),
+        (vec!["forward", "--n", "8", "--lx", "1e300", "--ly", "1e300", "--out", o], "--lx: a box side of 1e300"),
+        (vec!["forward", "--n", "8", "--lx", "0.5", "--ly", "5", "--out", o], "a larger --lx"),
     ];
     for (args, needle) in cases {
         let out = clv(&args);

@@ -45,10 +45,10 @@ pub struct ForwardArgs {
     #[arg(long, default_value = "2/11", value_parser = parse_ratio, allow_negative_numbers = true)]
     pub aspect: f64,
     /// Box side Lx (with --ly, instead of --density and --aspect).
-    #[arg(long, requires = "ly", allow_negative_numbers = true)]
+    #[arg(long, requires = "ly", conflicts_with_all = ["density", "aspect"], allow_negative_numbers = true)]
     pub lx: Option<f64>,
     /// Box side Ly (with --lx).
-    #[arg(long, requires = "lx", allow_negative_numbers = true)]
+    #[arg(long, requires = "lx", conflicts_with_all = ["density", "aspect"], allow_negative_numbers = true)]
     pub ly: Option<f64>,
     /// Time between re-orthonormalisations (default 0.6 for disks, 1 for Henon, 0.1 for Lorenz).
     #[arg(long, allow_negative_numbers = true)]

@@ -125,6 +125,19 @@ fn cells_along(l: f64) -> usize {
     ((l / (1.0 + 1e-9)).floor() as usize).max(1)
 }
 
+/// Cells per direction for `n` disks: [`cells_along`] each side, unless that makes more than
+/// four cells per disk (a dilute gas), where wider cells keep the number near that (clearing
+/// and scanning empty cells would cost more than the collisions).
+pub(super) fn cell_counts(lx: f64, ly: f64, n: usize) -> [usize; 2] {
+    let fine = [cells_along(lx), cells_along(ly)];
+    let most = 4 * n.max(4);
+    if fine[0].saturating_mul(fine[1]) <= most {
+        return fine;
+    }
+    let w = (lx * ly / most as f64).sqrt();
+    [((lx / w) as usize).clamp(1, fine[0]), ((ly / w) as usize).clamp(1, fine[1])]
+}
+
 fn wrap_cell(c: i64, n: usize) -> (usize, i8) {
     if c < 0 {
         ((c + n as i64) as usize, -1)
@@ -271,7 +284,7 @@ impl Engine {
 
     fn rebuild(&mut self, d: &mut Disks) {
         let n = d.pos.len();
-        self.nc = [cells_along(d.lx), cells_along(d.ly)];
+        self.nc = cell_counts(d.lx, d.ly, n);
         self.w = [d.lx / self.nc[0] as f64, d.ly / self.nc[1] as f64];
         self.members.resize_with(self.nc[0] * self.nc[1], Vec::new);
         self.members.truncate(self.nc[0] * self.nc[1]);

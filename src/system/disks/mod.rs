@@ -99,12 +99,22 @@ impl HardDisks {
     }
 }
 
+/// Largest box side: positions carry absolute rounding errors of L * 2^-53, which must stay
+/// far below the disk diameter for contact times to mean anything.
+pub const MAX_SIDE: f64 = 1e9;
+
 fn check_box(lx: f64, ly: f64) -> Result<()> {
     for (name, l) in [("lx", lx), ("ly", ly)] {
         if !(l.is_finite() && l > 1.0) {
             return Err(Error::param(name, format!(
                 "the box side must exceed the disk diameter 1 (else a disk overlaps its own image), got {l}; \
-                 lower --density or bring --aspect closer to 1"
+                 lower --density or bring --aspect closer to 1 (or, giving the sides, a larger --{name})"
+            )));
+        }
+        if l > MAX_SIDE {
+            return Err(Error::param(name, format!(
+                "a box side of {l:e} disk diameters is beyond {MAX_SIDE:e}, where rounding in the positions approaches the contact distance; \
+                 raise --density or bring --aspect closer to 1 (or, giving the sides, a smaller --{name})"
             )));
         }
     }

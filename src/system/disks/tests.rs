@@ -334,3 +334,34 @@ fn collision_rate_is_enskogs() {
     eprintln!("omega = {omega}, Enskog {enskog}");
     assert!((omega / enskog - 1.0).abs() < 0.04, "{omega} collisions per disk and unit time against Enskog's {enskog}");
 }
+
+/// A dilute gas (density 0.02: 50 unit areas a disk) gets wider cells, about four a disk
+/// instead of fifty, and still misses no collision: its rate is the low-density Enskog one,
+/// the disks never overlap and the energy is conserved. Dense boxes keep unit-wide cells.
+#[test]
+fn dilute_gases_get_wider_cells_and_miss_no_collision() {
+    let (lx, ly) = box_sides(198, 0.7, 2.0 / 11.0);
+    assert_eq!(events::cell_counts(lx, ly, 198), [lx as usize, ly as usize], "the paper's box keeps cells of width ~1");
+    let (n, rho, tau, steps) = (100, 0.02, 0.6, 3000);
+    let (lx, ly) = box_sides(n, rho, 1.0);
+    let [cx, cy] = events::cell_counts(lx, ly, n);
+    assert!(cx * cy <= 4 * n && lx / cx as f64 >= 1.0 && cx * cy >= n, "{cx} x {cy} cells for {n} disks in {lx} x {ly}");
+    let mut s = HardDisks::new(n, lx, ly, tau, 5).unwrap();
+    let mut none = Tangent::zeros(4 * n, 0);
+    for _ in 0..200 {
+        s.advance(&mut none).unwrap();
+    }
+    let (start, c0) = (s.invariants(), s.collisions);
+    let mut worst = f64::INFINITY;
+    for _ in 0..steps {
+        s.advance(&mut none).unwrap();
+        worst = worst.min(s.min_separation());
+    }
+    let omega = 2.0 * (s.collisions - c0) as f64 / (n as f64 * steps as f64 * tau);
+    let eta = std::f64::consts::PI * rho / 4.0;
+    let enskog = 2.0 * rho * (1.0 - 7.0 * eta / 16.0) / (1.0 - eta).powi(2) * std::f64::consts::PI.sqrt();
+    eprintln!("dilute: omega = {omega}, Enskog {enskog}, {} collisions", s.collisions - c0);
+    assert!((omega / enskog - 1.0).abs() < 0.06, "{omega} collisions per disk and unit time against Enskog's {enskog}");
+    assert!(worst > 1.0 - 1e-9, "disks overlap, closest pair at {worst}");
+    assert!(((s.invariants().energy - start.energy) / start.energy).abs() < 1e-11);
+}
