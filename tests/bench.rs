@@ -52,7 +52,7 @@ fn bench_refuses_options_that_measure_nothing() {
         (&["--collision-sizes", "8,1"], "--collision-sizes"),
         // too few disks for the bench's box, and more than any memory holds
         (&["--n", "3"], "--n"),
-        (&["--n", "8", "--collision-sizes", "5"], "--collision-sizes"),
+        (&["--n", "8", "--collision-sizes", "3"], "--collision-sizes"),
         (&["--n", "8", "--collision-sizes", "200000000000"], "--collision-sizes"),
     ] {
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_clv")).arg("bench").args(args).output().unwrap();
