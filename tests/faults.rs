@@ -598,3 +598,38 @@ fn a_closed_standard_output_is_no_error() {
         assert!(out.status.success() && !stderr(&out).contains("panicked"), "{args:?}: {:?} {}", out.status, stderr(&out));
     }
 }
+
+/// A run directory the user cannot write: the backward stage says so and how to go on.
+/// Run as `nobody` through setpriv when the tests run as root (root writes anywhere).
+#[test]
+fn a_read_only_run_directory_is_named_with_the_way_out() {
+    use std::os::unix::fs::PermissionsExt;
+    let as_root = unsafe { libc::geteuid() } == 0;
+    if as_root && !Path::new("/usr/bin/setpriv").exists() {
+        eprintln!("skipped: running as root without setpriv");
+        return;
+    }
+    // Under /tmp: `nobody` must be able to reach the run and the binary.
+    let base = std::env::temp_dir().join(format!("clv-read-only-{}", std::process::id()));
+    let run = base.join("run");
+    std::fs::create_dir_all(&base).unwrap();
+    ok(clv(&["forward", "--n", "8", "--aspect", "1", "--steps", "300", "--clv-steps", "50", "--quiet", "--out", run.to_str().unwrap()]));
+    let exe = base.join("clv");
+    std::fs::copy(env!("CARGO_BIN_EXE_clv"), &exe).unwrap();
+    for entry in std::fs::read_dir(&run).unwrap() {
+        std::fs::set_permissions(entry.unwrap().path(), std::fs::Permissions::from_mode(0o644)).unwrap();
+    }
+    std::fs::set_permissions(&base, std::fs::Permissions::from_mode(0o755)).unwrap();
+    std::fs::set_permissions(&run, std::fs::Permissions::from_mode(0o555)).unwrap();
+    let frames = std::env::temp_dir().join(format!("clv-read-only-{}.mcap", std::process::id()));
+    let args = ["backward", run.to_str().unwrap(), "--quiet", "--out", frames.to_str().unwrap()];
+    let out = if as_root {
+        Command::new("/usr/bin/setpriv").args(["--reuid=65534", "--regid=65534", "--clear-groups", exe.to_str().unwrap()]).args(args).output().unwrap()
+    } else {
+        Command::new(&exe).args(args).output().unwrap()
+    };
+    std::fs::set_permissions(&run, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let _ = std::fs::remove_dir_all(&base);
+    let err = stderr(&out);
+    assert!(!out.status.success() && err.contains("is not writable") && err.contains("cp -r"), "{err}");
+}

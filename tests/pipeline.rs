@@ -58,6 +58,12 @@ fn shell_pipes_give_the_same_numbers_as_files_and_concurrency_changes_nothing() 
         ok(clv(&["analyze", frames.to_str().unwrap(), "--out", alone.to_str().unwrap(), "--only", name, "--every", "7"]));
         assert_eq!(read(&alone.join(table)), read(&filed.join(table)), "{name}: alone and concurrent differ");
     }
+    // --overwrite replaces a report: the files of the earlier one that the new one does not
+    // write go, a file of the user's own stays.
+    let again = base.join("alone-spectrum");
+    std::fs::write(again.join("notes.txt"), "mine").unwrap();
+    ok(clv(&["analyze", frames.to_str().unwrap(), "--out", again.to_str().unwrap(), "--only", "localization", "--every", "7", "--overwrite"]));
+    assert!(!again.join("spectrum.csv").exists() && again.join("localization.csv").exists() && again.join("notes.txt").exists());
     let out = clv(&["analyze", frames.to_str().unwrap(), "--out", base.join("x").to_str().unwrap(), "--only", "nonsense"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--only") && err.contains("spectrum"), "{err}");

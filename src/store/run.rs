@@ -323,7 +323,13 @@ impl RunDir {
     /// Take the run's write lock, or explain who holds it.
     pub fn lock(&self, what: &str) -> Result<RunLock> {
         let path = self.path.join(".lock");
-        let file = fs::OpenOptions::new().create(true).truncate(false).write(true).open(&path).map_err(|e| Error::io(&path, e))?;
+        let file = fs::OpenOptions::new().create(true).truncate(false).write(true).open(&path).map_err(|e| match e.kind() {
+            std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem => Error::Other(format!(
+                "{} is not writable ({e}), and the {what} writes into it (its lock, progress record and results); copy the run to a place you can write (`cp -r`) and run it there",
+                self.path.display()
+            )),
+            _ => Error::io(&path, e),
+        })?;
         let locked = if super::fault::locks_unsupported() { Err(fs::TryLockError::Error(std::io::Error::from_raw_os_error(libc::ENOLCK))) } else { file.try_lock() };
         match locked {
             Ok(()) => Ok(RunLock { _file: file }),

@@ -445,6 +445,19 @@ pub fn write_csv(path: &Path, header: &[&str], rows: impl IntoIterator<Item = Ve
 }
 
 /// Save a figure as PNG and SVG.
+/// The files of the report in `out`, as its summary.json lists them (index.html and
+/// summary.json included); None without a readable summary.
+pub fn report_files(out: &Path) -> Option<std::collections::BTreeSet<String>> {
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).ok()?).ok()?;
+    let mut files: std::collections::BTreeSet<String> = ["index.html".to_string(), "summary.json".to_string()].into();
+    for p in summary["produced"].as_array()? {
+        let names = |key: &str| p[key].as_array().into_iter().flatten().filter_map(|v| v.as_str().map(String::from)).collect::<Vec<_>>();
+        files.extend(names("figures").into_iter().flat_map(|stem| [format!("{stem}.png"), format!("{stem}.svg")]));
+        files.extend(names("tables"));
+    }
+    Some(files)
+}
+
 pub fn save_figure(fig: &crate::report::plot::Figure, out: &Path, stem: &str) -> Result<()> {
     fig.save(out, stem).map_err(|e| Error::io(out.join(stem), e))
 }
