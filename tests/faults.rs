@@ -179,6 +179,21 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
     assert!(!out.status.success() && stderr(&out).contains("disk full"), "{}", stderr(&out));
     ok(clv(&["backward", d, "--quiet", "--out", part.to_str().unwrap(), "--resume"]));
     assert!(frames(&part) == frames(&full));
+    // A new sweep stopped by a full disk before its first segment, after a finished sweep
+    // with other options: --resume continues the new one, not the finished one.
+    ok(clv(&["backward", d, "--quiet", "--save-every", "0"]));
+    let out = clv_env(&["backward", d, "--quiet", "--with-gs"], &[("CLV_FAULT_DISK_FULL_AFTER", "100000")]);
+    assert!(!out.status.success() && stderr(&out).contains("disk full"), "{}", stderr(&out));
+    ok(clv(&["backward", d, "--quiet", "--resume"]));
+    let with_gs = dir.join("with-gs.mcap");
+    ok(clv(&["backward", d, "--quiet", "--with-gs", "--out", with_gs.to_str().unwrap()]));
+    assert!(frames(&dir.join("frames.mcap")) == frames(&with_gs), "the resumed sweep is not the one the disk stopped");
+    // Flags that disagree with an interrupted sweep are named as flags.
+    let out = clv_env(&["backward", d, "--quiet", "--with-gs"], &[("CLV_FAULT_DISK_FULL_AFTER", "100000")]);
+    assert!(!out.status.success());
+    let out = clv(&["backward", d, "--quiet", "--resume", "--transient", "7"]);
+    let err = stderr(&out);
+    assert!(!out.status.success() && err.contains("--with-gs") && err.contains("--transient 7") && !err.contains("BackwardOptions"), "{err}");
 }
 
 /// A batch system's time limit sends SIGTERM before SIGKILL: the forward stage stops after

@@ -73,6 +73,17 @@ fn one() -> u64 {
 }
 
 impl BackwardOptions {
+    /// The options as the flags of `clv backward` that give them.
+    pub fn as_flags(&self) -> String {
+        let out = self.frames_path.as_ref().map_or("-".to_string(), |p| p.display().to_string());
+        let c_init = match self.c_init {
+            CInit::Identity => "identity",
+            CInit::Random => "random",
+        };
+        let gs = if self.with_gs { " --with-gs" } else { "" };
+        format!("--out {out} --save-every {} --vectors-every {} --transient {} --c-init {c_init}{gs}", self.save_every, self.vectors_every, self.transient)
+    }
+
     pub fn for_run(meta: &RunMeta) -> Self {
         BackwardOptions { transient: meta.store.transient, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1 }
     }
@@ -646,9 +657,11 @@ pub fn run(
             let p: Progress = serde_json::from_str(&text).map_err(|e| Error::corrupt(&progress_file, e.to_string()))?;
             if p.options != *opts {
                 return Err(Error::param("resume", format!(
-                    "the interrupted sweep in {} was started with other options ({:?}); run without --resume to start over",
+                    "the interrupted sweep recorded in {} was started with {}, not {}; continue it with `clv backward {} --resume` and no other flags, or run without --resume to start over",
                     progress_file.display(),
-                    p.options
+                    p.options.as_flags(),
+                    opts.as_flags(),
+                    dir.path.display()
                 )));
             }
             Some(p)
@@ -690,13 +703,6 @@ pub fn run(
             sent - 1
         ));
     }
-    let mut frame_file = match (&frames_path, saving, &prior) {
-        // The frames saved before the record: those of the steps that are multiples of
-        // --save-every among the ones the sweep had emitted, window.last down.
-        (Some(f), true, Some(p)) => Some(FrameFile::salvage(f, &metadata, multiples_in((window.last + 1).saturating_sub(p.stats.frames), window.last, opts.save_every))?),
-        (Some(f), true, None) => Some(FrameFile::create(f, &metadata)?),
-        _ => None,
-    };
 
     let mut c = match &prior {
         Some(p) => p.c_matrix(k).ok_or_else(|| {
@@ -709,6 +715,21 @@ pub fn run(
     let mut stats = prior.as_ref().map(|p| p.stats.clone()).unwrap_or_default();
     let resume_at = prior.as_ref().map(|p| p.at).unwrap_or(total);
     let todo: Vec<(u64, u64)> = bounds.windows(2).rev().map(|w| (w[0], w[1])).filter(|&(_, s1)| s1 <= resume_at).collect();
+    if prior.is_none() {
+        // A new sweep owns the progress record from its start, before its frame file exists:
+        // interrupted before its first segment, it is the one --resume continues (an earlier
+        // record left in place would point --resume at another sweep, and strand this one's
+        // frames).
+        let fresh = Progress { options: opts.clone(), at: resume_at, c: pack_upper(c.as_ref()), acc: acc.clone(), stats: stats.clone(), done: false };
+        write_atomic(&progress_file, &serde_json::to_vec(&fresh).map_err(|e| Error::Other(e.to_string()))?)?;
+    }
+    let mut frame_file = match (&frames_path, saving, &prior) {
+        // The frames saved before the record: those of the steps that are multiples of
+        // --save-every among the ones the sweep had emitted, window.last down.
+        (Some(f), true, Some(p)) => Some(FrameFile::salvage(f, &metadata, multiples_in((window.last + 1).saturating_sub(p.stats.frames), window.last, opts.save_every))?),
+        (Some(f), true, None) => Some(FrameFile::create(f, &metadata)?),
+        _ => None,
+    };
 
     let segment_bytes = 8 * (Segment::g_slots(c_every as usize, opts.vectors_every) * d * k) as u64;
     let out_of_core = (3 * segment_bytes > memory_bytes).then(|| dir.path.clone());
