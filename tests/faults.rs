@@ -355,6 +355,9 @@ fn numerical_faults_stop_the_run_naming_the_step() {
     });
     let out = clv(&["forward", "--resume", run, "--quiet"]);
     assert!(!out.status.success() && stderr(&out).contains("linearly dependent"), "{}", stderr(&out));
+    // A tau far too long for the flow: the error points at --tau.
+    let out = clv(&["forward", "--system", "lorenz", "--tau", "100", "--steps", "5", "--quiet"]);
+    assert!(!out.status.success() && stderr(&out).contains("smaller --tau"), "{}", stderr(&out));
     // Energy changed behind the run's back: the drift check stops it at the next checkpoint.
     alter_checkpoint(&dir, prev, |cp| {
         let n2 = cp.d / 2;

@@ -475,6 +475,8 @@ fn configuration_files_round_trip_and_flags_override_them() {
     assert_eq!(v["config"]["steps"], 300);
     assert_eq!(v["config"]["system"]["density"], 0.7, "the file provides what the flags do not");
     assert_eq!(v["config"]["blocks"], 20);
+    let twice = clv(&["forward", "--config", f, "--config", f, "--steps", "10"]);
+    assert!(!twice.status.success() && common::stderr(&twice).contains("--config: given twice"), "{}", common::stderr(&twice));
     let small = base.join("small.toml");
     std::fs::write(&small, "[system]\nsystem = \"disks\"\nn = 8\naspect = 1\n[run]\nsteps = 600\nrelax-steps = 50\nvectors = 32\n[store]\nclv-steps = 100\ntransient = 50\n").unwrap();
     let out_dir = base.join("out");

@@ -176,7 +176,10 @@ pub fn flag_values(m: &RunMeta) -> Vec<(&'static str, String)> {
         ("checkpoint_every", m.store.checkpoint_every.to_string()),
         ("segment_checkpoints", m.store.segment_checkpoints.to_string()),
         ("segment_mb", (m.store.segment_bytes >> 20).to_string()),
-        ("store_r", format!("{:?}", m.store.store_r)),
+        ("store_r", match m.store.store_r {
+            StoreR::Checkpoints => "checkpoints".into(),
+            StoreR::All => "all".into(),
+        }),
         ("clv_steps", m.store.clv_steps.to_string()),
         ("transient", m.store.transient.to_string()),
     ];

@@ -101,12 +101,11 @@ fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
     let mut file = None;
     let mut it = raw[2..].iter();
     while let Some(a) = it.next() {
-        if a == "--config" {
-            file = it.next().cloned();
-        } else if let Some(f) = a.strip_prefix("--config=") {
-            file = Some(f.to_string());
-        } else {
-            rest.push(a.clone());
+        let given = if a == "--config" { it.next().cloned() } else { a.strip_prefix("--config=").map(String::from) };
+        match (given, &file) {
+            (Some(_), Some(first)) => return Err(Error::param("config", format!("given twice (first {first}); one file holds a run's settings, and flags after it change them"))),
+            (Some(f), None) => file = Some(f),
+            (None, _) => rest.push(a.clone()),
         }
     }
     let Some(file) = file else { return Ok(raw) };

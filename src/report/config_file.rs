@@ -15,6 +15,7 @@ use std::path::Path;
 pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let mut args = Vec::new();
+    let mut seen: Vec<(String, usize)> = Vec::new();
     for (no, raw) in text.lines().enumerate() {
         let line = strip_comment(raw).trim();
         if line.is_empty() || (line.starts_with('[') && line.ends_with(']')) {
@@ -26,6 +27,10 @@ pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
         if !known.contains(&key) {
             return Err(bad(format!("unknown setting {key:?}; valid settings: {}", known.join(", "))));
         }
+        if let Some((_, first)) = seen.iter().find(|(k, _)| *k == key) {
+            return Err(bad(format!("{key} is set again (first on line {first}); a setting may appear once")));
+        }
+        seen.push((key.clone(), no + 1));
         let value = value.trim();
         let value = match value.strip_prefix('"').and_then(|v| v.strip_suffix('"')) {
             Some(s) => s.to_string(),
@@ -134,5 +139,9 @@ mod tests {
         assert!(expand(&path, &["name".to_string()]).unwrap() == ["--name", "a # b"]);
         std::fs::write(&path, "steps = ten\n").unwrap();
         assert!(expand(&path, &known).unwrap_err().to_string().contains("must be a number"));
+        // A setting given twice is refused (TOML forbids it; which one wins would be a guess).
+        std::fs::write(&path, "steps = 10\n[store]\nsteps = 20\n").unwrap();
+        let err = expand(&path, &known).unwrap_err().to_string();
+        assert!(err.contains("paper.toml:3") && err.contains("first on line 1"), "{err}");
     }
 }

@@ -104,7 +104,9 @@ impl SpectrumReport {
         if let Some(d) = crate::stage::analyze::kernels::convergence::diagnose(&self.blocks.exponents) {
             let _ = writeln!(s, "convergence ({} blocks of {} steps): {}; {}", d.blocks, self.blocks.block_steps, d.numbers(), d.verdict());
         }
-        let _ = write!(s, "{} steps (t = {}), ", st.steps, st.simulated_time);
+        let t = st.simulated_time;
+        let t = if t != 0.0 && !(1e-3..1e9).contains(&t.abs()) { format!("{t:e}") } else { format!("{t}") };
+        let _ = write!(s, "{} steps (t = {t}), ", st.steps);
         if matches!(self.config.system, crate::config::SystemConfig::Disks { .. }) {
             let _ = writeln!(s, "{} collisions, {:.1} s wall, energy drift {:.1e}", st.collisions, st.wall_seconds, st.energy_drift);
         } else {

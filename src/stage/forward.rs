@@ -255,7 +255,8 @@ impl Forward {
         if let Some(i) = (0..self.r.ncols()).find(|&i| !(self.r[(i, i)].is_finite() && self.r[(i, i)] > 0.0)) {
             return Err(Error::Dynamics(format!(
                 "step {}: R_{}{} = {} after the QR step: the tangent vectors are not finite or linearly dependent \
-                 (k larger than the rank, or a numerical blow-up); no exponent is accumulated from it",
+                 (k larger than the rank, or a numerical blow-up: a --tau so long that they grow or shrink by more than e^700 between two QR steps; \
+                 if so, give a smaller --tau); no exponent is accumulated from it",
                 self.step + 1,
                 i + 1,
                 i + 1,

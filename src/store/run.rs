@@ -90,9 +90,11 @@ impl StoreConfig {
 
     /// Bytes a checkpoint (with its R and stats) takes before compression.
     pub fn checkpoint_bytes(&self, config: &RunConfig) -> u64 {
-        let (d, k) = (config.system.dim() as u64, config.vectors as u64);
-        let blocks = config.blocks as u64 + 1;
-        8 * (d * k + d + k * (3 + blocks)) + 4 * k * (k + 1) + 8 * 3 * k + 600
+        // In f64: a system too large for any disk must still get a number (saturated), not a
+        // wrapped one.
+        let (d, k) = (config.system.dim() as f64, config.vectors as f64);
+        let blocks = config.blocks as f64 + 1.0;
+        (8.0 * (d * k + d + k * (3.0 + blocks)) + 4.0 * k * (k + 1.0) + 8.0 * 3.0 * k + 600.0) as u64
     }
 
     /// Estimated disk footprint of the finished run and a sentence that explains it.
@@ -103,8 +105,8 @@ impl StoreConfig {
         let total_cps = (config.relax_steps + config.steps).div_ceil(self.checkpoint_every) + 1;
         let kept = kept.min(total_cps);
         let k = config.vectors as u64;
-        let r_all = if self.store_r == StoreR::All { window * 4 * k * (k + 1) } else { 0 };
-        let bytes = kept * per + r_all;
+        let r_all = if self.store_r == StoreR::All { window.saturating_mul(4 * k).saturating_mul(k + 1) } else { 0 };
+        let bytes = kept.saturating_mul(per).saturating_add(r_all);
         let mut msg = format!("about {} on disk: {kept} checkpoints of {} kept", human(bytes), human(per));
         if r_all > 0 {
             msg += &format!(" + {} of R matrices for {window} steps (--store-r all)", human(r_all));
