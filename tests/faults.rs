@@ -278,8 +278,13 @@ fn a_second_writer_is_refused_and_a_killed_one_leaves_no_stale_lock() {
     assert!(!second.status.success() && err.contains("another clv process"), "{err}");
     let third = clv(&["backward", &d, "--quiet"]);
     assert!(!third.status.success());
+    // clv inspect says the run is being written, not that it was interrupted.
+    let seen = String::from_utf8_lossy(&clv(&["inspect", &d]).stdout).into_owned();
+    assert!(seen.contains("a clv process is writing it now") && !seen.contains("interrupted"), "{seen}");
     first.kill().unwrap();
     first.wait().unwrap();
+    let seen = String::from_utf8_lossy(&clv(&["inspect", &d]).stdout).into_owned();
+    assert!(seen.contains("not finished: clv forward --resume"), "{seen}");
     // The lock died with the process: resuming works (stopped early to keep the test short).
     let mut resumed = Command::new(env!("CARGO_BIN_EXE_clv")).args(["forward", "--resume", &d, "--quiet"]).stderr(Stdio::piped()).spawn().unwrap();
     std::thread::sleep(Duration::from_millis(700));
@@ -441,6 +446,9 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
         (vec!["run", "--out", p], "--out: "),
         (vec!["analyze", frames_file.to_str().unwrap(), "--out", p], "--out: "),
         (vec!["inspect", p], "not MCAP at all"),
+        (vec!["forward", "--n", "4", "--steps", "100", "--clv-steps", "20", "--out", "-"], "--out: - is standard output"),
+        (vec!["analyze", frames_file.to_str().unwrap(), "--out", "-"], "--out: - is standard output"),
+        (vec!["run", "--out", "-"], "--out: - is standard output"),
         (vec!["analyze", p, "--out", base.join("r").to_str().unwrap()], "not MCAP at all"),
     ] {
         let out = clv(&cmd);
@@ -462,6 +470,15 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
     let out = clv(&["forward", "--resume", dir.to_str().unwrap()]);
     let err = stderr(&out);
     assert!(!out.status.success() && err.contains("run.json") && err.contains("clv-run/99"), "{err}");
+    // A run.json cut short: the segments' copy is put beside it, and restores the run.
+    std::fs::write(dir.join("run.json"), &original[..original.len() / 2]).unwrap();
+    for cmd in [vec!["forward", "--resume", dir.to_str().unwrap()], vec!["inspect", dir.to_str().unwrap()]] {
+        let out = clv(&cmd);
+        let err = stderr(&out);
+        assert!(!out.status.success() && err.contains("run.json.from-segments") && err.contains("move it over run.json"), "{cmd:?}: {err}");
+    }
+    std::fs::rename(dir.join("run.json.from-segments"), dir.join("run.json")).unwrap();
+    ok(clv(&["inspect", dir.to_str().unwrap()]));
 }
 
 /// Damage anywhere in a frame file (magic, headers, chunk payload, CRCs, footer) is named

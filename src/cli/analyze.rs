@@ -43,6 +43,7 @@ pub fn analyze(args: &AnalyzeArgs) -> Result<()> {
             "- reads a frame stream from standard input, which is a terminal; pipe one in (`clv backward RUN_DIR --out - | clv analyze - --out REPORT`) or give a frame file".into(),
         ));
     }
+    super::no_stdout_directory(&args.out, "a report")?;
     if args.out.is_file() {
         return Err(Error::param("out", format!("{} is a file; the report needs a directory", args.out.display())));
     }

@@ -272,6 +272,7 @@ pub fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
         return print_report(&outcome.report, args.json);
     }
     if let Some(dir) = &args.out {
+        super::no_stdout_directory(dir, "a run directory")?;
         if dir.is_file() {
             return Err(Error::param("out", format!("{} is a file; a run needs a directory (a new path, or an empty directory)", dir.display())));
         }

@@ -144,6 +144,15 @@ pub fn execute(cli: &Cli, matches: &ArgMatches) -> Result<()> {
     }
 }
 
+/// Refuse `--out -` where a directory is written (`-` is standard output only for
+/// `clv backward`'s frame stream); `what` names what goes there.
+pub fn no_stdout_directory(out: &std::path::Path, what: &str) -> Result<()> {
+    if out == std::path::Path::new("-") {
+        return Err(Error::param("out", format!("- is standard output, where {what} cannot go: it is a directory of files; give a directory (only `clv backward --out -` streams)")));
+    }
+    Ok(())
+}
+
 /// `found` as one JSON object on standard output (every subcommand's --json).
 pub fn print_json<T: serde::Serialize>(found: &T) -> Result<()> {
     emit(&(serde_json::to_string(found).map_err(|e| Error::Other(e.to_string()))? + "\n"))

@@ -82,6 +82,7 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
 
 pub fn run(args: &RunArgs) -> Result<()> {
     let RunMeta { config, store, .. } = run_meta(args)?;
+    super::no_stdout_directory(&args.out, "the run and its report")?;
     if args.out.is_file() {
         return Err(Error::param("out", format!("{} is a file; `clv run` writes a directory (run/ and report/ in it)", args.out.display())));
     }

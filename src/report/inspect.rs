@@ -28,6 +28,8 @@ pub struct Inspection {
     /// Step of the newest intact checkpoint.
     pub steps_done: Option<u64>,
     pub finished: bool,
+    /// A clv process holds the run's lock: it is being written now.
+    pub running: bool,
     pub checkpoints: u64,
     pub segments: Vec<SegmentReport>,
     pub partial_segments: Vec<String>,
@@ -131,6 +133,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         total_steps,
         steps_done: newest.as_ref().map(|(s, _)| s.step),
         finished: dir.spectrum_path().exists() && newest.as_ref().is_some_and(|(s, _)| s.step == total_steps),
+        running: dir.is_being_written(),
         checkpoints: segments.iter().map(|s| s.checkpoints).sum(),
         // A segment left unfinished by a kill is the expected trace of an interrupted run,
         // not damage: --resume discards and recomputes it.
@@ -158,7 +161,11 @@ impl Inspection {
             "steps: {} of {} ({}), checkpoint every {}, CLV window {} + transient {}",
             self.steps_done.map_or("none".into(), |x| x.to_string()),
             self.total_steps,
-            if self.finished { "finished" } else { "not finished: clv forward --resume" },
+            match (self.finished, self.running) {
+                (_, true) => "a clv process is writing it now",
+                (true, false) => "finished",
+                (false, false) => "not finished: clv forward --resume",
+            },
             self.run.store.checkpoint_every,
             self.run.store.clv_steps,
             self.run.store.transient
@@ -169,8 +176,9 @@ impl Inspection {
             let plural = if seg.checkpoints == 1 { "" } else { "s" };
             let _ = writeln!(s, "  {}  steps {}..{}  {} checkpoint{plural}, {} R  {}  {state}", seg.file, seg.first_step, seg.last_step, seg.checkpoints, seg.r_matrices, human(seg.bytes));
         }
+        let partial = if self.running { "being written" } else { "interrupted (discarded on --resume)" };
         for p in &self.partial_segments {
-            let _ = writeln!(s, "  {p}  interrupted (discarded on --resume)");
+            let _ = writeln!(s, "  {p}  {partial}");
         }
         for name in &self.set_aside {
             let why = if name.ends_with(".corrupt") { "damaged, set aside by a repair; not read, safe to delete" } else { "set aside by an interrupted repair; removed by the next --resume" };

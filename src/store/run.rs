@@ -322,6 +322,13 @@ impl RunDir {
         Ok(true)
     }
 
+    /// Whether a process holds the run's write lock now (a forward or backward pass). Asks
+    /// without taking it; false where the file system cannot lock.
+    pub fn is_being_written(&self) -> bool {
+        let Ok(file) = fs::File::open(self.path.join(".lock")) else { return false };
+        matches!(file.try_lock_shared(), Err(fs::TryLockError::WouldBlock))
+    }
+
     /// Take the run's write lock, or explain who holds it.
     pub fn lock(&self, what: &str) -> Result<RunLock> {
         let path = self.path.join(".lock");
@@ -365,11 +372,30 @@ impl RunDir {
         let text = fs::read_to_string(&meta_path).map_err(|e| {
             Error::Other(format!("{}: {e}; is {} a run directory written by `clv forward --out`?", meta_path.display(), path.display()))
         })?;
-        let meta: RunMeta = serde_json::from_str(&text).map_err(|e| Error::corrupt(&meta_path, e.to_string()))?;
+        let meta: RunMeta = match serde_json::from_str(&text) {
+            Ok(meta) => meta,
+            Err(e) => return Err(dir.unreadable_meta(e.to_string())),
+        };
         if meta.format != FORMAT {
             return Err(Error::corrupt(&meta_path, format!("format {:?}, this clv reads {FORMAT:?}", meta.format)));
         }
         Ok((dir, meta))
+    }
+
+    /// A run.json that does not parse (cut short, damaged): the newest segment's copy is put
+    /// beside it, to restore it from, where there is one.
+    fn unreadable_meta(&self, why: String) -> Error {
+        let copy = self.path.join("run.json.from-segments");
+        let restored = self.segments().ok().and_then(|segs| {
+            let theirs = segs.iter().rev().find_map(|s| serde_json::from_str::<RunMeta>(&segment::embedded_run_json(&s.path)?).ok())?;
+            let pretty = serde_json::to_string_pretty(&theirs).ok()?;
+            write_atomic(&copy, pretty.as_bytes()).ok()
+        });
+        let way_out = match restored {
+            Some(()) => format!("every segment holds a copy of it, and the newest one's is now in {}: move it over run.json to continue this run", copy.display()),
+            None => "no segment holds a readable copy of it (the run wrote none yet): start the run again".into(),
+        };
+        Error::corrupt(self.meta_path(), format!("{why}; {way_out}"))
     }
 
     pub fn meta_json(meta: &RunMeta) -> String {
