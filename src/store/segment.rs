@@ -174,7 +174,7 @@ const STREAM_RECORD_LIMIT: u64 = 1 << 32;
 /// and floating-point data compresses little), so the bound is generous, but a damaged length
 /// field can no longer ask for more memory than that.
 pub fn record_limit(len: u64) -> u64 {
-    len.saturating_mul(64).max(256 << 20).min(STREAM_RECORD_LIMIT)
+    len.saturating_mul(64).clamp(256 << 20, STREAM_RECORD_LIMIT)
 }
 
 /// [`read_segment`] over any byte stream (a file, or standard input); `name` is used in errors.
