@@ -492,3 +492,20 @@ fn reused_frame_buffers_give_the_frames_of_fresh_ones() {
     assert_eq!(reused.len(), 61);
     assert!(reused == fresh, "frames built in reused buffers differ from frames built in fresh ones");
 }
+
+/// A sweep with other options does not replace the CLV spectrum of an earlier one: that is
+/// kept as clv_spectrum-1.json (and named); a sweep with the same options replaces its own.
+#[test]
+fn an_earlier_sweeps_clv_spectrum_is_kept_beside_a_new_one() {
+    let dir = forward("kept-spectrum", &["--n", "8", "--aspect", "1", "--steps", "600", "--clv-steps", "100"]);
+    let d = dir.to_str().unwrap();
+    backward_json(&dir, &["--save-every", "0"]);
+    let first = std::fs::read(dir.join("clv_spectrum.json")).unwrap();
+    let out = ok(clv(&["backward", d, "--save-every", "0", "--c-init", "random"]));
+    assert!(common::stderr(&out).contains("kept as") && common::stderr(&out).contains("clv_spectrum-1.json"), "{}", common::stderr(&out));
+    assert_eq!(std::fs::read(dir.join("clv_spectrum-1.json")).unwrap(), first);
+    let second = std::fs::read(dir.join("clv_spectrum.json")).unwrap();
+    assert_ne!(second, first);
+    backward_json(&dir, &["--save-every", "0", "--c-init", "random"]);
+    assert!(!dir.join("clv_spectrum-2.json").exists(), "the same sweep again replaces its own spectrum");
+}

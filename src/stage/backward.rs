@@ -887,7 +887,7 @@ pub fn run(
     }
     stats.stopped_early = stopped;
     stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();
-    let report = BackwardReport {
+    let mut report = BackwardReport {
         exponents: acc.exponents(1.0),
         stderr: acc.stderr(1.0),
         ks_entropy: acc.ks_entropy(1.0),
@@ -905,7 +905,21 @@ pub fn run(
         file.finish()?;
     }
     let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Other(e.to_string()))?;
-    write_atomic(&report_path(&dir), json.as_bytes())?;
+    // The CLV spectrum of an earlier sweep with other options (another C, transient, file)
+    // can be hours of work: kept beside the new one, not replaced.
+    let path = report_path(&dir);
+    if let Some(earlier) = std::fs::read_to_string(&path).ok().and_then(|text| serde_json::from_str::<BackwardReport>(&text).ok())
+        && earlier.options != *opts
+    {
+        let mut i = 1;
+        while dir.path.join(format!("clv_spectrum-{i}.json")).exists() {
+            i += 1;
+        }
+        let kept = dir.path.join(format!("clv_spectrum-{i}.json"));
+        std::fs::rename(&path, &kept).map_err(|e| Error::io(&path, e))?;
+        report.notes.push(format!("the CLV spectrum of the earlier sweep, made with {}, is kept as {}", earlier.options.as_flags(), kept.display()));
+    }
+    write_atomic(&path, json.as_bytes())?;
     let done = Progress { options: opts.clone(), at: window.first, c: Vec::new(), acc, stats, done: true };
     write_atomic(&progress_file, &serde_json::to_vec(&done).map_err(|e| Error::Other(e.to_string()))?)?;
     Ok(report)
