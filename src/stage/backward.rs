@@ -328,8 +328,9 @@ fn damaged(e: Error) -> Error {
 
 /// The checkpoint message at `step`, found through the file's chunk index so that only its
 /// chunk is decompressed. None when the index is missing or unusable (the caller then reads
-/// the file whole). A damaged chunk here cannot pass unnoticed: it fails to decode, or the
-/// recomputation from it fails the bitwise check against the next checkpoint.
+/// the file whole, which then names the damage). A damaged chunk cannot pass unnoticed: it
+/// fails its CRC here, and a checkpoint altered with a valid CRC fails the recomputation's
+/// bitwise check against the next one.
 fn indexed_checkpoint(path: &Path, step: u64) -> Option<Vec<u8>> {
     // The index and chunk headers are checked below before anything is decompressed; a
     // panic of the mcap crate on damage they do not catch is the strict read's to report.
