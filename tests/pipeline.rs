@@ -503,4 +503,15 @@ fn configuration_files_round_trip_and_flags_override_them() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success() && err.contains("bad.toml: ") && err.contains("'many'") && err.contains("--n"), "{cmd:?}: {err}");
     }
+    // ... also where the value parses but the run refuses it; the same value given on the
+    // command line is the flag's.
+    std::fs::write(&bad, "n = 8\nvectors = 999\n").unwrap();
+    for cmd in [vec!["forward", "--config", bad.to_str().unwrap()], vec!["run", "--config", bad.to_str().unwrap(), "--out", base.join("bad-out").to_str().unwrap()]] {
+        let out = clv(&cmd);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains("bad.toml: invalid setting vectors: must be between 1 and D = 32"), "{cmd:?}: {err}");
+    }
+    let out = clv(&["forward", "--config", bad.to_str().unwrap(), "--vectors", "999"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("invalid --vectors") && !err.contains("bad.toml"), "{err}");
 }

@@ -250,6 +250,11 @@ pub fn no_disk_flags_for_henon(system: SystemKind, given: impl Fn(&str) -> bool)
 }
 
 pub fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
+    let on_command_line = |name: &str| std::env::args().any(|a| a == format!("--{name}") || a.starts_with(&format!("--{name}=")));
+    forward_checked(args, matches).map_err(|e| super::blame_file(e, args.config.as_deref(), on_command_line))
+}
+
+fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
     no_disk_flags_for_henon(args.system, |id| matches.value_source(id) == Some(ValueSource::CommandLine))?;
     if let Some(dir) = &args.resume {
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };

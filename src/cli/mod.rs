@@ -116,7 +116,18 @@ fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
         return Err(Error::Other(format!("{file}: {}", first_line(&e))));
     }
     argv.extend(rest);
+    // Kept for the command, which names the file in errors of the values it gave.
+    argv.extend(["--config".to_string(), file]);
     Ok(argv)
+}
+
+/// A value that a configuration file gave and the stages refused is the file's error;
+/// `given` tells whether the command line named the flag itself (then it is the flag's).
+pub fn blame_file(e: Error, file: Option<&std::path::Path>, given: impl Fn(&str) -> bool) -> Error {
+    match (e, file) {
+        (Error::Param { name, msg }, Some(file)) if !given(name) => Error::Other(format!("{}: invalid setting {name}: {msg}", file.display())),
+        (e, _) => e,
+    }
 }
 
 /// The command line, with a `--config FILE` of `clv forward` expanded. Clap's own errors

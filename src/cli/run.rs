@@ -77,7 +77,8 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
         return Err(Error::Other("settings: not the flags of a run".into()));
     };
     no_disk_flags_for_henon(forward.system, |id| args.settings.iter().any(|s| s == &format!("--{id}") || s.starts_with(&format!("--{id}="))))?;
-    forward.meta()
+    let in_settings = |name: &str| args.settings.iter().any(|s| s == &format!("--{name}") || s.starts_with(&format!("--{name}=")));
+    forward.meta().map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))
 }
 
 pub fn run(args: &RunArgs) -> Result<()> {
