@@ -54,6 +54,15 @@ impl SystemConfig {
         SystemConfig::Disks { n, lx, ly, density: n as f64 / (lx * ly), aspect: ly / lx }
     }
 
+    /// The same dynamical system: for disks N and the box sides (density and aspect ratio
+    /// are derived from them, and a box given by its sides derives them with other rounding).
+    pub fn same_system(&self, other: &SystemConfig) -> bool {
+        match (self, other) {
+            (SystemConfig::Disks { n, lx, ly, .. }, SystemConfig::Disks { n: n2, lx: lx2, ly: ly2, .. }) => n == n2 && lx == lx2 && ly == ly2,
+            (a, b) => a == b,
+        }
+    }
+
     /// Phase-space dimension D.
     pub fn dim(&self) -> usize {
         match self {

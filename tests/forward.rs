@@ -220,6 +220,14 @@ fn combine_gives_the_spectrum_of_independent_runs() {
     assert!(text.contains("3 runs (seeds 1, 2, 3), 1600 steps in all"), "{text}");
     let other = dir.join("other");
     assert!(clv(&["forward", "--n", "4", "--aspect", "1", "--tau", "0.5", "--steps", "400", "--seed", "4", "--out", other.to_str().unwrap(), "--quiet"]).status.success());
+    // The same box given by its sides (density derived with other rounding) is the same system.
+    let run_json: serde_json::Value = serde_json::from_slice(&std::fs::read(runs[0].join("run.json")).unwrap()).unwrap();
+    let (lx, ly) = (run_json["config"]["system"]["lx"].to_string(), run_json["config"]["system"]["ly"].to_string());
+    let sides = dir.join("sides");
+    let made = clv(&["forward", "--n", "4", "--lx", &lx, "--ly", &ly, "--steps", "400", "--seed", "5", "--out", sides.to_str().unwrap(), "--quiet"]);
+    assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
+    let combined = clv(&["combine", paths[0], sides.to_str().unwrap()]);
+    assert!(combined.status.success(), "{}", String::from_utf8_lossy(&combined.stderr));
     let unfinished = dir.join("unfinished");
     std::fs::create_dir_all(&unfinished).unwrap();
     for (args, named) in [

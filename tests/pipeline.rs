@@ -475,6 +475,10 @@ fn configuration_files_round_trip_and_flags_override_them() {
     assert_eq!(v["config"]["steps"], 300);
     assert_eq!(v["config"]["system"]["density"], 0.7, "the file provides what the flags do not");
     assert_eq!(v["config"]["blocks"], 20);
+    // The box given by its sides on the command line replaces the file's density and aspect.
+    let out = ok(clv(&["forward", "--config", f, "--n", "8", "--lx", "4", "--ly", "4", "--steps", "100", "--json", "--quiet"]));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!((&v["config"]["system"]["lx"], &v["config"]["system"]["density"]), (&serde_json::json!(4.0), &serde_json::json!(0.5)));
     let twice = clv(&["forward", "--config", f, "--config", f, "--steps", "10"]);
     assert!(!twice.status.success() && common::stderr(&twice).contains("--config: given twice"), "{}", common::stderr(&twice));
     let small = base.join("small.toml");
@@ -485,6 +489,11 @@ fn configuration_files_round_trip_and_flags_override_them() {
     let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out_dir.join("run/run.json")).unwrap()).unwrap();
     assert_eq!(run["config"]["system"]["n"], 8);
     assert_eq!((&run["store"]["clv_steps"], &run["store"]["transient"]), (&serde_json::json!(100), &serde_json::json!(50)), "the file's store settings are the run's");
+    // ... and a preset's in `clv run`.
+    let sides = base.join("sides");
+    ok(clv(&["run", "--out", sides.to_str().unwrap(), "--quiet", "--n", "8", "--lx", "4", "--ly", "4", "--steps", "600", "--clv-steps", "100"]));
+    let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(sides.join("run/run.json")).unwrap()).unwrap();
+    assert_eq!((&run["config"]["system"]["lx"], &run["config"]["system"]["ly"]), (&serde_json::json!(4.0), &serde_json::json!(4.0)));
     // Settings after `clv run`'s own options change the file's, and the same file with
     // another window is refused in the same --out (the run and its report stay as they are).
     let changed = base.join("changed");
@@ -514,4 +523,39 @@ fn configuration_files_round_trip_and_flags_override_them() {
     let out = clv(&["forward", "--config", bad.to_str().unwrap(), "--vectors", "999"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("invalid --vectors") && !err.contains("bad.toml"), "{err}");
+}
+
+/// The CLV error bars do not depend on how the frames are read: the report of the full
+/// stream has the backward stage's own (clv_spectrum.json) to the bit, and a file of every
+/// 10th frame counts its blocks in its own frames. Its means use a tenth of the local
+/// exponents, which are nearly independent from step to step, so its errors are about
+/// sqrt(10) times the full stream's (with its frames put into two blocks they came out about
+/// ten times larger). Its default --every samples every frame of it that carries vectors.
+#[test]
+fn clv_error_bars_do_not_depend_on_how_the_frames_are_read() {
+    let base = scratch("error-bars");
+    let run = base.join("run");
+    let r = run.to_str().unwrap();
+    ok(clv(&["forward", "--n", "10", "--aspect", "1", "--steps", "4000", "--clv-steps", "2000", "--quiet", "--out", r]));
+    let (full, sparse) = (base.join("full.mcap"), base.join("sparse.mcap"));
+    ok(clv(&["backward", r, "--quiet", "--out", full.to_str().unwrap()]));
+    let stage: serde_json::Value = serde_json::from_str(&read(&run.join("clv_spectrum.json"))).unwrap();
+    ok(clv(&["backward", r, "--quiet", "--save-every", "10", "--out", sparse.to_str().unwrap()]));
+    let column = |report: &Path, name: &str| -> Vec<f64> {
+        let text = read(&report.join("spectrum.csv"));
+        let mut lines = text.lines();
+        let at = lines.next().unwrap().split(',').position(|h| h == name).unwrap();
+        lines.map(|l| l.split(',').nth(at).unwrap().parse().unwrap()).collect()
+    };
+    let (full_report, sparse_report) = (base.join("full-report"), base.join("sparse-report"));
+    ok(clv(&["analyze", full.to_str().unwrap(), "--out", full_report.to_str().unwrap(), "--quiet"]));
+    ok(clv(&["analyze", sparse.to_str().unwrap(), "--out", sparse_report.to_str().unwrap(), "--quiet"]));
+    let want: Vec<f64> = stage["stderr"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    assert_eq!(column(&full_report, "stderr_clv"), want, "the report of the full stream and the backward stage differ");
+    let (a, b) = (column(&full_report, "stderr_clv"), column(&sparse_report, "stderr_clv"));
+    let ratio = b.iter().zip(&a).map(|(b, a)| b / a).sum::<f64>() / a.len() as f64;
+    assert!(ratio > 2.0 && ratio < 5.0, "the sparse file's errors are {ratio} times the full stream's on average, not about sqrt(10)");
+    // 201 frames of the window 2000..4000 in the file, all with vectors: all are sampled.
+    let summary: serde_json::Value = serde_json::from_str(&read(&sparse_report.join("summary.json"))).unwrap();
+    assert_eq!(summary["options"]["every"], 10, "{}", summary["options"]);
 }

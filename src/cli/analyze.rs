@@ -13,7 +13,8 @@ pub struct AnalyzeArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Vector statistics use the frames of the steps that are multiples of m (default: about
-    /// 400 frames, and a multiple of the stream's --vectors-every).
+    /// 400 frames, and a multiple of the stream's --vectors-every and of a frame file's
+    /// --save-every).
     #[arg(long)]
     pub every: Option<u64>,
     /// Lyapunov indices (1-based) for the overlap figures, e.g. 1,200,370 (default: the

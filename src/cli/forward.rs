@@ -26,7 +26,7 @@ pub enum StoreRArg {
     All,
 }
 
-#[derive(Args)]
+#[derive(Args, Clone)]
 pub struct ForwardArgs {
     /// Read settings from a configuration file (TOML; keys are these flags, e.g. `steps =
     /// 1000`); flags on the command line override it. `clv config` prints one.
@@ -45,10 +45,10 @@ pub struct ForwardArgs {
     #[arg(long, default_value = "2/11", value_parser = parse_ratio, allow_negative_numbers = true)]
     pub aspect: f64,
     /// Box side Lx (with --ly, instead of --density and --aspect).
-    #[arg(long, requires = "ly", conflicts_with_all = ["density", "aspect"], allow_negative_numbers = true)]
+    #[arg(long, requires = "ly", allow_negative_numbers = true)]
     pub lx: Option<f64>,
     /// Box side Ly (with --lx).
-    #[arg(long, requires = "lx", conflicts_with_all = ["density", "aspect"], allow_negative_numbers = true)]
+    #[arg(long, requires = "lx", allow_negative_numbers = true)]
     pub ly: Option<f64>,
     /// Time between re-orthonormalisations (default 0.6 for disks, 1 for Henon, 0.1 for Lorenz).
     #[arg(long, allow_negative_numbers = true)]
@@ -114,6 +114,21 @@ fn parse_ratio(s: &str) -> std::result::Result<f64, String> {
 }
 
 impl ForwardArgs {
+    /// The box as the command line gives it (`given` tells which flags it names), over a
+    /// configuration file's or a preset's: its --lx and --ly, or its --density and --aspect
+    /// (then a file's sides yield); both at once are refused.
+    pub fn box_from_command_line(&self, given: impl Fn(&str) -> bool) -> Result<ForwardArgs> {
+        let (sides, density) = (given("lx") || given("ly"), given("density") || given("aspect"));
+        if sides && density {
+            return Err(Error::param("lx", "give the box either by its sides (--lx and --ly) or by --density and --aspect, not both"));
+        }
+        let mut args = self.clone();
+        if density {
+            (args.lx, args.ly) = (None, None);
+        }
+        Ok(args)
+    }
+
     pub fn config(&self) -> Result<RunConfig> {
         let (system, tau) = match self.system {
             SystemKind::Henon => (SystemConfig::henon(), self.tau.unwrap_or(1.0)),
@@ -250,11 +265,16 @@ pub fn no_disk_flags_for_henon(system: SystemKind, given: impl Fn(&str) -> bool)
 }
 
 pub fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
-    let on_command_line = |name: &str| std::env::args().any(|a| a == format!("--{name}") || a.starts_with(&format!("--{name}=")));
     forward_checked(args, matches).map_err(|e| super::blame_file(e, args.config.as_deref(), on_command_line))
 }
 
+/// Whether the user's own command line (not a configuration file) names the flag --`name`.
+fn on_command_line(name: &str) -> bool {
+    std::env::args().any(|a| a == format!("--{name}") || a.starts_with(&format!("--{name}=")))
+}
+
 fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
+    let args = &args.box_from_command_line(on_command_line)?;
     no_disk_flags_for_henon(args.system, |id| matches.value_source(id) == Some(ValueSource::CommandLine))?;
     if let Some(dir) = &args.resume {
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };

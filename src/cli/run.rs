@@ -78,7 +78,7 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
     };
     no_disk_flags_for_henon(forward.system, |id| args.settings.iter().any(|s| s == &format!("--{id}") || s.starts_with(&format!("--{id}="))))?;
     let in_settings = |name: &str| args.settings.iter().any(|s| s == &format!("--{name}") || s.starts_with(&format!("--{name}=")));
-    forward.meta().map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))
+    forward.box_from_command_line(in_settings).and_then(|f| f.meta()).map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))
 }
 
 pub fn run(args: &RunArgs) -> Result<()> {

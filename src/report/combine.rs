@@ -53,8 +53,8 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
     let runs: Vec<RunSpectrum> = paths.iter().map(|p| read(p)).collect::<Result<_>>()?;
     let first = &runs[0].config;
     for (run, path) in runs.iter().zip(paths).skip(1) {
-        let same = RunConfig { steps: first.steps, seed: first.seed, threads: first.threads, blocks: first.blocks, relax_steps: first.relax_steps, ..run.config.clone() };
-        if same != *first {
+        let same = RunConfig { steps: first.steps, seed: first.seed, threads: first.threads, blocks: first.blocks, relax_steps: first.relax_steps, system: first.system.clone(), ..run.config.clone() };
+        if same != *first || !run.config.system.same_system(&first.system) {
             return Err(Error::Other(format!(
                 "{} is a run of another system or setting ({}) than {} ({}); only runs that differ in seed and length can be combined",
                 path.display(),

@@ -40,3 +40,22 @@ impl Frame {
 pub fn on_stride(step: u64, m: u64) -> bool {
     step.is_multiple_of(m.max(1))
 }
+
+/// How many steps in lo..=hi are on the stride m ([`on_stride`]); none if lo > hi.
+pub fn multiples_in(lo: u64, hi: u64, m: u64) -> u64 {
+    let m = m.max(1);
+    (hi / m + 1).saturating_sub(lo.div_ceil(m))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn multiples_in_counts_inclusively() {
+        let brute = |lo: u64, hi: u64, m: u64| (lo..=hi).filter(|&n| on_stride(n, m)).count() as u64;
+        for (lo, hi, m) in [(0, 0, 3), (0, 10, 3), (1, 10, 3), (3, 3, 3), (4, 5, 3), (7, 7, 1), (5, 4, 2), (1500, 1900, 62)] {
+            assert_eq!(multiples_in(lo, hi, m), brute(lo, hi, m), "{lo}..={hi}, m = {m}");
+        }
+    }
+}

@@ -30,7 +30,7 @@ mod testing;
 pub mod transversality;
 
 use super::backward::{BackwardOptions, Window};
-use super::frame::{on_stride, Frame};
+use super::frame::{multiples_in, on_stride, Frame};
 use crate::error::{Error, Result};
 use crate::report::SpectrumSummary;
 use crate::store::frames::{Flow, StreamInfo};
@@ -75,6 +75,9 @@ pub struct Context {
     /// The oldest and newest step of the frames a whole sweep leaves in this stream (when
     /// its metadata says), to report a stream that covers less.
     pub frame_steps: Option<(u64, u64)>,
+    /// The stream holds the frames of the steps on this stride (a frame file's
+    /// `--save-every`; 1 for a stream, which carries every step).
+    pub saved_every: u64,
 }
 
 /// How often the analyses that apply to this run read V_n, for the backward stage's
@@ -87,8 +90,21 @@ pub fn vectors_every_for(meta: &RunMeta) -> u64 {
     }
 }
 
+/// The least common multiple of two strides: the steps on both.
+fn lcm(a: u64, b: u64) -> u64 {
+    let gcd = |mut a: u64, mut b: u64| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let (a, b) = (a.max(1), b.max(1));
+    a / gcd(a, b) * b
+}
+
 /// The default of `--every`: about 400 frames of a window of `clv_steps`, rounded up to a
-/// multiple of the stream's `vectors_every` (only those frames carry V_n).
+/// multiple of `m`, the stride of the frames that carry V_n (`--vectors-every`, and a frame
+/// file's `--save-every`).
 pub fn default_every(clv_steps: u64, vectors_every: u64) -> u64 {
     let m = vectors_every.max(1);
     (clv_steps / 400).max(1).div_ceil(m) * m
@@ -128,7 +144,10 @@ impl Context {
         let backward: Option<BackwardOptions> = info.backward_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
         let vectors_every = backward.as_ref().map_or(1, |o| o.vectors_every.max(1));
         let with_gs = backward.as_ref().map_or(first.g.is_some(), |o| o.with_gs);
-        let every = every.unwrap_or_else(|| default_every(clv_steps, vectors_every));
+        // A frame file keeps the frames of every --save-every-th step: the default stride lands
+        // on those that carry V.
+        let saved_every = backward.as_ref().map_or(1, |o| if o.frames_path.is_some() { o.save_every.max(1) } else { 1 });
+        let every = every.unwrap_or_else(|| default_every(clv_steps, lcm(vectors_every, saved_every)));
         if every == 0 {
             return Err(Error::param("every", "must be at least 1"));
         }
@@ -162,6 +181,7 @@ impl Context {
             tau,
             with_gs,
             options: Options { every, j, deltas },
+            saved_every,
             source: source.to_string(),
             frame_steps,
             run,
@@ -186,11 +206,15 @@ impl Context {
     }
 
     /// Frames per block for standard errors by batch means: the run's `blocks` blocks over
-    /// the frames an analysis reads (every frame of the window, or with `sampled` those on
-    /// the stride `every`); 20 blocks of 1000 frames without a run description.
+    /// the frames an analysis reads, counted in the stream (every frame it holds, or with
+    /// `sampled` those on the stride `every`), as the backward stage counts them for its own
+    /// CLV spectrum; 20 blocks of 1000 frames without a run description.
     pub fn block_len(&self, sampled: bool) -> u64 {
-        let frames = self.run.as_ref().map_or(1000, |m| m.store.clv_steps);
-        let frames = if sampled { frames / self.options.every.max(1) } else { frames };
+        let stride = if sampled { lcm(self.options.every, self.saved_every) } else { self.saved_every };
+        let frames = match self.frame_steps {
+            Some((oldest, newest)) => multiples_in(oldest, newest, stride),
+            None => self.run.as_ref().map_or(1000, |m| m.store.clv_steps) / stride.max(1),
+        };
         let blocks = self.run.as_ref().map_or(20, |m| m.config.blocks as u64);
         (frames / blocks.max(1)).max(1)
     }

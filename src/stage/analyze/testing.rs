@@ -54,6 +54,7 @@ pub fn context(system: &str, n: usize, d: usize, lx: f64, ly: f64, gs: Option<Sp
         options: Options { every: 1, j: vec![1], deltas: vec![1] },
         source: "synthetic".into(),
         frame_steps: None,
+        saved_every: 1,
     }
 }
 
