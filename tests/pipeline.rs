@@ -558,4 +558,8 @@ fn clv_error_bars_do_not_depend_on_how_the_frames_are_read() {
     // 201 frames of the window 2000..4000 in the file, all with vectors: all are sampled.
     let summary: serde_json::Value = serde_json::from_str(&read(&sparse_report.join("summary.json"))).unwrap();
     assert_eq!(summary["options"]["every"], 10, "{}", summary["options"]);
+    // Windows of Delta steps need consecutive frames: not computed from such a file.
+    let titles: Vec<&str> = summary["produced"].as_array().unwrap().iter().filter_map(|p| p["title"].as_str()).collect();
+    assert!(!titles.iter().any(|t| t.contains("Domination") || t.contains("Finite-time")), "{titles:?}");
+    assert!(read(&sparse_report.join("index.html")).contains("are not computed"));
 }

@@ -59,7 +59,8 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     let mut idx: Vec<usize> = std::iter::once(0).chain(js.iter().copied()).chain(smallest_positive(ctx)).collect();
     idx.sort_unstable();
     idx.dedup();
-    let deltas: Vec<usize> = ctx.options.deltas.iter().map(|&d| d as usize).filter(|&d| d > 0).collect();
+    // Windows of Delta steps need consecutive frames: a file of every m-th step has none.
+    let deltas: Vec<usize> = if ctx.saved_every > 1 { Vec::new() } else { ctx.options.deltas.iter().map(|&d| d as usize).filter(|&d| d > 0).collect() };
     Some(Box::new(LocalExponents {
         ctx: ctx.clone(),
         series: vec![Vec::new(); idx.len()],
@@ -148,7 +149,12 @@ impl Analysis for LocalExponents {
         }
         let names: Vec<String> = self.idx.iter().map(|i| format!("{}", i + 1)).collect();
         let mut produced = Vec::new();
-        let caveat = if self.breaks > 0 {
+        let caveat = if ctx.saved_every > 1 {
+            format!(
+                " This frame file holds the frames of the steps that are multiples of {} only, so the finite-time exponents and the domination test, which need consecutive steps, are not computed: analyse the whole stream (`clv backward RUN_DIR --out - | clv analyze -`) for them.",
+                ctx.saved_every
+            )
+        } else if self.breaks > 0 {
             format!(" Warning: the steps of {} frames do not continue the sequence of their predecessor (frames missing or out of order); windows straddle those gaps.", self.breaks)
         } else {
             String::new()
