@@ -525,6 +525,11 @@ fn damaged_frame_files_and_cut_streams_are_reported() {
     assert!(v["damage"].is_null() && v["backward"]["vectors_every"] == 1, "{v}");
     // A stream that ends mid-record on stdin.
     let cut = &bytes[..bytes.len() * 2 / 3];
+    // The same cut as the FILE.tmp of a sweep still writing it: called unfinished, not damaged.
+    let tmp = dir.parent().unwrap().join("cut.mcap.tmp");
+    std::fs::write(&tmp, cut).unwrap();
+    let seen = clv(&["inspect", tmp.to_str().unwrap()]);
+    assert!(!seen.status.success() && stderr(&seen).contains("an unfinished frame file"), "{}", stderr(&seen));
     let mut child = Command::new(env!("CARGO_BIN_EXE_clv"))
         .args(["analyze", "-", "--out", dir.parent().unwrap().join("cut").to_str().unwrap()])
         .stdin(Stdio::piped())

@@ -19,8 +19,15 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
     if args.dir.is_file() {
         let found = inspect::inspect_frames(&args.dir)?;
         print_inspection(&found, found.text(), args.json)?;
+        // A sweep writes its frame file as FILE.tmp and renames it when done.
+        let unfinished = args.dir.extension().is_some_and(|e| e == "tmp");
         return match &found.damage {
             None => Ok(()),
+            Some(_) if unfinished => Err(Error::Other(format!(
+                "{}: an unfinished frame file, of a backward sweep writing it now or of one interrupted; its {} complete frames can be analysed already, and `clv backward RUN_DIR --out FILE --resume` continues an interrupted sweep",
+                args.dir.display(),
+                found.frames
+            ))),
             Some(_) => Err(Error::Other(format!(
                 "{}: damaged or cut short; its {} complete frames can still be analysed, and `clv backward RUN_DIR --out FILE --resume` continues a sweep that was interrupted",
                 args.dir.display(),
