@@ -140,6 +140,11 @@ fn lattice(n: usize, lx: f64, ly: f64, rng: &mut Rng) -> Result<Vec<[f64; 2]>> {
         }
     }
     let (spacing, nx, ny, staggered) = best.ok_or_else(|| Error::param("n", "must be at least 1 disk"))?;
+    if spacing < 1.0 + 1e-9
+        && let Some(sites) = skewed_lattice(n, lx, ly)
+    {
+        return Ok(sites);
+    }
     if spacing < 1.0 + 1e-9 {
         return Err(Error::param("density", format!(
             "cannot place {n} disks without overlap in a {lx:.4} x {ly:.4} box (the best start lattice, {nx} x {ny}, has a closest pair at {spacing:.4} < 1); \
@@ -158,6 +163,24 @@ fn lattice(n: usize, lx: f64, ly: f64, rng: &mut Rng) -> Result<Vec<[f64; 2]>> {
         sites.truncate(n);
     }
     Ok(sites)
+}
+
+/// Where no row lattice fits (few disks in a small box: 5 at density 0.7 in a square), the
+/// skewed lattice k -> (k Lx/n, (k s mod n) Ly/n), k < n, with the shear s that keeps its
+/// closest pair farthest apart, if that pair is more than a diameter apart. A lattice on the
+/// torus, so its closest pair is that of site 0: O(n) a shear.
+fn skewed_lattice(n: usize, lx: f64, ly: f64) -> Option<Vec<[f64; 2]>> {
+    if !(2..=20_000).contains(&n) {
+        return None;
+    }
+    let wrap = |x: f64, l: f64| x - l * (x / l).round();
+    let closest = |s: usize| {
+        (1..n)
+            .map(|k| wrap(k as f64 * lx / n as f64, lx).hypot(wrap(((k * s) % n) as f64 * ly / n as f64, ly)))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (s, spacing) = (1..n).map(|s| (s, closest(s))).max_by(|a, b| a.1.total_cmp(&b.1))?;
+    (spacing > 1.0 + 1e-9).then(|| (0..n).map(|k| [(k as f64 + 0.25) * lx / n as f64, (((k * s) % n) as f64 + 0.5) * ly / n as f64]).collect())
 }
 
 /// (distance, i, j) of the closest pair, minimum image.
