@@ -59,12 +59,17 @@ def main():
     x = np.log([r["N"] for r in rows])
     y = np.log([r["W_1"] for r in rows])
     minus_eta, se = study.slope(x, y)
-    # The slope between neighbouring N: constant for a pure power law.
-    local = [{"from": int(s.ns[i]), "to": int(s.ns[i + 1]), "eta": -(y[i + 1] - y[i]) / (x[i + 1] - x[i])} for i in range(len(s.ns) - 1)]
+    # The slope between neighbouring N: constant for a pure power law. Its error from the two
+    # W_1 errors (relative errors are those of ln W_1).
+    rel = [r["W_1_stderr"] / r["W_1"] for r in rows]
+    local = [
+        {"from": int(s.ns[i]), "to": int(s.ns[i + 1]), "eta": -(y[i + 1] - y[i]) / (x[i + 1] - x[i]), "eta_stderr": float(np.hypot(rel[i], rel[i + 1]) / (x[i + 1] - x[i]))}
+        for i in range(len(s.ns) - 1)
+    ]
     fit = {"clv": s.version(), "eta": -minus_eta, "eta_stderr": se, "points": len(x), "local_eta": local, "density": a.density, "steps": a.steps, "clv_steps": a.clv_steps}
     with open(os.path.join(a.out, "fit.json"), "w") as f:
         json.dump(fit, f, indent=2)
-    between = ", ".join(f"{l['eta']:.3f} ({l['from']}-{l['to']})" for l in local)
+    between = ", ".join(f"{l['eta']:.3f} +- {l['eta_stderr']:.3f} ({l['from']}-{l['to']})" for l in local)
     error = " (no error from two points)" if se is None else f" +- {se:.3f}"
     print(f"W_1 ~ N^-eta: eta = {fit['eta']:.3f}{error} from N = {s.ns[0]}..{s.ns[-1]}; between neighbours {between}; table {s.table}")
 

@@ -332,6 +332,9 @@ fn the_scaling_study_tabulates_and_fits_its_runs() {
     let fit: serde_json::Value = serde_json::from_str(&read(&base.join("fit.json"))).unwrap();
     assert!((fit["eta"].as_f64().unwrap() + slope).abs() < 1e-9, "{fit} against slope {slope}");
     assert!(fit["eta_stderr"].as_f64().unwrap() >= 0.0);
+    for local in fit["local_eta"].as_array().unwrap() {
+        assert!(local["eta_stderr"].as_f64().is_some_and(|e| e.is_finite() && e > 0.0), "{local}");
+    }
     refused_again("scaling.py", &args);
 }
 

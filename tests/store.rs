@@ -180,9 +180,12 @@ fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
     // 1164, where the 8 blocks of 133 steps become 4 of 266.
     run(&short, "530", "200");
     backward(&short);
+    // A second sweep with other options: the first one's CLV spectrum is kept beside it, and
+    // moves with it when the run is extended.
+    ok(clv(&["backward", short.to_str().unwrap(), "--quiet", "--save-every", "0", "--c-init", "random"]));
     run(&long, "1500", "800");
     backward(&long);
-    let before: BTreeMap<&str, Vec<u8>> = ["spectrum.json", "clv_spectrum.json", "frames.mcap"].into_iter().map(|f| (f, std::fs::read(short.join(f)).unwrap())).collect();
+    let before: BTreeMap<&str, Vec<u8>> = ["spectrum.json", "clv_spectrum.json", "clv_spectrum-1.json", "frames.mcap"].into_iter().map(|f| (f, std::fs::read(short.join(f)).unwrap())).collect();
     let extended = scratch("extend-crash-ref").join("run");
     copy_dir(&short, &extended);
     let extend = |dir: &Path, env: &[(&str, &str)]| common::clv_env(&["forward", "--resume", dir.to_str().unwrap(), "--steps", "1500", "--clv-steps", "800", "--quiet"], env);

@@ -222,7 +222,14 @@ pub fn previous_results(run: &Path, steps: u64) -> PathBuf {
 /// already there stops it.
 fn archive_results(dir: &RunDir, to: &Path, also: &[&Path]) -> Result<Option<PathBuf>> {
     let names = ["spectrum.json", "clv_spectrum.json", "backward.json", "frames.mcap", "frames.mcap.tmp"];
-    let present: Vec<PathBuf> = names.iter().map(|n| dir.path.join(n)).chain(also.iter().map(|p| p.to_path_buf())).filter(|p| p.exists()).collect();
+    // The CLV spectra of earlier sweeps with other options (clv_spectrum-N.json) describe the
+    // shorter run too.
+    let earlier_sweeps: Vec<PathBuf> = std::fs::read_dir(&dir.path)
+        .map_err(|e| Error::io(&dir.path, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with("clv_spectrum-") && n.ends_with(".json")))
+        .collect();
+    let present: Vec<PathBuf> = names.iter().map(|n| dir.path.join(n)).chain(earlier_sweeps).chain(also.iter().map(|p| p.to_path_buf())).filter(|p| p.exists()).collect();
     if !present.is_empty() {
         std::fs::create_dir_all(to).map_err(|e| Error::io(to, e))?;
     }
