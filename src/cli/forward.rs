@@ -270,7 +270,7 @@ pub fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
 
 /// Whether the user's own command line (not a configuration file) names the flag --`name`.
 fn on_command_line(name: &str) -> bool {
-    std::env::args().any(|a| a == format!("--{name}") || a.starts_with(&format!("--{name}=")))
+    super::names_flag(std::env::args(), name)
 }
 
 fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {

@@ -121,6 +121,12 @@ fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
     Ok(argv)
 }
 
+/// Whether `args` name the flag --`name` (alone, or as --`name`=VALUE).
+pub fn names_flag<S: AsRef<str>>(args: impl IntoIterator<Item = S>, name: &str) -> bool {
+    let flag = format!("--{name}");
+    args.into_iter().any(|a| a.as_ref() == flag || a.as_ref().strip_prefix(flag.as_str()).is_some_and(|rest| rest.starts_with('=')))
+}
+
 /// A value that a configuration file gave and the stages refused is the file's error;
 /// `given` tells whether the command line named the flag itself (then it is the flag's).
 pub fn blame_file(e: Error, file: Option<&std::path::Path>, given: impl Fn(&str) -> bool) -> Error {

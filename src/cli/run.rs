@@ -76,8 +76,8 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
     let Ok(Cli { command: Command::Forward(forward), .. }) = Cli::from_arg_matches(&matches) else {
         return Err(Error::Other("settings: not the flags of a run".into()));
     };
-    no_disk_flags_for_henon(forward.system, |id| args.settings.iter().any(|s| s == &format!("--{id}") || s.starts_with(&format!("--{id}="))))?;
-    let in_settings = |name: &str| args.settings.iter().any(|s| s == &format!("--{name}") || s.starts_with(&format!("--{name}=")));
+    let in_settings = |name: &str| super::names_flag(&args.settings, name);
+    no_disk_flags_for_henon(forward.system, in_settings)?;
     forward.box_from_command_line(in_settings).and_then(|f| f.meta()).map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))
 }
 
