@@ -229,22 +229,50 @@ fn sigterm_stops_the_forward_stage_at_a_checkpoint_of_its_own() {
     }
     assert!(frames(&run.join("frames.mcap")) == frames(&want.join("frames.mcap")));
 
-    // After the forward loop the signals do what they did before: `clv run`'s backward
-    // stage ends at once on SIGTERM (a stop there would have nothing to save).
-    use std::io::BufRead;
-    use std::os::unix::process::ExitStatusExt;
+    // After the forward loop, `clv run`'s backward stage ends at once on SIGTERM (a stop
+    // there would have nothing to save), as death by the signal, saying how to continue.
+    use std::io::{BufRead, Read};
     let out = scratch("faults", "term-run");
     let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(["run", "--out", out.to_str().unwrap(), "--steps", "4000"]).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
-    let lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
-    for line in lines {
-        if line.unwrap().contains("backward pass and analyses") {
-            break;
-        }
+    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while lines.read_line(&mut line).unwrap() > 0 && !line.contains("backward pass and analyses") {
+        line.clear();
     }
     // SAFETY: a plain kill(2) of the child we spawned.
     unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
+    let mut rest = String::new();
+    lines.read_to_string(&mut rest).unwrap();
     let status = child.wait().unwrap();
-    assert_eq!(status.signal(), Some(libc::SIGTERM), "{status:?}");
+    assert_eq!(status.code(), Some(128 + libc::SIGTERM), "{status:?}");
+    assert!(rest.contains("clv run: stopped by a signal") && rest.contains("give the same `clv run` command again"), "{rest}");
+    let again = ok(clv(&["run", "--out", out.to_str().unwrap(), "--steps", "4000", "--quiet"]));
+    assert!(out.join("report/index.html").is_file(), "{}", stderr(&again));
+
+    // `clv backward` likewise: into a pipe nobody reads it stops mid-sweep for certain.
+    let term_backward = |dir: &Path, out: &str, stdout: Stdio| {
+        std::fs::remove_file(dir.join("backward.json")).unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", dir.to_str().unwrap(), "--quiet", "--out", out]).stdout(stdout).stderr(Stdio::piped()).spawn().unwrap();
+        let started = std::time::Instant::now();
+        while !dir.join("backward.json").exists() && started.elapsed() < Duration::from_secs(60) {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        // SAFETY: a plain kill(2) of the child we spawned.
+        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
+        let mut err = String::new();
+        child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+        (child.wait().unwrap().code(), err)
+    };
+    let (code, err) = term_backward(&want, "-", Stdio::piped());
+    assert_eq!(code, Some(128 + libc::SIGTERM), "{err}");
+    assert!(err.contains("clv backward: stopped by a signal; the frames streamed so far went to the reader"), "{err}");
+    // Into a file: the message, if the signal lands before the end, and --resume then
+    // finishes the sweep to the same frames.
+    let o = run.join("term.mcap");
+    let (code, err) = term_backward(&run, o.to_str().unwrap(), Stdio::null());
+    assert!(code != Some(128 + libc::SIGTERM) || err.contains("clv backward: stopped by a signal; its progress") && err.contains("--resume"), "{err}");
+    ok(clv(&["backward", run.to_str().unwrap(), "--quiet", "--out", o.to_str().unwrap(), "--resume"]));
+    assert!(frames(&o) == frames(&want.join("frames.mcap")));
     // In its forward pass, `clv run` stops as `clv forward` does, and says to run it again.
     let out = scratch("faults", "term-run-forward");
     let child = Command::new(env!("CARGO_BIN_EXE_clv")).args(["run", "--out", out.to_str().unwrap(), "--quiet", "--steps", "100000"]).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();

@@ -67,6 +67,10 @@ pub fn analyze(args: &AnalyzeArgs) -> Result<()> {
             bar.set_position(frames);
         }
     };
+    let _signals = clv::stage::signals::ExplainOnSignals::install(&format!(
+        "\nclv analyze: stopped by a signal; the report in {} is incomplete: give the same command with --overwrite to write it again",
+        args.out.display()
+    ));
     let result = clv::stage::analyze::analyze_source(&args.source, &args.out, args.every, args.j.clone(), args.deltas.clone(), &args.only, &mut on_frame);
     if let Some(bar) = &bar {
         bar.finish_and_clear();

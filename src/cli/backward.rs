@@ -133,6 +133,12 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
             sweep.set_position(frames);
         }
     };
+    let explain = if to_stdout {
+        "the frames streamed so far went to the reader: the same command with --resume streams the frames after them, and without it the sweep starts over".to_string()
+    } else {
+        format!("its progress up to its last finished segment is recorded in {}: give the same command with --resume to continue", args.dir.display())
+    };
+    let _signals = clv::stage::signals::ExplainOnSignals::install(&format!("\nclv backward: stopped by a signal; {explain}"));
     let report = backward::run(&args.dir, &opts, args.resume, args.memory << 20, args.threads, &mut consumer, &mut on_progress)?;
     if let Some((multi, recompute, sweep)) = &bars {
         recompute.finish_and_clear();

@@ -154,7 +154,7 @@ pub fn execute(cli: &Cli, matches: &ArgMatches) -> Result<()> {
         Command::Backward(args) => backward::backward(args, sub("backward")),
         Command::Inspect(args) => inspect::inspect(args),
         Command::Analyze(args) => analyze::analyze(args),
-        Command::Run(args) => run::run(args),
+        Command::Run(args) => run::run(args, sub("run")),
         Command::Combine(args) => clv::report::combine::combine(&args.runs).and_then(|c| if args.json { print_json(&c) } else { emit(&c.table()) }),
         Command::Bench(args) => bench::bench(args),
         Command::Config(args) => RunConfig::preset(&args.preset).and_then(|c| emit(&clv::report::config_file::render(&args.preset, &c, &clv::store::run::StoreConfig::for_run(&c)))),

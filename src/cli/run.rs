@@ -3,7 +3,8 @@
 
 use super::forward::{flag_values, no_disk_flags_for_henon};
 use super::{config_keys, first_line, progress, Cli, Command};
-use clap::{Args, CommandFactory, FromArgMatches, Parser};
+use clap::parser::ValueSource;
+use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser};
 use clv::config::RunConfig;
 use clv::stage::forward_run::Feedback;
 use clv::store::run::{BuildInfo, RunMeta, StoreConfig, FORMAT};
@@ -66,7 +67,7 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
             if !keys.iter().any(|k| k == key) {
                 return Err(Error::param(
                     "settings",
-                    format!("--{key} is not a setting of a run; give `clv run` its own options (--preset, --config, --out, --quiet) before the settings, which are: --{}", keys.join(", --")),
+                    format!("--{key} is not a setting of a run; `clv run` takes --preset, --config, --out and --quiet of its own, and the settings --{}", keys.join(", --")),
                 ));
             }
         }
@@ -81,7 +82,47 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
     forward.box_from_command_line(in_settings).and_then(|f| f.meta()).map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))
 }
 
-pub fn run(args: &RunArgs) -> Result<()> {
+/// `args` with `clv run`'s own options that were given among the settings (`clv run --steps
+/// 4000 --quiet`) taken out of them; one given both before and among them is refused.
+fn own_options_moved(args: &RunArgs, matches: &ArgMatches) -> Result<RunArgs> {
+    let mut moved = RunArgs { preset: args.preset.clone(), config: args.config.clone(), out: args.out.clone(), quiet: args.quiet, settings: Vec::new() };
+    let mut seen: Vec<&str> = Vec::new();
+    let mut rest = args.settings.iter();
+    while let Some(setting) = rest.next() {
+        let (flag, inline) = match setting.split_once('=') {
+            Some((flag, value)) => (flag, Some(value.to_string())),
+            None => (setting.as_str(), None),
+        };
+        let own = ["--quiet", "--out", "--preset", "--config"].into_iter().find(|f| *f == flag);
+        let Some(own) = own else {
+            moved.settings.push(setting.clone());
+            continue;
+        };
+        let id = &own[2..];
+        if matches.value_source(id) == Some(ValueSource::CommandLine) || seen.contains(&id) {
+            return Err(Error::param(id, "given twice (before and after the settings); give it once"));
+        }
+        seen.push(id);
+        if own == "--quiet" {
+            moved.quiet = true;
+            continue;
+        }
+        let value = inline.or_else(|| rest.next().cloned()).ok_or_else(|| Error::param(id, "needs a value"))?;
+        match own {
+            "--out" => moved.out = value.into(),
+            "--preset" => moved.preset = value,
+            _ => moved.config = Some(value.into()),
+        }
+    }
+    let named = |id: &str| seen.contains(&id) || matches.value_source(id) == Some(ValueSource::CommandLine);
+    if named("preset") && named("config") {
+        return Err(Error::param("config", "a configuration file replaces the preset; give --config or --preset, not both"));
+    }
+    Ok(moved)
+}
+
+pub fn run(args: &RunArgs, matches: &ArgMatches) -> Result<()> {
+    let args = &own_options_moved(args, matches)?;
     let RunMeta { config, store, .. } = run_meta(args)?;
     super::no_stdout_directory(&args.out, "the run and its report")?;
     if args.out.is_file() {
@@ -101,6 +142,12 @@ pub fn run(args: &RunArgs) -> Result<()> {
     say(format!("{origin}{changed}: {}", serde_json::to_string(&config).unwrap_or_default()));
     let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
     let started = Instant::now();
+    // The forward pass stops cleanly on a signal itself (below); afterwards one ends the
+    // process, and the backward pass and analyses start over when the command is given again.
+    let _signals = clv::stage::signals::ExplainOnSignals::install(&format!(
+        "\nclv run: stopped by a signal; the forward pass is saved in {} up to its last checkpoint: give the same `clv run` command again to continue (the backward pass and the analyses start over)",
+        args.out.join("run").display()
+    ));
     let result = clv::stage::pipeline::run(&config, &store, &args.out, &mut feedback, &mut say).map_err(|e| match e {
         Error::Stopped { step, total, run } => Error::Other(format!(
             "stopped by a signal after step {step} of {total} of the forward pass; everything up to it is saved in {}: give the same `clv run` command again to continue",

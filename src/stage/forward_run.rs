@@ -15,52 +15,10 @@ use crate::store::schema::{CHECKPOINT, R, STATS};
 use crate::store::segment::read_segment;
 use crate::store::sink::{Policy, Sink};
 use crate::system::Invariants;
+use super::signals::StopOnSignals;
 use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-
-/// SIGTERM (a batch system's time limit, before its SIGKILL) or SIGINT (Ctrl-C) asks the
-/// forward stage to stop after the step it is in: it then writes a checkpoint there, closes
-/// its segment and exits with an error naming the step, so that `--resume` loses nothing.
-/// Without it the work since the last finished segment is lost (up to 1000 steps).
-static STOP: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-
-extern "C" fn request_stop(_: libc::c_int) {
-    STOP.store(true, std::sync::atomic::Ordering::SeqCst);
-}
-
-/// SIGTERM and SIGINT ask for a stop while this lives (the forward loop); afterwards they
-/// do what they did before (the backward stage of `clv run` must stay interruptible).
-struct StopOnSignals {
-    before: [libc::sighandler_t; 2],
-}
-
-const STOP_SIGNALS: [libc::c_int; 2] = [libc::SIGTERM, libc::SIGINT];
-
-impl StopOnSignals {
-    fn install() -> Self {
-        STOP.store(false, std::sync::atomic::Ordering::SeqCst);
-        // SAFETY: the handler only stores to an atomic, which is async-signal-safe. A signal
-        // the process was started to ignore (SIGINT of a shell's background job) stays ignored.
-        let before = STOP_SIGNALS.map(|sig| unsafe {
-            let before = libc::signal(sig, request_stop as *const () as libc::sighandler_t);
-            if before == libc::SIG_IGN {
-                libc::signal(sig, libc::SIG_IGN);
-            }
-            before
-        });
-        StopOnSignals { before }
-    }
-}
-
-impl Drop for StopOnSignals {
-    fn drop(&mut self) {
-        for (sig, handler) in STOP_SIGNALS.into_iter().zip(self.before) {
-            // SAFETY: puts back the disposition signal(2) returned at install.
-            unsafe { libc::signal(sig, handler) };
-        }
-    }
-}
 
 /// Largest relative energy drift a run may accumulate (round-off over 1e8 collisions is far
 /// below it; anything larger means the dynamics went wrong).
@@ -423,7 +381,7 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
     if write_first {
         checkpoint(&fwd, &mut sink)?;
     }
-    let _signals = StopOnSignals::install();
+    let signals = StopOnSignals::install();
     if let Some(bar) = &feedback.bar {
         bar.set_length(total);
         bar.set_position(fwd.step);
@@ -441,7 +399,7 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
         if let Some(bar) = &feedback.bar {
             bar.set_position(n);
         }
-        if STOP.load(std::sync::atomic::Ordering::SeqCst) && n < total {
+        if signals.requested() && n < total {
             if !is_cp {
                 sink.send(R.topic, n, encode_r(n, &fwd.r))?;
                 checkpoint(&fwd, &mut sink)?;

@@ -7,3 +7,4 @@ pub mod analyze;
 pub mod forward_run;
 pub mod frame;
 pub mod pipeline;
+pub mod signals;

@@ -1,0 +1,95 @@
+//! What SIGTERM (a batch system's time limit, before its SIGKILL) and SIGINT (Ctrl-C) do.
+//!
+//! The forward stage stops cleanly after the step it is in ([`StopOnSignals`]): it writes a
+//! checkpoint there, so that `--resume` loses nothing. The backward stage and the analyses
+//! keep their work in files that are only ever renamed into place, so being killed loses at
+//! most the segment in hand; there a signal ends the process at once, as by default, but
+//! first says what was kept and how to continue ([`ExplainOnSignals`]).
+//!
+//! A signal the process was started to ignore (SIGINT of a shell's background job) stays
+//! ignored under both.
+
+use std::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
+
+const SIGNALS: [libc::c_int; 2] = [libc::SIGTERM, libc::SIGINT];
+
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn request_stop(_: libc::c_int) {
+    STOP.store(true, Ordering::SeqCst);
+}
+
+/// The message [`explain_and_exit`] writes: leaked, so that the handler only ever reads
+/// memory that stays valid, and swapped in one store.
+static MESSAGE: AtomicPtr<Vec<u8>> = AtomicPtr::new(std::ptr::null_mut());
+
+extern "C" fn explain_and_exit(sig: libc::c_int) {
+    let message = MESSAGE.load(Ordering::SeqCst);
+    // SAFETY: write(2) and _exit(2) are async-signal-safe; `message` is null or a leaked,
+    // never modified Vec.
+    unsafe {
+        if let Some(text) = message.as_ref() {
+            libc::write(libc::STDERR_FILENO, text.as_ptr() as *const libc::c_void, text.len());
+        }
+        libc::_exit(128 + sig);
+    }
+}
+
+/// Handlers in place while the guard lives; dropping it puts back what was there before.
+struct Installed {
+    before: [libc::sighandler_t; 2],
+}
+
+impl Installed {
+    fn new(handler: extern "C" fn(libc::c_int)) -> Self {
+        // SAFETY: both handlers above are async-signal-safe.
+        let before = SIGNALS.map(|sig| unsafe {
+            let before = libc::signal(sig, handler as *const () as libc::sighandler_t);
+            if before == libc::SIG_IGN {
+                libc::signal(sig, libc::SIG_IGN);
+            }
+            before
+        });
+        Installed { before }
+    }
+}
+
+impl Drop for Installed {
+    fn drop(&mut self) {
+        for (sig, handler) in SIGNALS.into_iter().zip(self.before) {
+            // SAFETY: puts back the disposition signal(2) returned at install.
+            unsafe { libc::signal(sig, handler) };
+        }
+    }
+}
+
+/// While this lives, SIGTERM and SIGINT only ask for a stop, which the loop polls with
+/// [`StopOnSignals::requested`].
+pub struct StopOnSignals {
+    _handlers: Installed,
+}
+
+impl StopOnSignals {
+    pub fn install() -> Self {
+        STOP.store(false, Ordering::SeqCst);
+        StopOnSignals { _handlers: Installed::new(request_stop) }
+    }
+
+    pub fn requested(&self) -> bool {
+        STOP.load(Ordering::SeqCst)
+    }
+}
+
+/// While this lives, SIGTERM and SIGINT end the process with `message` on standard error
+/// and the exit status of death by that signal (128 + its number, as a shell reports it).
+pub struct ExplainOnSignals {
+    _handlers: Installed,
+}
+
+impl ExplainOnSignals {
+    pub fn install(message: &str) -> Self {
+        let text = Box::leak(Box::new(format!("{message}\n").into_bytes()));
+        MESSAGE.store(text, Ordering::SeqCst);
+        ExplainOnSignals { _handlers: Installed::new(explain_and_exit) }
+    }
+}
