@@ -10,6 +10,11 @@
 //! text, `raster` paints it onto an RGB canvas (with the bitmap glyphs from
 //! `font`), and `png` encodes the canvas with a hand-written deflate.
 //!
+//! No data may be hidden, since a figure that looks empty or lacks a curve
+//! misleads. Hence the legend (an opaque box) goes into the first inside corner
+//! of the axis box that covers no data, or else outside the axis box (see
+//! `Figure::layout`), and series that coincide stay visible (see `pen`).
+//!
 //! ```ignore
 //! let mut fig = Figure::new("Lyapunov spectrum").x_label("i").y_label("λ_i");
 //! fig.series("N = 100", &idx, &lam, Marker::LinePoints).hline(0.0);
@@ -91,13 +96,30 @@ enum Prim {
     Line((f64, f64), (f64, f64), Rgb, f64),
     /// Rectangle `[x0, y0, x1, y1]` with optional fill and stroke colours.
     Rect([f64; 4], Option<Rgb>, Option<Rgb>),
-    /// Filled dots of radius [`DOT_R`]; the flag clips them to the frame.
-    Dots(Vec<(f64, f64)>, Rgb, bool),
+    /// Filled dots with colour and radius; the flag clips them to the frame.
+    Dots(Vec<(f64, f64)>, Rgb, f64, bool),
     Text(Label),
 }
 
-/// Radius of point markers in pixels.
+/// Radius of point markers in pixels (of the first series, see [`pen`]).
 const DOT_R: f64 = 3.0;
+
+/// How series number `k` (in order of addition) of a figure with `n` series
+/// is drawn: the change of its line width and its dot radius.
+///
+/// A later series drawn exactly over an earlier one must not hide it, so
+/// later series are drawn thinner: with two or more series the first draws
+/// lines 1 px wider than the base width of its kind, the second at the base
+/// width, all later ones 1 px narrower (at least 1 px), and dots shrink from
+/// radius 3 to 2 to 1.5 px. So up to three coinciding series all stay
+/// visible, also in the PNG, whose lines are whole pixels wide; coinciding
+/// series beyond the third share the thinnest pen. A lone series keeps the
+/// base width.
+fn pen(k: usize, n: usize) -> (f64, f64) {
+    let level = k.min(2);
+    let widen = if n > 1 { 1.0 } else { 0.0 } - level as f64;
+    (widen, DOT_R - [0.0, 1.0, 1.5][level])
+}
 
 /// How an x-y series is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -151,6 +173,10 @@ struct Layout {
     yticks: Vec<(f64, String)>,
     /// Bitmap text scale used for all text.
     scale: u32,
+    /// Vertical centre of the x axis label.
+    x_label_y: f64,
+    /// Legend box `[x0, y0, x1, y1]`, if the figure has a legend.
+    legend: Option<[f64; 4]>,
 }
 
 impl Layout {
@@ -344,7 +370,51 @@ impl Figure {
         (lo <= hi).then_some((lo, hi))
     }
 
+    /// Layout with the legend placed where it hides no data: the first of
+    /// the inside corners top-right, top-left, bottom-right, bottom-left of
+    /// the axis box whose legend box (plus a small margin) is crossed by no
+    /// line segment and touches no dot of any series. If every corner covers
+    /// data, or the legend does not fit inside, the axis box shrinks to make
+    /// room for the legend right of it (or below it, if the axis box would
+    /// lose more than half its width or the legend is taller than it).
     fn layout(&self) -> Layout {
+        let mut lay = self.frame_layout(0.0, 0.0);
+        let Some((lw, lh)) = self.legend_size(lay.scale) else {
+            return lay;
+        };
+        let [l, t, r, b] = lay.frame();
+        if lw + 20.0 <= r - l && lh + 20.0 <= b - t {
+            let mut data = Vec::new();
+            for (k, s) in self.series.iter().enumerate() {
+                series_prims(&lay, s, pen(k, self.series.len()), &mut data);
+            }
+            let (x0, x1, y0, y1) = (l + 10.0, r - 10.0 - lw, t + 10.0, b - 10.0 - lh);
+            let corners = [(x1, y0), (x0, y0), (x1, y1), (x0, y1)];
+            let free = corners
+                .into_iter()
+                .map(|(x, y)| [x, y, x + lw, y + lh])
+                .find(|&bx| !data.iter().any(|p| covers(p, bx)));
+            if free.is_some() {
+                lay.legend = free;
+                return lay;
+            }
+        }
+        if lw + 12.0 <= (r - l) / 2.0 && lh <= b - t {
+            lay = self.frame_layout(lw + 12.0, 0.0);
+            let x0 = lay.r + 12.0;
+            lay.legend = Some([x0, lay.t, x0 + lw, lay.t + lh]);
+        } else {
+            lay = self.frame_layout(0.0, lh + 8.0);
+            let h = f64::from(self.h);
+            let x0 = ((lay.l + lay.r - lw) / 2.0).round().max(4.0);
+            lay.legend = Some([x0, h - 8.0 - lh, x0 + lw, h - 8.0]);
+        }
+        lay
+    }
+
+    /// Frame, ranges and ticks, leaving `right` and `bottom` pixels of the
+    /// image free for a legend outside the axis box.
+    fn frame_layout(&self, right: f64, bottom: f64) -> Layout {
         let scale = if self.w.min(self.h) < 400 { 1 } else { 2 };
         let ch = f64::from(8 * scale); // text line height in pixels
         let (w, h) = (f64::from(self.w), f64::from(self.h));
@@ -357,7 +427,7 @@ impl Figure {
             room(&self.x_label, ch + 8.0),
             room(&self.y_label, ch + 10.0),
         );
-        let b = (h - (TICK_LEN + 6.0 + ch + xl_h + 10.0))
+        let b = (h - (TICK_LEN + 6.0 + ch + xl_h + 10.0) - bottom)
             .round()
             .max(t + 10.0);
         // y ticks: keep labels at least a text line plus some air apart.
@@ -369,7 +439,7 @@ impl Figure {
         let l = (10.0 + yl_w + label_w + 6.0 + TICK_LEN)
             .round()
             .min(w / 2.0);
-        let mut r = (w - 24.0).round().max(l + 10.0);
+        let mut r = (w - 24.0 - right).round().max(l + 10.0);
         let xticks = fit_ticks(x, r - l, |s| text_w(s, scale) + 3.0 * ch);
         // Keep the rightmost tick label inside the image.
         if let Some((v, s)) = xticks.last() {
@@ -389,14 +459,48 @@ impl Figure {
             xticks,
             yticks,
             scale,
+            x_label_y: h - bottom - 10.0 - ch / 2.0,
+            legend: None,
         }
+    }
+
+    /// Labelled series with their positions; a legend needs two or more.
+    fn legend_entries(&self) -> Vec<(usize, &Series)> {
+        let entries: Vec<_> = self
+            .series
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| !s.label.is_empty())
+            .collect();
+        if entries.len() < 2 {
+            Vec::new()
+        } else {
+            entries
+        }
+    }
+
+    /// Width and height of the legend box, if there is a legend.
+    fn legend_size(&self, sc: u32) -> Option<(f64, f64)> {
+        let entries = self.legend_entries();
+        if entries.is_empty() {
+            return None;
+        }
+        let label_w = entries
+            .iter()
+            .map(|(_, s)| text_w(&s.label, sc))
+            .fold(0.0, f64::max);
+        let line_h = f64::from(8 * sc) + 6.0;
+        Some((
+            8.0 + 14.0 * f64::from(sc) + 8.0 + label_w + 8.0,
+            6.0 + line_h * entries.len() as f64,
+        ))
     }
 
     /// Layout plus the primitives to draw, in painting order.
     fn scene(&self) -> (Layout, Vec<Prim>) {
         let lay = self.layout();
         let (l, t, r, b, sc) = (lay.l, lay.t, lay.r, lay.b, lay.scale);
-        let (w, h, ch) = (f64::from(self.w), f64::from(self.h), f64::from(8 * sc));
+        let (w, ch) = (f64::from(self.w), f64::from(8 * sc));
         let text = |x, y, s: &str, anchor| Label::new(x, y, s, sc, anchor);
         let mut prims = Vec::new();
         for &y in self.hlines.iter().filter(|y| y.is_finite()) {
@@ -405,8 +509,8 @@ impl Figure {
                 prims.push(Prim::Line((l, py), (r, py), GREY, 1.0));
             }
         }
-        for s in &self.series {
-            series_prims(&lay, s, &mut prims);
+        for (k, s) in self.series.iter().enumerate() {
+            series_prims(&lay, s, pen(k, self.series.len()), &mut prims);
         }
         prims.push(Prim::Rect([l, t, r, b], None, Some(INK)));
         for (v, s) in &lay.xticks {
@@ -421,7 +525,7 @@ impl Figure {
             prims.push(Prim::Text(text(l - TICK_LEN - 4.0, py, s, Anchor::End)));
         }
         if !self.x_label.is_empty() {
-            let (x, y) = ((l + r) / 2.0, h - 10.0 - ch / 2.0);
+            let (x, y) = ((l + r) / 2.0, lay.x_label_y);
             prims.push(Prim::Text(text(x, y, &self.x_label, Anchor::Middle)));
         }
         if !self.y_label.is_empty() {
@@ -449,35 +553,30 @@ impl Figure {
         (lay, prims)
     }
 
-    /// Legend box in the top-right corner when two or more series are labelled.
+    /// Legend entries in the box chosen by [`Figure::layout`], each with a
+    /// sample drawn with the series' pen.
     fn legend(&self, lay: &Layout, prims: &mut Vec<Prim>) {
-        let entries: Vec<&Series> = self.series.iter().filter(|s| !s.label.is_empty()).collect();
-        if entries.len() < 2 {
+        let Some([x0, y0, x1, y1]) = lay.legend else {
             return;
-        }
+        };
         let sc = lay.scale;
         let line_h = f64::from(8 * sc) + 6.0;
-        let label_w = entries
-            .iter()
-            .map(|s| text_w(&s.label, sc))
-            .fold(0.0, f64::max);
         let sample = 14.0 * f64::from(sc);
-        let (x1, y0) = (lay.r - 10.0, lay.t + 10.0);
-        let x0 = (x1 - (8.0 + sample + 8.0 + label_w + 8.0)).max(lay.l);
-        let y1 = y0 + 6.0 + line_h * entries.len() as f64;
         prims.push(Prim::Rect([x0, y0, x1, y1], Some(WHITE), Some(GREY)));
-        for (k, s) in entries.iter().enumerate() {
-            let cy = (y0 + 3.0 + line_h * (k as f64 + 0.5)).round();
+        for (row, (k, s)) in self.legend_entries().into_iter().enumerate() {
+            let cy = (y0 + 3.0 + line_h * (row as f64 + 0.5)).round();
             let (a, b) = ((x0 + 8.0, cy), (x0 + 8.0 + sample, cy));
+            let (widen, dot_r) = pen(k, self.series.len());
             let marker = match s.kind {
                 Kind::Xy(_, m) => m,
                 Kind::Arrows(_) => Marker::Line,
             };
             if marker != Marker::Points {
-                prims.push(Prim::Line(a, b, s.color, 2.0));
+                prims.push(Prim::Line(a, b, s.color, (2.0 + widen).max(1.0)));
             }
             if matches!(marker, Marker::Points | Marker::LinePoints) {
-                prims.push(Prim::Dots(vec![((a.0 + b.0) / 2.0, cy)], s.color, false));
+                let dot = vec![((a.0 + b.0) / 2.0, cy)];
+                prims.push(Prim::Dots(dot, s.color, dot_r, false));
             }
             prims.push(Prim::Text(Label::new(
                 b.0 + 8.0,
@@ -490,6 +589,30 @@ impl Figure {
     }
 }
 
+/// Whether data primitive `p` would be hidden, even in part, by an opaque
+/// box `bx` (grown by the line half-width or dot radius plus a pixel).
+/// Segments are tested exactly, not by sampling.
+fn covers(p: &Prim, bx: [f64; 4]) -> bool {
+    let grow = |m: f64| [bx[0] - m, bx[1] - m, bx[2] + m, bx[3] + m];
+    match p {
+        Prim::Path(parts, _, width) => {
+            let g = grow(width / 2.0 + 1.0);
+            parts.iter().any(|part| match part.as_slice() {
+                [only] => raster::clip_segment(*only, *only, g).is_some(),
+                _ => part
+                    .windows(2)
+                    .any(|w| raster::clip_segment(w[0], w[1], g).is_some()),
+            })
+        }
+        Prim::Dots(pts, _, r, _) => {
+            let g = grow(r + 1.0);
+            pts.iter()
+                .any(|&(x, y)| x >= g[0] && x <= g[2] && y >= g[1] && y <= g[3])
+        }
+        _ => false,
+    }
+}
+
 fn pick(p: (f64, f64), axis: usize) -> f64 {
     if axis == 0 { p.0 } else { p.1 }
 }
@@ -499,9 +622,10 @@ fn text_w(s: &str, scale: u32) -> f64 {
     f64::from(font::text_width(&font::to_ascii(s), scale))
 }
 
-/// Primitives for one data series.
-fn series_prims(lay: &Layout, s: &Series, prims: &mut Vec<Prim>) {
-    let color = s.color;
+/// Primitives for one data series, drawn with `pen` (see [`pen`]).
+fn series_prims(lay: &Layout, s: &Series, pen: (f64, f64), prims: &mut Vec<Prim>) {
+    let (color, (widen, dot_r)) = (s.color, pen);
+    let width = |base: f64| (base + widen).max(1.0);
     let finite = |p: &(f64, f64)| p.0.is_finite() && p.1.is_finite();
     match &s.kind {
         Kind::Xy(pts, marker) => {
@@ -518,13 +642,13 @@ fn series_prims(lay: &Layout, s: &Series, prims: &mut Vec<Prim>) {
                     }
                     parts.push(part);
                 }
-                let width = if *marker == Marker::LinePoints {
+                let base = if *marker == Marker::LinePoints {
                     1.5
                 } else {
                     2.0
                 };
                 if !parts.is_empty() {
-                    prims.push(Prim::Path(parts, color, width));
+                    prims.push(Prim::Path(parts, color, width(base)));
                 }
             }
             if matches!(marker, Marker::Points | Marker::LinePoints) {
@@ -534,7 +658,7 @@ fn series_prims(lay: &Layout, s: &Series, prims: &mut Vec<Prim>) {
                     .map(|&p| lay.map(p))
                     .collect();
                 if !pts.is_empty() {
-                    prims.push(Prim::Dots(pts, color, true));
+                    prims.push(Prim::Dots(pts, color, dot_r, true));
                 }
             }
         }
@@ -557,7 +681,7 @@ fn series_prims(lay: &Layout, s: &Series, prims: &mut Vec<Prim>) {
                 }
             }
             if !parts.is_empty() {
-                prims.push(Prim::Path(parts, color, 1.5));
+                prims.push(Prim::Path(parts, color, width(1.5)));
             }
         }
     }

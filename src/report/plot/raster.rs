@@ -6,7 +6,7 @@
 //! outside the axes never produce endless pixel loops.
 
 use super::font;
-use super::{Anchor, DOT_R, Label, Prim, Rgb};
+use super::{Anchor, Label, Prim, Rgb};
 
 /// An RGB8 image plus an optional clip box `[x0, y0, x1, y1]` (inclusive).
 pub(super) struct Canvas {
@@ -174,10 +174,10 @@ impl Canvas {
                     }
                 }
             }
-            Prim::Dots(pts, color, clip) => {
+            Prim::Dots(pts, color, r, clip) => {
                 self.clip = if *clip { frame } else { None };
                 for &(x, y) in pts {
-                    self.dot(x, y, DOT_R, *color);
+                    self.dot(x, y, *r, *color);
                 }
             }
             Prim::Text(t) => self.text(t),
@@ -187,7 +187,11 @@ impl Canvas {
 }
 
 /// Liang-Barsky clipping of segment a-b to the box `[x0, y0, x1, y1]`.
-fn clip_segment(a: (f64, f64), b: (f64, f64), bx: [f64; 4]) -> Option<((f64, f64), (f64, f64))> {
+pub(super) fn clip_segment(
+    a: (f64, f64),
+    b: (f64, f64),
+    bx: [f64; 4],
+) -> Option<((f64, f64), (f64, f64))> {
     if ![a.0, a.1, b.0, b.1].iter().all(|v| v.is_finite()) {
         return None;
     }

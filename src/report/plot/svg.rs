@@ -5,7 +5,7 @@
 
 use std::fmt::Write;
 
-use super::{Anchor, DOT_R, Label, Prim, Rgb};
+use super::{Anchor, Label, Prim, Rgb};
 
 /// Escape the characters that are special in XML text and attributes.
 pub(super) fn escape(s: &str) -> String {
@@ -81,11 +81,11 @@ pub(super) fn render(w: u32, h: u32, frame: [f64; 4], prims: &[Prim]) -> String 
                     y1 - y0
                 );
             }
-            Prim::Dots(pts, color, clip) => {
+            Prim::Dots(pts, color, r, clip) => {
                 let clip = if *clip { CLIP } else { "" };
                 let _ = writeln!(s, "<g fill=\"{}\"{clip}>", hex(*color));
                 for (x, y) in pts {
-                    let _ = writeln!(s, "<circle cx=\"{x:.2}\" cy=\"{y:.2}\" r=\"{DOT_R}\"/>");
+                    let _ = writeln!(s, "<circle cx=\"{x:.2}\" cy=\"{y:.2}\" r=\"{r}\"/>");
                 }
                 s.push_str("</g>\n");
             }

@@ -464,3 +464,125 @@ fn non_ascii_labels_are_spelled_out_for_png() {
     assert_eq!(font::glyph('é'), font::glyph('?'));
     assert_eq!(font::text_width("ab", 2), 22);
 }
+
+/// Pixel colours in the square of half-width `rad` around `p`.
+fn colours_near(c: &raster::Canvas, p: (f64, f64), rad: i64) -> Vec<Rgb> {
+    let (x, y) = (p.0.round() as i64, p.1.round() as i64);
+    (-rad..=rad)
+        .flat_map(|dy| (-rad..=rad).map(move |dx| (x + dx, y + dy)))
+        .map(|(x, y)| c.get(x as u32, y as u32))
+        .collect()
+}
+
+fn inside(p: (f64, f64), bx: [f64; 4]) -> bool {
+    p.0 >= bx[0] && p.0 <= bx[2] && p.1 >= bx[1] && p.1 <= bx[3]
+}
+
+/// A fit line in the bottom-left and one point at `corner` (data in [0, 1]).
+fn corner_figure(corners: &[(f64, f64)]) -> Figure {
+    let mut fig = Figure::new("dispersion")
+        .x_range(0.0, 1.0)
+        .y_range(0.0, 1.0);
+    let (xs, ys): (Vec<f64>, Vec<f64>) = corners.iter().copied().unzip();
+    fig.series("measured", &xs, &ys, Marker::Points);
+    fig.series("fit", &[0.3, 0.5], &[0.4, 0.5], Marker::Line);
+    fig
+}
+
+#[test]
+fn legend_keeps_top_right_corner_when_free() {
+    let lay = sine_figure().layout();
+    let [x0, y0, x1, y1] = lay.legend.expect("two labelled series");
+    assert!(x1 == lay.r - 10.0 && y0 == lay.t + 10.0 && x0 > lay.l && y1 < lay.b);
+    assert!(Figure::new("one").layout().legend.is_none());
+}
+
+#[test]
+fn legend_moves_off_a_point_in_the_top_right_corner() {
+    let fig = corner_figure(&[(0.97, 0.97)]);
+    let lay = fig.layout();
+    let bx = lay.legend.expect("legend");
+    let p = lay.map((0.97, 0.97));
+    let grown = [bx[0] - 5.0, bx[1] - 5.0, bx[2] + 5.0, bx[3] + 5.0];
+    assert!(!inside(p, grown), "point {p:?} under legend {bx:?}");
+    // Still an inside corner (top-left: the fit line is in the middle).
+    assert!(bx[0] == lay.l + 10.0 && bx[1] == lay.t + 10.0, "{bx:?}");
+    // And the point is really painted.
+    let c = fig.raster();
+    assert!(colours_near(&c, p, 1).contains(&PALETTE[0]));
+}
+
+#[test]
+fn legend_goes_outside_when_every_corner_has_data() {
+    let corners = [(0.97, 0.97), (0.03, 0.97), (0.97, 0.03), (0.03, 0.03)];
+    let fig = corner_figure(&corners);
+    let lay = fig.layout();
+    let bx = lay.legend.expect("legend");
+    assert!(
+        bx[0] > lay.r && bx[2] <= f64::from(fig.w),
+        "not right of the axes: {bx:?}"
+    );
+    assert!(
+        lay.r < fig.frame_layout(0.0, 0.0).r,
+        "axis box not narrowed"
+    );
+    let c = fig.raster();
+    for p in corners {
+        assert!(
+            colours_near(&c, lay.map(p), 1).contains(&PALETTE[0]),
+            "{p:?} hidden"
+        );
+    }
+    // A legend too wide to sit beside the axes goes below them instead.
+    let mut wide = corner_figure(&corners);
+    wide.series(&"very long label ".repeat(6), &[], &[], Marker::Line);
+    let lay = wide.layout();
+    let bx = lay.legend.expect("legend");
+    assert!(
+        bx[1] > lay.x_label_y && bx[3] <= f64::from(wide.h),
+        "{bx:?}"
+    );
+    assert!(lay.r == wide.frame_layout(0.0, 0.0).r);
+}
+
+#[test]
+fn legend_avoids_curve_crossing_a_corner() {
+    // A rising line passes through the top-right and bottom-left corners.
+    let mut fig = Figure::new("peak").x_range(0.0, 1.0).y_range(0.0, 1.0);
+    fig.series("up", &[0.0, 1.0], &[0.0, 1.0], Marker::Line);
+    fig.series("flat", &[0.0, 1.0], &[0.5, 0.5], Marker::Line);
+    let lay = fig.layout();
+    let bx = lay.legend.expect("legend");
+    assert!(
+        bx[0] == lay.l + 10.0 && bx[1] == lay.t + 10.0,
+        "top-left expected: {bx:?}"
+    );
+}
+
+#[test]
+fn coinciding_series_both_stay_visible() {
+    let xs: Vec<f64> = (0..50).map(f64::from).collect();
+    let ys: Vec<f64> = xs.iter().map(|x| (x / 8.0).sin()).collect();
+    for marker in [
+        Marker::Line,
+        Marker::Points,
+        Marker::LinePoints,
+        Marker::Steps,
+    ] {
+        let mut fig = Figure::new("same");
+        for name in ["a", "b", "c"] {
+            fig.series(name, &xs, &ys, marker);
+        }
+        let c = fig.raster();
+        let lay = fig.layout();
+        let [l, t, r, b] = lay.frame().map(|v| v as u32);
+        let legend = lay.legend.expect("legend");
+        for col in &PALETTE[..3] {
+            let seen = (t + 1..b)
+                .flat_map(|y| (l + 1..r).map(move |x| (x, y)))
+                .filter(|&(x, y)| !inside((f64::from(x), f64::from(y)), legend))
+                .any(|(x, y)| c.get(x, y) == *col);
+            assert!(seen, "{marker:?}: series colour {col:?} hidden");
+        }
+    }
+}
