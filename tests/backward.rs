@@ -156,6 +156,25 @@ fn disk_case(name: &str, n: usize, steps: &str) -> (PathBuf, serde_json::Value, 
     (dir, report, fs)
 }
 
+/// The GS spectrum over the frames' steps is the forward run's sums of ln R_ii between the
+/// checkpoints at the window's ends (frame m carries the growth over [t_m, t_(m+1)]), and its
+/// lambda_1 is the CLV one (v^1 = g^1).
+#[test]
+fn the_gs_spectrum_over_the_window_is_the_forward_runs_over_those_steps() {
+    let dir = forward("gs-window", &["--n", "4", "--aspect", "1", "--steps", "900", "--relax-steps", "100", "--clv-steps", "300", "--transient", "200", "--checkpoint-every", "1"]);
+    let report = backward_json(&dir, &[]);
+    let (first, last) = (report["statistics"]["first_frame_step"].as_u64().unwrap(), report["statistics"]["last_frame_step"].as_u64().unwrap());
+    let checkpoints = common::contents(&dir).checkpoints;
+    let (a, b) = (&checkpoints[&first].acc.sum, &checkpoints[&(last + 1)].acc.sum);
+    let window = vec_of(&report["gs_window"], "exponents");
+    let t = (last + 1 - first) as f64 * 0.6;
+    for i in 0..16 {
+        assert!((window[i] * t - (b[i] - a[i])).abs() < 1e-9 * (1.0 + (b[i] - a[i]).abs()), "lambda_{} over the window: {} against the checkpoints' {}", i + 1, window[i], (b[i] - a[i]) / t);
+    }
+    assert!((window[0] - vec_of(&report, "exponents")[0]).abs() < 1e-12 * window[0], "{} {}", window[0], vec_of(&report, "exponents")[0]);
+    assert_eq!(vec_of(&report["gs_window"], "stderr").len(), 16);
+}
+
 fn check_disks(n: usize, steps: &str) {
     let (_, report, fs) = disk_case(&format!("disks-{n}"), n, steps);
     let d = 4 * n;

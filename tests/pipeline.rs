@@ -149,9 +149,12 @@ fn clv_run_on_the_default_preset_writes_the_report() {
     let again = ok(clv(&["run", "--out", o]));
     let err = String::from_utf8_lossy(&again.stderr);
     assert!(err.contains("continuing the run"), "{err}");
-    // The closing summary: lambda_1 and h_KS of both spectra, with errors.
+    // The closing summary: lambda_1 and h_KS of both spectra and of the GS one over the CLV
+    // window, with errors; lambda_1 is the same for CLV and GS over the same steps (v^1 = g^1).
     let summary = err.lines().find(|l| l.starts_with("clv run: lambda_1 = ")).unwrap_or_else(|| panic!("no summary in {err}"));
-    assert!(summary.contains(" (GS), ") && summary.contains("h_KS = ") && summary.matches(" ± ").count() == 4, "{summary}");
+    assert!(summary.contains(" (GS), ") && summary.contains("h_KS = ") && summary.matches(" ± ").count() == 6, "{summary}");
+    let lambda_1: Vec<&str> = summary.split(", ").take(3).map(|s| s.split(' ').find(|t| t.parse::<f64>().is_ok()).unwrap_or_default()).collect();
+    assert_eq!(lambda_1[1], lambda_1[2], "{summary}");
     assert!(err.contains("clv run: convergence of the GS spectrum (20 blocks): "), "{err}");
     // Another preset into the same --out: refused, the run and its report left as they are.
     let other = clv(&["run", "--preset", "henon", "--out", o, "--quiet"]);

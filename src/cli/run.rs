@@ -161,12 +161,15 @@ pub fn run(args: &RunArgs, matches: &ArgMatches) -> Result<()> {
     let clv_report = &result.clv;
     use clv::stage::forward::Estimate;
     let first = |v: &[f64], e: &[f64]| Estimate::or_unknown(v.first().zip(e.first()).map(|(&value, &stderr)| Estimate { value, stderr }));
+    let window = clv_report.gs_window.as_ref();
     say(format!(
-        "lambda_1 = {} (GS), {} (CLV); h_KS = {} (GS), {} (CLV)",
+        "lambda_1 = {} (GS), {} (CLV), {} (GS over the CLV window); h_KS = {} (GS), {} (CLV), {} (GS over the CLV window)",
         first(&clv_report.gs_exponents, &clv_report.gs_stderr),
         first(&clv_report.exponents, &clv_report.stderr),
+        window.map_or("unknown".into(), |w| first(&w.exponents, &w.stderr)),
         Estimate::or_unknown(clv_report.gs_ks_entropy),
-        Estimate::or_unknown(clv_report.ks_entropy)
+        Estimate::or_unknown(clv_report.ks_entropy),
+        Estimate::or_unknown(window.and_then(|w| w.ks_entropy))
     ));
     let gs = clv::report::SpectrumSummary::read(&result.run_dir.join("spectrum.json")).ok();
     if let Some(d) = gs.and_then(|g| g.blocks).and_then(|b| clv::stage::analyze::kernels::convergence::diagnose(&b.exponents)) {

@@ -131,11 +131,25 @@ pub struct BackwardReport {
     pub ks_entropy: Option<Estimate>,
     #[serde(default)]
     pub gs_ks_entropy: Option<Estimate>,
+    /// The GS spectrum over the steps of the emitted frames only, like for like with the
+    /// CLV spectrum: the whole run's GS spectrum differs from the CLV one by the window's
+    /// own fluctuation, which the CLV errors measure (absent from older reports, and from a
+    /// sweep resumed from an older progress record).
+    #[serde(default)]
+    pub gs_window: Option<WindowSpectrum>,
     pub options: BackwardOptions,
     pub statistics: BackwardStats,
     /// What the stage did that a person should know (not stored).
     #[serde(skip)]
     pub notes: Vec<String>,
+}
+
+/// A spectrum over the frames' window, with its batch-means errors and h_KS.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct WindowSpectrum {
+    pub exponents: Vec<f64>,
+    pub stderr: Vec<f64>,
+    pub ks_entropy: Option<Estimate>,
 }
 
 /// Saved after every finished segment (RUN_DIR/backward.json).
@@ -147,6 +161,9 @@ struct Progress {
     #[serde(with = "f64_hex")]
     c: Vec<f64>,
     acc: Accumulator,
+    /// ln [R_n]_ii over the same steps, for [`BackwardReport::gs_window`].
+    #[serde(default)]
+    acc_gs: Option<Accumulator>,
     stats: BackwardStats,
     done: bool,
 }
@@ -707,6 +724,10 @@ pub fn run(
     };
     let n_frames = window.last - window.first + 1;
     let mut acc = prior.as_ref().map(|p| p.acc.clone()).unwrap_or_else(|| Accumulator::new(k, (n_frames / config.blocks as u64).max(1)));
+    let mut acc_gs = match &prior {
+        Some(p) => p.acc_gs.clone(),
+        None => Some(Accumulator::new(k, acc.block_len)),
+    };
     let mut stats = prior.as_ref().map(|p| p.stats.clone()).unwrap_or_default();
     let resume_at = prior.as_ref().map(|p| p.at).unwrap_or(total);
     let todo: Vec<(u64, u64)> = bounds.windows(2).rev().map(|w| (w[0], w[1])).filter(|&(_, s1)| s1 <= resume_at).collect();
@@ -715,7 +736,7 @@ pub fn run(
         // interrupted before its first segment, it is the one --resume continues (an earlier
         // record left in place would point --resume at another sweep, and strand this one's
         // frames).
-        let fresh = Progress { options: opts.clone(), at: resume_at, c: pack_upper(c.as_ref()), acc: acc.clone(), stats: stats.clone(), done: false };
+        let fresh = Progress { options: opts.clone(), at: resume_at, c: pack_upper(c.as_ref()), acc: acc.clone(), acc_gs: acc_gs.clone(), stats: stats.clone(), done: false };
         write_atomic(&progress_file, &serde_json::to_vec(&fresh).map_err(|e| Error::Other(e.to_string()))?)?;
     }
     let mut frame_file = match (&frames_path, saving, &prior) {
@@ -818,6 +839,9 @@ pub fn run(
             // The CLV spectrum is the mean of the frames' local exponents (accumulated with
             // tau = 1), exactly as an analysis of the frame stream computes it.
             acc.add_logs(local.iter().copied());
+            if let Some(acc_gs) = acc_gs.as_mut() {
+                acc_gs.add_logs((0..k).map(|i| r[(i, i)].abs().ln()));
+            }
             let frame = Arc::new(Frame {
                 step: m,
                 time: m as f64 * tau,
@@ -855,7 +879,7 @@ pub fn run(
         stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();
         let at = seg.s0;
         let _ = free_tx.try_send(seg);
-        let p = Progress { options: opts.clone(), at, c: pack_upper(c.as_ref()), acc: acc.clone(), stats: stats.clone(), done: false };
+        let p = Progress { options: opts.clone(), at, c: pack_upper(c.as_ref()), acc: acc.clone(), acc_gs: acc_gs.clone(), stats: stats.clone(), done: false };
         write_atomic(&progress_file, &serde_json::to_vec(&p).map_err(|e| Error::Other(e.to_string()))?)?;
         // The recomputation gets every thread only now: the record above is written on this
         // thread, and a spinning QR worker must not share its core.
@@ -889,6 +913,7 @@ pub fn run(
         gs_exponents: gs.exponents,
         gs_stderr: gs.stderr,
         gs_ks_entropy: gs.ks_entropy,
+        gs_window: acc_gs.as_ref().map(|a| WindowSpectrum { exponents: a.exponents(tau), stderr: a.stderr(tau), ks_entropy: a.ks_entropy(tau) }),
         options: opts.clone(),
         statistics: stats.clone(),
         notes,
@@ -915,7 +940,7 @@ pub fn run(
         report.notes.push(format!("the CLV spectrum of the earlier sweep, made with {}, is kept as {}", earlier.options.as_flags(), kept.display()));
     }
     write_atomic(&path, json.as_bytes())?;
-    let done = Progress { options: opts.clone(), at: window.first, c: Vec::new(), acc, stats, done: true };
+    let done = Progress { options: opts.clone(), at: window.first, c: Vec::new(), acc, acc_gs, stats, done: true };
     write_atomic(&progress_file, &serde_json::to_vec(&done).map_err(|e| Error::Other(e.to_string()))?)?;
     Ok(report)
 }
@@ -945,7 +970,7 @@ mod tests {
     use super::*;
 
     fn record(c: Vec<f64>) -> Progress {
-        Progress { options: BackwardOptions { transient: 1, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1 }, at: 7, c, acc: Accumulator::new(3, 2), stats: BackwardStats::default(), done: false }
+        Progress { options: BackwardOptions { transient: 1, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1 }, at: 7, c, acc: Accumulator::new(3, 2), acc_gs: None, stats: BackwardStats::default(), done: false }
     }
 
     /// C survives the progress record bit for bit (hex), and records of earlier builds (a JSON

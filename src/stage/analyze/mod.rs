@@ -420,7 +420,7 @@ fn write_index(ctx: &Context, out: &Path, produced: &[Produced], warnings: &[Str
     let run = ctx.run.as_ref().map(|m| serde_json::to_string(&m.config).unwrap_or_default()).unwrap_or_default();
     let mut html = String::from("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>clv analyses</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em} figure{margin:2em 0} img{max-width:100%} code{background:#eee}</style></head><body>\n");
     html += &format!(
-        "<h1>Covariant Lyapunov vector analyses</h1>\n<p>Source: <code>{}</code>; {} frames (steps {}..{}), D = {}, k = {}{}; vector statistics use {}.</p>\n<p>Run: <code>{}</code></p>\n",
+        "<h1>Covariant Lyapunov vector analyses</h1>\n<p>Source: <code>{}</code>; {} frames (steps {}..{}), D = {}, k = {}{}; vector statistics use {}.</p>\n<p>Run: <code>{}</code></p>\n<p>Conventions: {}</p>\n",
         escape(&ctx.source),
         frames,
         if frames > 0 { first } else { 0 },
@@ -429,19 +429,23 @@ fn write_index(ctx: &Context, out: &Path, produced: &[Produced], warnings: &[Str
         ctx.k,
         if ctx.with_gs { ", with Gram-Schmidt vectors" } else { "" },
         ctx.sample(),
-        escape(&run)
+        escape(&run),
+        if ctx.is_disks() {
+            "units σ = m = K/N = 1, exponents per unit time; step numbers count the relaxation steps too, and t = step × τ; indices i are 1-based as in the paper; vectors ordered (δq_x1, δq_y1, ..., δq_yN; δp_x1, ..., δp_yN); angles in radians, captions add degrees where the paper uses them."
+        } else {
+            "exponents per unit time (per iteration for a map); t = step × τ; indices i are 1-based."
+        }
     );
     for w in warnings {
         html += &format!("<p style=\"border:2px solid #c00;padding:0.5em\"><strong>Incomplete stream.</strong> {}</p>\n", escape(w));
     }
     for p in produced {
         html += &format!("<section><h2>{}</h2>\n", escape(&p.title));
+        // The caption describes the entry's figures together: once, after them.
         for f in &p.figures {
-            html += &format!("<figure><img src=\"{f}.png\" alt=\"{f}\"><figcaption>{} (<a href=\"{f}.svg\">SVG</a>)</figcaption></figure>\n", escape(&p.caption));
+            html += &format!("<figure><img src=\"{f}.png\" alt=\"{f}\"><figcaption>{f} (<a href=\"{f}.svg\">SVG</a>)</figcaption></figure>\n");
         }
-        if p.figures.is_empty() {
-            html += &format!("<p>{}</p>\n", escape(&p.caption));
-        }
+        html += &format!("<p>{}</p>\n", escape(&p.caption));
         if !p.tables.is_empty() {
             let links: Vec<String> = p.tables.iter().map(|t| format!("<a href=\"{t}\">{t}</a>")).collect();
             html += &format!("<p>Numbers: {}</p>\n", links.join(", "));
@@ -462,13 +466,23 @@ pub fn write_csv(path: &Path, header: &[&str], rows: impl IntoIterator<Item = Ve
     let mut s = header.join(",");
     s.push('\n');
     for row in rows {
-        let cells: Vec<String> = row.iter().map(|x| format!("{x:e}")).collect();
+        let cells: Vec<String> = row.iter().map(|&x| csv_number(x)).collect();
         let _ = writeln!(s, "{}", cells.join(","));
     }
     std::fs::write(path, s).map_err(|e| Error::io(path, e))
 }
 
-/// Save a figure as PNG and SVG.
+/// A CSV cell: whole numbers (indices, steps, counts, flags) as integers, `78` rather than
+/// `7.8e1`, so that they read as such (grep, pandas); everything else in the shortest
+/// exponent form that reads back to the same bits.
+pub fn csv_number(x: f64) -> String {
+    if x.fract() == 0.0 && x.abs() < 1e15 {
+        format!("{}", x as i64)
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// The files of the report in `out`, as its summary.json lists them (index.html and
 /// summary.json included); None without a readable summary.
 pub fn report_files(out: &Path) -> Option<std::collections::BTreeSet<String>> {
@@ -482,6 +496,7 @@ pub fn report_files(out: &Path) -> Option<std::collections::BTreeSet<String>> {
     Some(files)
 }
 
+/// Save a figure as PNG and SVG.
 pub fn save_figure(fig: &crate::report::plot::Figure, out: &Path, stem: &str) -> Result<()> {
     fig.save(out, stem).map_err(|e| Error::io(out.join(stem), e))
 }

@@ -282,7 +282,7 @@ mod tests {
             assert!(r[5..17].iter().all(|x| (x - 1.0).abs() < 1e-14));
         }
         let beta_csv = std::fs::read_to_string(out.join("nullspace_beta.csv")).unwrap();
-        assert!(beta_csv.starts_with("i,e1,e2,e3,e4,e5,e6,row_norm\n8e0,"), "{beta_csv}");
+        assert!(beta_csv.starts_with("i,e1,e2,e3,e4,e5,e6,row_norm\n8,"), "{beta_csv}");
         let first: Vec<f64> = beta_csv.lines().nth(1).unwrap().split(',').map(|x| x.parse().unwrap()).collect();
         assert!((first[1] - 1.0).abs() < 1e-14 && (first[7] - 1.0).abs() < 1e-14, "{first:?}");
         let _ = std::fs::remove_dir_all(&out);

@@ -27,9 +27,11 @@ pub struct Overlaps {
     js: Vec<usize>,
     /// Mode indices j (0-based) of Fig. 14.
     mode_js: Vec<usize>,
+    /// The conjugate partners 4N+1-j of `js` (0-based), Fig. 13's second plot.
+    conjugate_js: Vec<usize>,
     /// <|v^j . g^i|> per selected j (Fig. 4), with GS vectors.
     vg: Option<Vec<Mean>>,
-    /// Indices j with a CLV-CLV average: the union of `js` and `mode_js`.
+    /// Indices j with a CLV-CLV average: the union of `js`, `mode_js` and `conjugate_js`.
     vv_js: Vec<usize>,
     /// <|v^j . v^i|> per j of `vv_js` (Figs. 13, 14).
     vv: Vec<Mean>,
@@ -58,7 +60,10 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
         Some(_) if ctx.n >= 3 => vec![2 * ctx.n - 6, 2 * ctx.n - 4],
         _ => Vec::new(),
     };
-    let mut vv_js: Vec<usize> = js.iter().chain(&mode_js).copied().collect();
+    // The paper's Fig. 13 has a second panel, the conjugate partners j* = 4N+1-j in the
+    // stable subspace.
+    let conjugate_js: Vec<usize> = if ctx.is_disks() && ctx.k == ctx.d { js.iter().map(|&j| ctx.d - 1 - j).filter(|j| !js.contains(j)).collect() } else { Vec::new() };
+    let mut vv_js: Vec<usize> = js.iter().chain(&mode_js).chain(&conjugate_js).copied().collect();
     vv_js.sort_unstable();
     vv_js.dedup();
     Some(Box::new(Overlaps {
@@ -68,6 +73,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
         vv: vv_js.iter().map(|_| Mean::new(ctx.k)).collect(),
         js,
         mode_js,
+        conjugate_js,
         vv_js,
     }))
 }
@@ -151,8 +157,17 @@ impl Analysis for Overlaps {
             produced.push(Produced {
                 title: "Gram-Schmidt versus covariant vectors (Fig. 3)".into(),
                 caption: format!(
-                    "Time average of |g^i · v^i| for the GS and covariant vectors of the same exponent λ_i against i, {avg}; the second plot enlarges the central (mode and null-space) part{}.",
-                    central.map(|(a, b)| format!(", i = {}..{}", a + 1, b + 1)).unwrap_or_default()
+                    "Time average of |g^i · v^i| for the GS and covariant vectors of the same exponent λ_i against i, {avg}{}.{}",
+                    central.map(|(a, b)| format!("; the second plot enlarges the central (mode and null-space) part, i = {}..{}", a + 1, b + 1)).unwrap_or_default(),
+                    if central.is_some() {
+                        format!(
+                            " It vanishes at i = {}..{}: those covariant vectors are E_(k+3) - s E_k after a backward time s (see Fig. 2), turned towards the position shifts E_k, while those GS vectors are the momentum shifts E_(k+3).",
+                            2 * ctx.n + 1,
+                            2 * ctx.n + 3
+                        )
+                    } else {
+                        String::new()
+                    }
                 ),
                 figures,
                 tables: vec!["overlap_gs_clv.csv".into()],
@@ -192,13 +207,26 @@ impl Analysis for Overlaps {
                     }
                 }
                 save_figure(&fig, out, "fig13_clv_overlap")?;
+                let mut figures = vec!["fig13_clv_overlap".to_string()];
+                if !self.conjugate_js.is_empty() {
+                    let mut fig = Figure::new("Covariant vectors of the conjugate partners: <|v^j · v^i|>, i != j").x_label("i").y_label("<|v^j · v^i|>");
+                    for &j in &self.conjugate_js {
+                        if let Some(m) = pick(j) {
+                            fig.series(&format!("j = {}", j + 1), &idx, &without_self(&m, j), Marker::Line);
+                        }
+                    }
+                    save_figure(&fig, out, "fig13_clv_overlap_conjugate")?;
+                    figures.push("fig13_clv_overlap_conjugate".into());
+                }
                 produced.push(Produced {
                     title: "Scalar products between covariant vectors (Fig. 13)".into(),
                     caption: format!(
-                        "Time average of |v^j · v^i| against i (i != j) for the selected covariant vectors j = {}, {avg}. The null space 2N-2..2N+3 is orthogonal to all other covariant vectors; vectors of the same (stable or unstable) subspace are not orthogonal.",
-                        list(&self.js)
+                        "Time average of |v^j · v^i| against i (i != j) for the selected covariant vectors j = {}{}, {avg}.{} Vectors of the same (stable or unstable) subspace are not orthogonal.",
+                        list(&self.js),
+                        if self.conjugate_js.is_empty() { String::new() } else { format!(", and in the second plot for their conjugate partners j = {} (4N+1-j, as the paper's lower panel)", list(&self.conjugate_js)) },
+                        if ctx.is_disks() { " The null space 2N-2..2N+3 is orthogonal to all other covariant vectors." } else { "" }
                     ),
-                    figures: vec!["fig13_clv_overlap".into()],
+                    figures,
                     tables: vec!["overlap_clv_clv.csv".into()],
                 });
             }
@@ -214,7 +242,7 @@ impl Analysis for Overlaps {
                 produced.push(Produced {
                     title: "Scalar products of mode vectors (Fig. 14)".into(),
                     caption: format!(
-                        "Time average of |v^j · v^i| for j = {} (2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit) against i = {}..{} (i != j), {avg}. Mode vectors overlap with the vectors of the same degenerate exponent and, less, with the conjugate ones.",
+                        "Time average of |v^j · v^i| for j = {} (2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any: see the mode table) against i = {}..{} (i != j), {avg}. Mode vectors overlap with the vectors of the same degenerate exponent and, less, with the conjugate ones.",
                         list(&self.mode_js),
                         a + 1,
                         b + 1
@@ -273,7 +301,7 @@ mod tests {
         let out = scratch("equal");
         let produced = a.finish(&out, 5).unwrap();
         let stems: Vec<&String> = produced.iter().flat_map(|p| &p.figures).collect();
-        for stem in ["fig3_gs_clv_overlap", "fig3_gs_clv_overlap_center", "fig4_clv_gs_overlap", "fig13_clv_overlap", "fig14_mode_overlap"] {
+        for stem in ["fig3_gs_clv_overlap", "fig3_gs_clv_overlap_center", "fig4_clv_gs_overlap", "fig13_clv_overlap", "fig13_clv_overlap_conjugate", "fig14_mode_overlap"] {
             assert!(stems.iter().any(|s| *s == stem), "{stem} missing from {stems:?}");
             assert!(out.join(format!("{stem}.png")).exists());
         }
@@ -287,9 +315,10 @@ mod tests {
                 assert_eq!(x, if i + 1 == j { 1.0 } else { 0.0 }, "j = {j}, i = {}", i + 1);
             }
         }
-        // CLV-CLV: the selected j and the mode indices 2N-5 = 3, 2N-3 = 5
+        // CLV-CLV: the selected j, the mode indices 2N-5 = 3, 2N-3 = 5, and the conjugates
+        // 4N+1-j = 16, 12 of the selected j
         let t13 = read_csv(&out.join("overlap_clv_clv.csv"));
-        for j in [1usize, 3, 5] {
+        for j in [1usize, 3, 5, 12, 16] {
             let c = column(&t13, &format!("abs_v{j}_mean"));
             assert_eq!(c.iter().sum::<f64>(), 1.0);
             assert_eq!(c[j - 1], 1.0);
@@ -332,7 +361,7 @@ mod tests {
         let out = scratch("nogs");
         let produced = a.finish(&out, 1).unwrap();
         let stems: Vec<&String> = produced.iter().flat_map(|p| &p.figures).collect();
-        assert_eq!(stems, ["fig13_clv_overlap", "fig14_mode_overlap"]);
+        assert_eq!(stems, ["fig13_clv_overlap", "fig13_clv_overlap_conjugate", "fig14_mode_overlap"]);
         assert!(!out.join("overlap_gs_clv.csv").exists());
         let _ = std::fs::remove_dir_all(&out);
     }

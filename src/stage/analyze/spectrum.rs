@@ -53,9 +53,12 @@ impl Analysis for Spectrum {
             &["i", "i_over_D", "lambda_gs", "stderr_gs", "lambda_clv", "stderr_clv"],
             (0..ctx.k).map(|i| vec![(i + 1) as f64, x[i], gs[i], gs_err[i], clv[i], clv_err[i]]),
         )?;
-        let mut fig = Figure::new("Lyapunov spectrum: GS forward, CLV backward").x_label("i/4N").y_label("λ_i");
-        fig.series("GS (forward)", &x, &gs, Marker::Line);
-        fig.series("CLV (backward)", &x, &clv, Marker::Line);
+        let reduced = if ctx.is_disks() { "i/4N" } else { "i/D" };
+        // A line between a handful of exponents (the Henon map's two) would look like data.
+        let marker = if ctx.k <= 8 { Marker::Points } else { Marker::Line };
+        let mut fig = Figure::new("Lyapunov spectrum: GS forward, CLV backward").x_label(reduced).y_label("λ_i");
+        fig.series("GS (forward)", &x, &gs, marker);
+        fig.series("CLV (backward)", &x, &clv, marker);
         fig.hline(0.0);
         save_figure(&fig, out, "fig2_spectrum")?;
         // The spectrum.json of builds before h_KS was reported has the exponents but no error.
@@ -63,11 +66,17 @@ impl Analysis for Spectrum {
         let mut produced = vec![Produced {
             title: "Lyapunov spectrum (Fig. 2)".into(),
             caption: format!(
-                "Forward Gram-Schmidt exponents (time average of ln R_ii) and backward covariant exponents (time average of the local CLV exponents over {frames} frames) against the reduced index i/4N. \
+                "Forward Gram-Schmidt exponents (time average of ln R_ii) and backward covariant exponents (time average of the local CLV exponents over {frames} frames) against the reduced index {reduced}. \
                  Kolmogorov-Sinai entropy h_KS, the sum of the positive exponents (Pesin's identity): {} (GS), {} (CLV).",
                 Estimate::or_unknown(gs_h),
                 Estimate::or_unknown(self.acc.ks_entropy(1.0)),
-            ),
+            ) + &ctx.run.as_ref().map_or(String::new(), |run| {
+                format!(
+                    " The GS averages are over the whole run ({} steps), the CLV averages over the frames' steps only: they differ by that window's own fluctuation, which the CLV errors measure. \
+                     The backward stage gives the GS spectrum over the frames' steps too (`gs_window` in clv_spectrum.json, and its table), the comparison like for like.",
+                    run.config.steps
+                )
+            }),
             figures: vec!["fig2_spectrum".into()],
             tables: vec!["spectrum.csv".into()],
         }];
@@ -99,12 +108,32 @@ impl Analysis for Spectrum {
             save_figure(&fig, out, "fig8_mode_region")?;
             produced.push(Produced {
                 title: "Mode region of the spectrum (Fig. 8)".into(),
-                caption: format!("The positive exponents λ_{}..λ_{} next to the null space, with the negated conjugate exponents at the same index; the steps of the spectrum are the Lyapunov modes.", first + 1, last + 1),
+                caption: format!(
+                    "The positive exponents λ_{}..λ_{} next to the null space, with the negated conjugate exponents at the same index (paper Fig. 8). Steps of equal exponents are where Lyapunov modes may sit; the mode table says which steps were found and what they are. {}",
+                    first + 1,
+                    last + 1,
+                    typical_error(&gs_err[first..=last], &clv_err[first..=last])
+                ),
                 figures: vec!["fig8_mode_region".into()],
                 tables: vec![],
             });
         }
         Ok(produced)
+    }
+}
+
+/// The median standard errors of the plotted exponents, in words: the figure has no error
+/// bars, and whether two neighbours differ is a question of them.
+fn typical_error(gs: &[f64], clv: &[f64]) -> String {
+    let median = |v: &[f64]| {
+        let mut v: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied()
+    };
+    match (median(gs), median(clv)) {
+        (Some(g), Some(c)) => format!("Median standard errors of the plotted exponents: {g:.1e} (GS), {c:.1e} (CLV); all errors are in spectrum.csv."),
+        (None, Some(c)) => format!("Median standard error of the plotted CLV exponents: {c:.1e}; all errors are in spectrum.csv."),
+        _ => String::new(),
     }
 }
 

@@ -199,15 +199,16 @@ impl Analysis for Transversality {
         let d = frame.d;
         if self.theta.is_none() {
             let exponents = self.ctx.gs.as_ref().map(|g| g.exponents.as_slice()).unwrap_or_default();
-            self.steps = modes::resolve_steps(&self.detected, frame, self.ctx.lx, exponents).into_iter().map(|(s, _)| s).filter(|s| modes::is_positive(s, d)).collect();
+            let candidates = modes::candidates(&self.ctx);
+            self.steps = modes::resolve_steps(&self.detected, frame, &candidates, exponents).into_iter().map(|(s, _)| s).filter(|s| modes::is_positive(s, d)).collect();
             self.phi = vec![Vec::new(); self.steps.len()];
             let j = f_size(d, &self.steps);
             self.theta = Some(ThetaStats::new(j, separations(d, j)));
             self.labels = self
                 .steps
                 .iter()
-                .map(|s| match modes::classify_step(frame, s, self.ctx.lx) {
-                    Some(m) if modes::matches_degeneracy(s, m.kind) => format!("{} ({})", modes::mode_name(m.kind, m.n_x), step_range(s)),
+                .map(|s| match modes::classify_step(frame, s, &candidates) {
+                    Some(m) if modes::matches_degeneracy(s, m.kind, &candidates.families[m.family]) => format!("{} ({})", candidates.families[m.family].name(m.kind), step_range(s)),
                     _ => format!("{}-fold step ({})", s.len, step_range(s)),
                 })
                 .collect();
@@ -255,13 +256,13 @@ impl Analysis for Transversality {
         for (label, phi) in labels.iter().zip(&self.phi) {
             let (min, mean) = stats(phi);
             fig.histogram(&format!("Phi {label}"), phi, bins, 0.0, FRAC_PI_2, true);
-            mode_text.push(format!("Φ for {label}: min {:.1}°, mean {:.1}°", deg(min), deg(mean)));
+            mode_text.push(format!("Φ for {label}: min {:.1}° ({min:.3} rad), mean {:.1}° ({mean:.3} rad)", deg(min), deg(mean)));
         }
         save_figure(&fig, out, "fig15_transversality")?;
         produced.push(Produced {
             title: "Transversality of conjugate subspaces (Fig. 15)".into(),
             caption: format!(
-                "Distributions over {frames} frames of the smallest principal angle Ψ between E^u = v^1..v^{} and E^s = v^{}..v^{} (min {:.2}°, mean {:.1}°{}; between random subspaces of these dimensions it would be {:.2}°, the median of {RANDOM_PAIRS} pairs) and of the smallest principal angle Φ between each mode subspace next to the null space and its conjugate subspace ({}). Angles from QR bases and the SVD of Q^T Q* (sines for small angles).",
+                "Distributions over {frames} frames of the smallest principal angle Ψ between E^u = v^1..v^{} and E^s = v^{}..v^{} (min {:.2}° = {pmin:.4} rad, mean {:.1}° = {pmean:.3} rad{}; between random subspaces of these dimensions it would be {:.2}°, the median of {RANDOM_PAIRS} pairs) and of the smallest principal angle Φ between each mode subspace next to the null space and its conjugate subspace ({}). Angles from QR bases and the SVD of Q^T Q* (sines for small angles).",
                 self.m,
                 2 * n + 4,
                 4 * n,

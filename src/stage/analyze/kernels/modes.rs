@@ -1,13 +1,18 @@
 //! Lyapunov modes (paper Sec. 5.5, Table IV, Figs. 8, 10-12).
 //!
 //! The small positive (and conjugate negative) exponents come in degenerate steps: pairs are
-//! transverse T(n,0) modes, quadruplets longitudinal-momentum LP(n,0) modes. Their vectors are
-//! sampled sinusoids over the disk positions, so a vector is classified by the fraction of its
-//! position (or momentum) part lying in the span of the Table IV basis of each candidate.
+//! transverse T modes, quadruplets longitudinal-momentum LP modes, per wave vector
+//! k = 2 pi (n_x / L_x, n_y / L_y). The paper's narrow box has only (n_x, 0) among them; in
+//! other boxes the wave vectors of equal |k| that the box's symmetry relates ((1,0) and (0,1)
+//! in a square; (1,1) and (1,-1) in any rectangle) make one step of 2 or 4 exponents per wave
+//! vector, so they are candidates together as well as alone ([`Family`]). Mode vectors are
+//! sampled sinusoids over the disk positions, so a vector is classified by the fraction of
+//! its position (or momentum) part lying in the span of the Table IV basis of each candidate.
 //! The sampled basis is orthonormalised over the disks first: sin and cos at random
-//! positions are not exactly orthogonal. T modes are further characterised by a sine fit of
-//! dq_y (dp_y) against q_x (Fig. 10), LP groups by reconstructing the pure L and pure P
-//! vectors inside the 4-dimensional subspace (Figs. 11, 12).
+//! positions are not exactly orthogonal. T modes of one wave vector are further
+//! characterised by a sine fit of the perturbation across k against the position along k
+//! (Fig. 10: dq_y against q_x), LP groups by reconstructing the pure L and pure P vectors
+//! inside the 4-dimensional subspace (Figs. 11, 12).
 
 use super::vecset;
 use std::f64::consts::TAU;
@@ -70,17 +75,6 @@ pub struct Step {
     pub mean: f64,
 }
 
-impl Step {
-    /// The mode type a step of this size indicates (paper Sec. 5.5: two-fold T, four-fold LP).
-    pub fn kind(&self) -> Option<ModeKind> {
-        match self.len {
-            2 => Some(ModeKind::T),
-            4 => Some(ModeKind::LP),
-            _ => None,
-        }
-    }
-}
-
 /// All runs of at least two consecutive exponents in which each neighbour difference is
 /// within `tol` combined standard errors, |l_i - l_{i+1}| <= tol sqrt(s_i^2 + s_{i+1}^2)
 /// (paper Fig. 8: degenerate steps). Neighbours with a NaN never join. Linking is by chains,
@@ -119,9 +113,10 @@ fn joined(exponents: &[f64], errors: &[f64], tol: f64, i: usize) -> bool {
 }
 
 /// The mode steps next to the null space (paper Fig. 8: T(n,0) pairs and LP(n,0)
-/// quadruplets), for a full spectrum of 4N exponents: groups of 4 or 2 exponents (4 tried
-/// first) within `window` indices of the null space (0-based 2N-3..=2N+2, paper 2N-2..2N+3)
-/// on either side. Walking outwards from the null space, a group is a step if
+/// quadruplets), for a full spectrum of 4N exponents: groups of `lengths` exponents (tried in
+/// the order given, longest first: [4, 2] for the paper's box, [`Candidates::step_lengths`])
+/// within `window` indices of the null space (0-based 2N-3..=2N+2, paper 2N-2..2N+3) on
+/// either side. Walking outwards from the null space, a group is a step if
 /// - its neighbours are equal within `tol` combined standard errors and its outer neighbours
 ///   are not (a maximal run of [`degenerate_steps`]), anywhere in the window; or
 /// - it is [`SEPARATION`]-separated from its outer neighbours, while every index walked so
@@ -129,7 +124,7 @@ fn joined(exponents: &[f64], errors: &[f64], tol: f64, i: usize) -> bool {
 ///   smooth part of the spectrum, a chance pair of close exponents is no mode).
 ///
 /// NaN exponents never join a step. Steps are returned in index order.
-pub fn mode_steps(exponents: &[f64], errors: &[f64], tol: f64, window: usize) -> Vec<Step> {
+pub fn mode_steps(exponents: &[f64], errors: &[f64], tol: f64, window: usize, lengths: &[usize]) -> Vec<Step> {
     let d = exponents.len();
     assert!(d.is_multiple_of(4) && d >= 8, "need a full spectrum of 4N exponents");
     assert_eq!(d, errors.len());
@@ -151,7 +146,7 @@ pub fn mode_steps(exponents: &[f64], errors: &[f64], tol: f64, window: usize) ->
         let (mut walked, mut contiguous) = (0, true);
         while walked < window {
             let start = |len: usize| if positive { null_lo - walked - len } else { null_hi + walked };
-            match [4, 2].into_iter().find(|&len| walked + len <= window && is_step(start(len), len, contiguous)) {
+            match lengths.iter().copied().find(|&len| len >= 2 && walked + len <= window && is_step(start(len), len, contiguous)) {
                 Some(len) => {
                     let start = start(len);
                     steps.push(Step { start, len, mean: exponents[start..start + len].iter().sum::<f64>() / len as f64 });
@@ -169,37 +164,171 @@ pub fn mode_steps(exponents: &[f64], errors: &[f64], tol: f64, window: usize) ->
 }
 
 // ---------------------------------------------------------------------------------------
-// (b) Mode basis of Table IV
+// (b) Candidates and their Table IV bases
 
-/// Wave number k = 2 pi n_x / L_x (paper Table IV).
-pub fn wave_number(n_x: usize, lx: f64) -> f64 {
-    TAU * n_x as f64 / lx
+/// A wave vector k = 2 pi (n_x / L_x, n_y / L_y) of the periodic box, taken up to sign
+/// (n_x > 0, or n_x = 0 and n_y > 0): k and -k give the same cos and sin patterns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Wave {
+    pub n_x: i32,
+    pub n_y: i32,
 }
 
-/// The raw Table IV patterns of a (n_x, 0) mode at phase point `phase` (4N), as column-major
-/// 2N x dim: T = [(0, c), (0, s)], L = [(c, 0), (s, 0)], P = [p_n c, p_n s],
-/// LP = [L cos, L sin, P cos, P sin], with c = cos(k q_x,n), s = sin(k q_x,n) (paper Table IV;
-/// we order cos before sin throughout).
-pub fn mode_patterns(kind: ModeKind, n_x: usize, phase: &[f64], lx: f64) -> Vec<f64> {
+impl Wave {
+    /// (k_x, k_y).
+    pub fn k(self, lx: f64, ly: f64) -> (f64, f64) {
+        (TAU * self.n_x as f64 / lx, TAU * self.n_y as f64 / ly)
+    }
+
+    /// |k|.
+    pub fn norm(self, lx: f64, ly: f64) -> f64 {
+        let (kx, ky) = self.k(lx, ly);
+        kx.hypot(ky)
+    }
+
+    /// Unit vectors along k (the displacement of L modes) and across it (T modes), the
+    /// latter signed so that its first nonzero component is positive: (1, 0) and (0, 1) for
+    /// (n_x, 0), as in Table IV.
+    pub fn axes(self, lx: f64, ly: f64) -> ([f64; 2], [f64; 2]) {
+        let (kx, ky) = self.k(lx, ly);
+        let k = kx.hypot(ky);
+        let along = [kx / k, ky / k];
+        // 0.0 - x keeps +0.0 for x = 0
+        let across = if along[1] > 0.0 { [along[1], 0.0 - along[0]] } else { [0.0 - along[1], along[0]] };
+        (along, across)
+    }
+
+    /// The number of periods the pattern has along k across the box, gcd(|n_x|, |n_y|):
+    /// n_x for (n_x, 0).
+    pub fn periods(self) -> u32 {
+        let (mut a, mut b) = (self.n_x.unsigned_abs(), self.n_y.unsigned_abs());
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    }
+}
+
+impl std::fmt::Display for Wave {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "({},{})", self.n_x, self.n_y)
+    }
+}
+
+/// A classification candidate's wave vectors: one, or all those of one |k| together. These
+/// are degenerate where the box's symmetry maps them onto each other, and their T (LP)
+/// modes then make one step of 2 (4) exponents per wave vector.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Family {
+    pub waves: Vec<Wave>,
+    /// |k|.
+    pub k: f64,
+}
+
+impl Family {
+    /// The number of exponents of the step of a `kind` mode (T, L, P: 2 per wave vector; LP: 4).
+    pub fn dim(&self, kind: ModeKind) -> usize {
+        kind.dim() * self.waves.len()
+    }
+
+    /// The wave vector of a family of one.
+    pub fn single(&self) -> Option<Wave> {
+        (self.waves.len() == 1).then(|| self.waves[0])
+    }
+
+    /// "T(1,0)", or "T(1,0)+T(0,1)" for a family of several wave vectors.
+    pub fn name(&self, kind: ModeKind) -> String {
+        self.waves.iter().map(|w| format!("{kind:?}{w}")).collect::<Vec<_>>().join("+")
+    }
+}
+
+/// Every candidate family of a box: each wave vector with |k| up to 2 pi `max_n` / max(L_x,
+/// L_y) alone, in the order of |k| (and of falling n_x within one |k|), each |k| with several
+/// wave vectors followed by all of them together. For the paper's box these are (n_x, 0),
+/// n_x = 1..=max_n, alone.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Candidates {
+    pub lx: f64,
+    pub ly: f64,
+    pub families: Vec<Family>,
+}
+
+impl Candidates {
+    pub fn new(lx: f64, ly: f64, max_n: usize) -> Self {
+        let k_max = TAU * max_n as f64 / lx.max(ly) * (1.0 + 1e-9);
+        let (nx_max, ny_max) = ((k_max * lx / TAU) as i32, (k_max * ly / TAU) as i32);
+        let mut waves: Vec<Wave> = (0..=nx_max)
+            .flat_map(|n_x| (-ny_max..=ny_max).map(move |n_y| Wave { n_x, n_y }))
+            .filter(|w| (w.n_x > 0 || w.n_y > 0) && w.norm(lx, ly) <= k_max)
+            .collect();
+        waves.sort_by(|a, b| a.norm(lx, ly).total_cmp(&b.norm(lx, ly)).then(b.n_x.cmp(&a.n_x)).then(b.n_y.cmp(&a.n_y)));
+        // each wave vector alone; after the last of one |k|, all of that |k| together
+        let mut families: Vec<Family> = Vec::new();
+        let mut shell: Vec<Wave> = Vec::new();
+        for (i, &w) in waves.iter().enumerate() {
+            let k = w.norm(lx, ly);
+            families.push(Family { waves: vec![w], k });
+            shell.push(w);
+            let next_k = waves.get(i + 1).map_or(f64::INFINITY, |n| n.norm(lx, ly));
+            if next_k - k > 1e-9 * k {
+                if shell.len() > 1 {
+                    families.push(Family { waves: shell.clone(), k: shell[0].norm(lx, ly) });
+                }
+                shell.clear();
+            }
+        }
+        Candidates { lx, ly, families }
+    }
+
+    /// The lengths of the steps the candidates' modes make, longest first ([4, 2] in the
+    /// paper's box).
+    pub fn step_lengths(&self) -> Vec<usize> {
+        let mut out: Vec<usize> = self.families.iter().flat_map(|f| [f.dim(ModeKind::T), f.dim(ModeKind::LP)]).collect();
+        out.sort_unstable_by(|a, b| b.cmp(a));
+        out.dedup();
+        out
+    }
+}
+
+/// The raw Table IV patterns of a family's modes at phase point `phase` (4N), as column-major
+/// 2N x dim, per wave vector T = [e_t c, e_t s], L = [e_k c, e_k s], P = [p_n c, p_n s], and
+/// LP = [L of every wave vector, P of every wave vector], with c = cos(k . q_n),
+/// s = sin(k . q_n) and e_k, e_t the unit vectors along and across k ([`Wave::axes`]; for
+/// (n_x, 0): T = [(0, c), (0, s)], L = [(c, 0), (s, 0)], paper Table IV; we order cos before
+/// sin throughout).
+pub fn mode_patterns(kind: ModeKind, family: &Family, phase: &[f64], lx: f64, ly: f64) -> Vec<f64> {
     if kind == ModeKind::LP {
-        let mut out = mode_patterns(ModeKind::L, n_x, phase, lx);
-        out.extend(mode_patterns(ModeKind::P, n_x, phase, lx));
+        let mut out = mode_patterns(ModeKind::L, family, phase, lx, ly);
+        out.extend(mode_patterns(ModeKind::P, family, phase, lx, ly));
         return out;
     }
+    family.waves.iter().flat_map(|&w| wave_patterns(kind, w, phase, lx, ly)).collect()
+}
+
+/// The T, L or P patterns [cos, sin] of one wave vector (see [`mode_patterns`]).
+fn wave_patterns(kind: ModeKind, wave: Wave, phase: &[f64], lx: f64, ly: f64) -> Vec<f64> {
     let n = phase.len() / 4;
-    let k = wave_number(n_x, lx);
+    let (kx, ky) = wave.k(lx, ly);
+    let (along, across) = wave.axes(lx, ly);
+    let e = if kind == ModeKind::T { across } else { along };
     let p = &phase[2 * n..];
     let mut out = vec![0.0; 4 * n];
     for i in 0..n {
-        let (s, c) = (k * phase[2 * i]).sin_cos();
+        let (s, c) = (kx * phase[2 * i] + ky * phase[2 * i + 1]).sin_cos();
         for (col, f) in [(0, c), (1, s)] {
             let at = col * 2 * n + 2 * i;
             match kind {
-                ModeKind::T => out[at + 1] = f,
-                ModeKind::L => out[at] = f,
-                _ => {
+                ModeKind::P => {
                     out[at] = p[2 * i] * f;
                     out[at + 1] = p[2 * i + 1] * f;
+                }
+                _ => {
+                    // components that are zero stay +0.0
+                    for (axis, &e) in e.iter().enumerate() {
+                        if e != 0.0 {
+                            out[at + axis] = e * f;
+                        }
+                    }
                 }
             }
         }
@@ -207,10 +336,11 @@ pub fn mode_patterns(kind: ModeKind, n_x: usize, phase: &[f64], lx: f64) -> Vec<
     out
 }
 
-/// Orthonormal basis (column-major 2N x dim) of the span of the Table IV patterns of a (n_x, 0)
-/// mode, orthonormalised over the disks by a thin QR. Columns are NaN if `phase` is not finite.
-pub fn mode_basis(kind: ModeKind, n_x: usize, phase: &[f64], lx: f64) -> Vec<f64> {
-    let pat = mode_patterns(kind, n_x, phase, lx);
+/// Orthonormal basis (column-major 2N x dim) of the span of the Table IV patterns of a
+/// family's modes, orthonormalised over the disks by a thin QR. Columns are NaN if `phase`
+/// is not finite.
+pub fn mode_basis(kind: ModeKind, family: &Family, phase: &[f64], lx: f64, ly: f64) -> Vec<f64> {
+    let pat = mode_patterns(kind, family, phase, lx, ly);
     let rows = phase.len() / 2;
     match vecset::orthonormal_basis(&pat, rows) {
         Some(q) => (0..q.ncols()).flat_map(|j| q.col(j).iter().copied().collect::<Vec<_>>()).collect(),
@@ -237,29 +367,29 @@ pub fn span_fraction(x: &[f64], basis: &[f64]) -> f64 {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ModeMatch {
     pub kind: ModeKind,
-    /// Number of periods along x (paper n_x, >= 1).
-    pub n_x: usize,
+    /// Index of the candidate's family in [`Candidates::families`].
+    pub family: usize,
     /// Mean over the given vectors of the fraction of their normalised `part` in the span.
     pub fraction: f64,
 }
 
 /// Fractions of the normalised `part` of the given vectors (column-major 4N x k, e.g. one
-/// vector or a degenerate group) in every candidate T, L, P, LP (n_x, 0), n_x = 1..=max_n
-/// (paper Sec. 5.5: GS-based classification by the position part, Table IV basis). The
-/// fraction of a group is the mean over its vectors; vectors with a zero part are skipped.
-pub fn mode_fractions(vectors: &[f64], phase: &[f64], lx: f64, part: Part, max_n: usize) -> Vec<ModeMatch> {
+/// vector or a degenerate group) in every candidate T, L, P, LP of every family (paper Sec.
+/// 5.5: GS-based classification by the position part, Table IV basis), family by family.
+/// The fraction of a group is the mean over its vectors; vectors with a zero part are skipped.
+pub fn mode_fractions(vectors: &[f64], phase: &[f64], candidates: &Candidates, part: Part) -> Vec<ModeMatch> {
     let d = phase.len();
     let k = vecset::count(vectors, d);
     let mut out = Vec::new();
-    for n_x in 1..=max_n {
+    for (f, family) in candidates.families.iter().enumerate() {
         for kind in [ModeKind::T, ModeKind::L, ModeKind::P, ModeKind::LP] {
-            let basis = mode_basis(kind, n_x, phase, lx);
+            let basis = mode_basis(kind, family, phase, candidates.lx, candidates.ly);
             let fr: Vec<f64> = (0..k)
                 .map(|j| span_fraction(part_of(vecset::col(vectors, d, j), part), &basis))
                 .filter(|f| f.is_finite())
                 .collect();
             let fraction = if fr.is_empty() { f64::NAN } else { fr.iter().sum::<f64>() / fr.len() as f64 };
-            out.push(ModeMatch { kind, n_x, fraction });
+            out.push(ModeMatch { kind, family: f, fraction });
         }
     }
     out
@@ -268,11 +398,12 @@ pub fn mode_fractions(vectors: &[f64], phase: &[f64], lx: f64, part: Part, max_n
 /// The best candidate of [`mode_fractions`] (paper Sec. 5.5 classification). Candidates are
 /// ranked by their fraction in excess of chance, fraction - dim / 2N (a random direction has
 /// expected fraction dim / 2N), so that a pure L vector is called L and not LP, whose span
-/// contains L; a mixed L/P vector is called LP. `None` if no fraction is finite.
-pub fn classify_mode(vectors: &[f64], phase: &[f64], lx: f64, part: Part, max_n: usize) -> Option<ModeMatch> {
+/// contains L, a mixed L/P vector LP, and a pure T(1,0) vector T(1,0) and not
+/// T(1,0)+T(0,1). `None` if no fraction is finite.
+pub fn classify_mode(vectors: &[f64], phase: &[f64], candidates: &Candidates, part: Part) -> Option<ModeMatch> {
     let rows = (phase.len() / 2) as f64;
-    let score = |m: &ModeMatch| m.fraction - m.kind.dim() as f64 / rows;
-    mode_fractions(vectors, phase, lx, part, max_n)
+    let score = |m: &ModeMatch| m.fraction - candidates.families[m.family].dim(m.kind) as f64 / rows;
+    mode_fractions(vectors, phase, candidates, part)
         .into_iter()
         .filter(|m| m.fraction.is_finite())
         .max_by(|a, b| score(a).total_cmp(&score(b)))
@@ -327,15 +458,32 @@ pub fn fit_sine(x: &[f64], y: &[f64], k: f64) -> SineFit {
     SineFit { amplitude: a.hypot(b), phase: (-b).atan2(a), residual: (rss / pts.len() as f64).sqrt() }
 }
 
-/// Sine fits of dq_y and of dp_y against q_x for a transverse T(n_x, 0) mode vector `v`
-/// (paper Fig. 10, top and bottom rows), k = 2 pi n_x / L_x.
-pub fn fit_transverse(v: &[f64], phase: &[f64], lx: f64, n_x: usize) -> (SineFit, SineFit) {
-    let x = component(phase, Part::Position, 0);
-    let k = wave_number(n_x, lx);
-    (
-        fit_sine(&x, &component(v, Part::Position, 1), k),
-        fit_sine(&x, &component(v, Part::Momentum, 1), k),
-    )
+/// The position of every disk along k, e_k . q_n (q_x for (n_x, 0)), unwrapped.
+pub fn along(phase: &[f64], wave: Wave, lx: f64, ly: f64) -> Vec<f64> {
+    project(part_of(phase, Part::Position), wave.axes(lx, ly).0)
+}
+
+/// e . delta_n of every disk for a 2N-vector `field` and a unit vector e, skipping the zero
+/// component (e_t . dq = dq_y for (n_x, 0), to the bit).
+pub fn project(field: &[f64], e: [f64; 2]) -> Vec<f64> {
+    field
+        .chunks_exact(2)
+        .map(|d| match (e[0] != 0.0, e[1] != 0.0) {
+            (true, true) => e[0] * d[0] + e[1] * d[1],
+            (true, false) => e[0] * d[0],
+            _ => e[1] * d[1],
+        })
+        .collect()
+}
+
+/// Sine fits of dq and of dp across k against the position along k for a transverse mode
+/// vector `v` of one wave vector (paper Fig. 10, top and bottom rows: dq_y and dp_y against
+/// q_x for (n_x, 0)), wave number |k|.
+pub fn fit_transverse(v: &[f64], phase: &[f64], wave: Wave, lx: f64, ly: f64) -> (SineFit, SineFit) {
+    let x = along(phase, wave, lx, ly);
+    let across = wave.axes(lx, ly).1;
+    let k = wave.norm(lx, ly);
+    (fit_sine(&x, &project(part_of(v, Part::Position), across), k), fit_sine(&x, &project(part_of(v, Part::Momentum), across), k))
 }
 
 // ---------------------------------------------------------------------------------------
@@ -393,8 +541,8 @@ pub fn reconstruct(vectors: &[f64], d: usize, target: &[f64], part: Part) -> Rec
     Reconstruction { vector: w, overlap }
 }
 
-/// Pure L and P vectors reconstructed inside a degenerate LP(n_x, 0) group (column-major
-/// 4N x 4) against the four Table IV patterns read from `part`.
+/// Pure L and P vectors reconstructed inside a degenerate LP group of one wave vector
+/// (column-major 4N x 4) against the four Table IV patterns read from `part`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LpReconstruction {
     pub l_cos: Reconstruction,
@@ -403,13 +551,13 @@ pub struct LpReconstruction {
     pub p_sin: Reconstruction,
 }
 
-/// Reconstruction of the pure L(n_x,0) and P(n_x,0) vectors of an LP group (paper Figs. 11
-/// and 12: position resp. momentum perturbations of the reconstructed pure modes; the
+/// Reconstruction of the pure L and P vectors of an LP group of one wave vector (paper Figs.
+/// 11 and 12: position resp. momentum perturbations of the reconstructed pure modes; the
 /// figures show the sine pattern of dq and the cosine pattern of dp).
-pub fn reconstruct_lp(vectors: &[f64], phase: &[f64], lx: f64, n_x: usize, part: Part) -> LpReconstruction {
+pub fn reconstruct_lp(vectors: &[f64], phase: &[f64], wave: Wave, lx: f64, ly: f64, part: Part) -> LpReconstruction {
     let d = phase.len();
     let h = d / 2;
-    let pat = mode_patterns(ModeKind::LP, n_x, phase, lx);
+    let pat = mode_patterns(ModeKind::LP, &Family { waves: vec![wave], k: wave.norm(lx, ly) }, phase, lx, ly);
     let one = |j: usize| reconstruct(vectors, d, &pat[j * h..(j + 1) * h], part);
     LpReconstruction { l_cos: one(0), l_sin: one(1), p_cos: one(2), p_sin: one(3) }
 }
@@ -438,10 +586,71 @@ mod tests {
     const LX: f64 = 12.0;
     const LY: f64 = 3.0;
 
+    fn wave(n_x: i32, n_y: i32) -> Wave {
+        Wave { n_x, n_y }
+    }
+
+    fn wave_number(n_x: i32, lx: f64) -> f64 {
+        wave(n_x, 0).norm(lx, LY)
+    }
+
+    /// The wave vector of a match's family of one.
+    fn single(c: &Candidates, m: &ModeMatch) -> Option<Wave> {
+        c.families[m.family].single()
+    }
+
     /// A tangent vector with the given dq part and dp = c dq, normalised.
     fn with_momentum(dq: &[f64], c: f64) -> Vec<f64> {
         let dp: Vec<f64> = dq.iter().map(|x| c * x).collect();
         normalized([dq, &dp[..]].concat())
+    }
+
+    /// The paper's box has the (n_x, 0) candidates only, as Table IV; a square box has every
+    /// wave vector up to the same |k|, alone and, where the symmetry makes them degenerate,
+    /// together, in the order of |k|.
+    #[test]
+    fn candidates_of_the_paper_box_and_of_a_square() {
+        let lx = 39.4425;
+        let paper = Candidates::new(lx, lx * 2.0 / 11.0, 4);
+        assert_eq!(paper.families.iter().map(|f| f.name(ModeKind::T)).collect::<Vec<_>>(), ["T(1,0)", "T(2,0)", "T(3,0)", "T(4,0)"]);
+        assert_eq!(paper.step_lengths(), [4, 2]);
+        let square = Candidates::new(10.0, 10.0, 2);
+        let names: Vec<String> = square.families.iter().map(|f| f.name(ModeKind::LP)).collect();
+        assert_eq!(
+            names,
+            ["LP(1,0)", "LP(0,1)", "LP(1,0)+LP(0,1)", "LP(1,1)", "LP(1,-1)", "LP(1,1)+LP(1,-1)", "LP(2,0)", "LP(0,2)", "LP(2,0)+LP(0,2)"]
+        );
+        assert_eq!(square.step_lengths(), [8, 4, 2]);
+        assert!(square.families.windows(2).all(|w| w[0].k <= w[1].k));
+        // T across k, L along it; (n_x, 0) as Table IV
+        assert_eq!(wave(3, 0).axes(12.0, 3.0), ([1.0, 0.0], [0.0, 1.0]));
+        assert_eq!(wave(0, 2).axes(12.0, 3.0), ([0.0, 1.0], [1.0, 0.0]));
+        let (along, across) = wave(1, -1).axes(10.0, 10.0);
+        assert!((along[0] * across[0] + along[1] * across[1]).abs() < 1e-15 && across[0] > 0.0);
+        assert_eq!((wave(4, 6).periods(), wave(0, 3).periods(), wave(1, -1).periods()), (2, 3, 1));
+    }
+
+    /// A transverse mode along y in a tall box is the x-mode of the box turned by 90 degrees:
+    /// the same classification and fit, with x and y exchanged.
+    #[test]
+    fn a_transverse_mode_along_y_is_found_and_fitted() {
+        let n = 20;
+        let mut rng = Rng::new(17);
+        let g = phase_point(n, LY, LX, &mut rng); // L_x = 3, L_y = 12
+        let k = std::f64::consts::TAU * 2.0 / LX;
+        let mut dq = vec![0.0; 2 * n];
+        for i in 0..n {
+            dq[2 * i] = (k * g[2 * i + 1] + 0.3).cos();
+        }
+        let v = with_momentum(&dq, 0.5);
+        let c = Candidates::new(LY, LX, 4);
+        let best = classify_mode(&v, &g, &c, Part::Position).unwrap();
+        assert_eq!((best.kind, single(&c, &best)), (ModeKind::T, Some(wave(0, 2))));
+        assert!(best.fraction > 0.99, "{best:?}");
+        let (fq, fp) = fit_transverse(&v, &g, wave(0, 2), LY, LX);
+        let scale = v[0] / dq[0];
+        assert!((fq.amplitude - scale).abs() < 1e-12 && (fq.phase - 0.3).abs() < 1e-12 && fq.residual < 1e-12, "{fq:?}");
+        assert!((fp.amplitude - 0.5 * scale).abs() < 1e-12);
     }
 
     #[test]
@@ -455,17 +664,18 @@ mod tests {
             dq[2 * i + 1] = (k * g[2 * i] + 0.3).cos();
         }
         let v = with_momentum(&dq, 0.5);
-        let best = classify_mode(&v, &g, LX, Part::Position, 4).unwrap();
-        assert_eq!((best.kind, best.n_x), (ModeKind::T, 2));
+        let c = Candidates::new(LX, LY, 4);
+        let best = classify_mode(&v, &g, &c, Part::Position).unwrap();
+        assert_eq!((best.kind, single(&c, &best)), (ModeKind::T, Some(wave(2, 0))));
         assert!(best.fraction > 0.99, "{best:?}");
         // the other T candidates explain little
-        for m in mode_fractions(&v, &g, LX, Part::Position, 4) {
-            if m.kind == ModeKind::T && m.n_x != 2 {
+        for m in mode_fractions(&v, &g, &c, Part::Position) {
+            if m.kind == ModeKind::T && single(&c, &m) != Some(wave(2, 0)) {
                 assert!(m.fraction < 0.6, "{m:?}");
             }
         }
         let scale = v[1] / dq[1];
-        let (fq, fp) = fit_transverse(&v, &g, LX, 2);
+        let (fq, fp) = fit_transverse(&v, &g, wave(2, 0), LX, LY);
         assert!((fq.amplitude - scale).abs() < 1e-12 && (fq.phase - 0.3).abs() < 1e-12);
         assert!(fq.residual < 1e-12);
         assert!((fp.amplitude - 0.5 * scale).abs() < 1e-12 && (fp.phase - 0.3).abs() < 1e-12);
@@ -497,14 +707,15 @@ mod tests {
             p[2 * i] = g[2 * n + 2 * i] * f;
             p[2 * i + 1] = g[2 * n + 2 * i + 1] * f;
         }
-        let best = classify_mode(&with_momentum(&l, 1.0), &g, LX, Part::Position, 3).unwrap();
-        assert_eq!((best.kind, best.n_x), (ModeKind::L, 1));
+        let c = Candidates::new(LX, LY, 3);
+        let best = classify_mode(&with_momentum(&l, 1.0), &g, &c, Part::Position).unwrap();
+        assert_eq!((best.kind, single(&c, &best)), (ModeKind::L, Some(wave(1, 0))));
         assert!(best.fraction > 0.99);
-        let best = classify_mode(&with_momentum(&p, 1.0), &g, LX, Part::Position, 3).unwrap();
-        assert_eq!((best.kind, best.n_x), (ModeKind::P, 1));
+        let best = classify_mode(&with_momentum(&p, 1.0), &g, &c, Part::Position).unwrap();
+        assert_eq!((best.kind, single(&c, &best)), (ModeKind::P, Some(wave(1, 0))));
         let mixed: Vec<f64> = l.iter().zip(&p).map(|(a, b)| a + b / 1.4).collect();
-        let best = classify_mode(&with_momentum(&mixed, 1.0), &g, LX, Part::Momentum, 3).unwrap();
-        assert_eq!((best.kind, best.n_x), (ModeKind::LP, 1));
+        let best = classify_mode(&with_momentum(&mixed, 1.0), &g, &c, Part::Momentum).unwrap();
+        assert_eq!((best.kind, single(&c, &best)), (ModeKind::LP, Some(wave(1, 0))));
         assert!(best.fraction > 0.99);
     }
 
@@ -514,10 +725,11 @@ mod tests {
         let mut rng = Rng::new(13);
         let g = phase_point(n, LX, LY, &mut rng);
         let group = rng.normals(4 * 4 * n);
-        for m in mode_fractions(&group, &g, LX, Part::Position, 3) {
+        let c = Candidates::new(LX, LY, 3);
+        for m in mode_fractions(&group, &g, &c, Part::Position) {
             assert!(m.fraction < 0.1, "{m:?}"); // expected dim / 2N = 0.01 .. 0.02
         }
-        assert!(classify_mode(&vec![f64::NAN; 4 * n], &g, LX, Part::Position, 3).is_none());
+        assert!(classify_mode(&vec![f64::NAN; 4 * n], &g, &c, Part::Position).is_none());
     }
 
     #[test]
@@ -526,7 +738,8 @@ mod tests {
         let mut rng = Rng::new(14);
         let g = phase_point(n, LX, LY, &mut rng);
         let h = 2 * n;
-        let b = mode_basis(ModeKind::LP, 3, &g, LX);
+        let one = |w: Wave| Family { waves: vec![w], k: w.norm(LX, LY) };
+        let b = mode_basis(ModeKind::LP, &one(wave(3, 0)), &g, LX, LY);
         for i in 0..4 {
             for j in 0..4 {
                 let x = vecset::dot(vecset::col(&b, h, i), vecset::col(&b, h, j));
@@ -534,7 +747,7 @@ mod tests {
             }
         }
         // the raw sampled cos and sin are not orthogonal: that is why we orthonormalise
-        let raw = mode_patterns(ModeKind::T, 1, &g, LX);
+        let raw = mode_patterns(ModeKind::T, &one(wave(1, 0)), &g, LX, LY);
         let cs = vecset::dot(vecset::col(&raw, h, 0), vecset::col(&raw, h, 1));
         assert!(cs.abs() > 1e-3);
     }
@@ -545,7 +758,7 @@ mod tests {
         let d = 4 * n;
         let mut rng = Rng::new(15);
         let g = phase_point(n, LX, LY, &mut rng);
-        let pat = mode_patterns(ModeKind::LP, 1, &g, LX);
+        let pat = mode_patterns(ModeKind::LP, &Family { waves: vec![wave(1, 0)], k: wave_number(1, LX) }, &g, LX, LY);
         // four pure vectors (dp = 0.8 dq), mixed by a random 4 x 4 matrix, plus small noise
         let pure: Vec<Vec<f64>> = (0..4).map(|j| with_momentum(&pat[j * 2 * n..(j + 1) * 2 * n], 0.8)).collect();
         let mut group = Vec::new();
@@ -554,7 +767,7 @@ mod tests {
             let v: Vec<f64> = (0..d).map(|r| (0..4).map(|j| c[j] * pure[j][r]).sum::<f64>() + 1e-4 * rng.normal()).collect();
             group.extend(normalized(v));
         }
-        let rec = reconstruct_lp(&group, &g, LX, 1, Part::Position);
+        let rec = reconstruct_lp(&group, &g, wave(1, 0), LX, LY, Part::Position);
         for (r, j) in [(&rec.l_cos, 0), (&rec.l_sin, 1), (&rec.p_cos, 2), (&rec.p_sin, 3)] {
             assert!(r.overlap > 0.999, "pattern {j}: {}", r.overlap);
             assert!((vecset::norm(&r.vector) - 1.0).abs() < 1e-12);
@@ -601,21 +814,20 @@ mod tests {
         let n = 20;
         let mut rng = Rng::new(16);
         let (exps, errs, planted) = planted_spectrum(n, &mut rng);
-        let steps = mode_steps(&exps, &errs, 3.0, 14);
+        let steps = mode_steps(&exps, &errs, 3.0, 14, &[4, 2]);
         let mut found: Vec<(usize, usize)> = steps.iter().map(|s| (s.start, s.len)).collect();
         let mut want = planted.clone();
         found.sort();
         want.sort();
         assert_eq!(found, want);
-        assert!(steps.iter().all(|s| s.kind() == Some(if s.len == 2 { ModeKind::T } else { ModeKind::LP })));
         // the null space itself is a 6-step of degenerate_steps but not a mode step
         let all = degenerate_steps(&exps, &errs, 3.0);
         assert!(all.iter().any(|s| s.start == 2 * n - 3 && s.len == 6));
         // a narrow window keeps only the steps adjacent to the null space
-        assert_eq!(mode_steps(&exps, &errs, 3.0, 2).len(), 2);
+        assert_eq!(mode_steps(&exps, &errs, 3.0, 2, &[4, 2]).len(), 2);
         let mut broken = exps.clone();
         broken[planted[0].0] = f64::NAN;
-        assert!(mode_steps(&broken, &errs, 3.0, 14).len() < want.len());
+        assert!(mode_steps(&broken, &errs, 3.0, 14, &[4, 2]).len() < want.len());
     }
 
     /// Forward GS exponents (paper indices 344..=449) and their standard errors from our run
@@ -670,7 +882,7 @@ mod tests {
                 errs[i] = STDERR[i - at];
             }
         }
-        let steps = mode_steps(&exps, &errs, 3.0, d / 16);
+        let steps = mode_steps(&exps, &errs, 3.0, d / 16, &[4, 2]);
         let found: Vec<(usize, usize)> = steps.iter().map(|s| (s.start + 1, s.start + s.len)).collect();
         // paper indices: T(1,0) 392-393, LP(1,0) 388-391, T(2,0) 386-387, LP(2,0) 382-385 and
         // the pair 380-381; 379 and below are the smooth spectrum; the conjugates mirror them
@@ -681,6 +893,6 @@ mod tests {
         assert!(!within_errors(&exps, &errs, 3.0, &steps[1]));
         assert!(within_errors(&exps, &errs, 3.0, &steps[4]));
         // a narrower window stops at the window's edge
-        assert_eq!(mode_steps(&exps, &errs, 3.0, 6).iter().map(|s| s.len).collect::<Vec<_>>(), [4, 2, 2, 4]);
+        assert_eq!(mode_steps(&exps, &errs, 3.0, 6, &[4, 2]).iter().map(|s| s.len).collect::<Vec<_>>(), [4, 2, 2, 4]);
     }
 }
