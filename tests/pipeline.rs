@@ -73,7 +73,7 @@ fn shell_pipes_give_the_same_numbers_as_files_and_concurrency_changes_nothing() 
     assert_eq!(first_row[4], report["exponents"][0].as_f64().unwrap());
     let html = read(&filed.join("index.html"));
     assert!(html.contains("fig2_spectrum.png") && html.contains("frames"));
-    for png in ["fig2_spectrum.png", "fig5_localization.png", "fig8_mode_region.png"] {
+    for png in ["fig2_spectrum.png", "fig5_localization.png", "fig5_localization_center.png", "fig8_mode_region.png"] {
         let bytes = std::fs::read(filed.join(png)).unwrap();
         assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n") && bytes.len() > 5000, "{png}");
     }

@@ -56,14 +56,28 @@ impl Analysis for Localization {
         }
         fig.series("covariant vectors", &x, &w_clv, Marker::Line);
         save_figure(&fig, out, "fig5_localization")?;
+        let mut figures = vec!["fig5_localization".to_string()];
+        // The paper's inset: the central (mode and null-space) part, where the vectors spread.
+        let central = ctx.central_range();
+        if let Some((a, b)) = central {
+            let idx: Vec<f64> = (a + 1..=b + 1).map(|i| i as f64).collect();
+            let mut fig = Figure::new("Localization W: central part of the spectrum").x_label("i").y_label("W");
+            if self.gs.is_some() {
+                fig.series("GS vectors", &idx, &w_gs[a..=b], Marker::LinePoints);
+            }
+            fig.series("covariant vectors", &idx, &w_clv[a..=b], Marker::LinePoints);
+            save_figure(&fig, out, "fig5_localization_center")?;
+            figures.push("fig5_localization_center".into());
+        }
         Ok(vec![Produced {
             title: "Localization (Fig. 5)".into(),
             caption: format!(
-                "W = exp(<S>)/N, S = -sum_n mu_n ln mu_n, mu_n = |dq_n|^2 + |dp_n|^2, averaged over {frames} frames{}; standard errors from blocks of {} frames. Small W: the perturbation lives on few disks.",
+                "W = exp(<S>)/N, S = -sum_n mu_n ln mu_n, mu_n = |dq_n|^2 + |dp_n|^2, averaged over {frames} frames{}; standard errors from blocks of {} frames. Small W: the perturbation lives on few disks.{}",
                 if self.gs.is_some() { " for GS and covariant vectors" } else { " for covariant vectors (run the backward stage with --with-gs for GS vectors)" },
-                ctx.block_len(true)
+                ctx.block_len(true),
+                central.map_or(String::new(), |(a, b)| format!(" The second plot enlarges the central part, i = {}..{} (the paper's inset).", a + 1, b + 1))
             ),
-            figures: vec!["fig5_localization".into()],
+            figures,
             tables: vec!["localization.csv".into()],
         }])
     }

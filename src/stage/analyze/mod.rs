@@ -235,6 +235,19 @@ impl Context {
     pub fn reduced(&self, i: usize) -> f64 {
         (i + 1) as f64 / self.d as f64
     }
+
+    /// 0-based range (inclusive) of the central, mode-carrying part of a full disk spectrum:
+    /// the positive indices of the Fig. 8 plot, up to 2N-3, and their conjugates, which the
+    /// enlargements of Figs. 3, 5, 6, 7, 9 and 14 show (the paper's right panels and insets).
+    /// None for maps and partial spectra.
+    pub fn central_range(&self) -> Option<(usize, usize)> {
+        if !self.is_disks() || self.k != self.d || self.n < 2 {
+            return None;
+        }
+        let last = 2 * self.n - 4;
+        let first = last.saturating_sub((self.d / 6).max(8));
+        Some((first, self.d - 1 - first))
+    }
 }
 
 /// What an analysis wrote: shown as one entry of index.html.
@@ -412,6 +425,54 @@ pub struct Analysed {
     pub warnings: Vec<String>,
 }
 
+/// A small CSV table (the paper's Tables II-IV, the mode table) as HTML, numbers to six
+/// significant digits; None for tables too large to read on a page (the CSV has them all).
+fn html_table(csv: &str) -> Option<String> {
+    const MAX_ROWS: usize = 24;
+    const MAX_COLUMNS: usize = 18;
+    let lines: Vec<&str> = csv.lines().collect();
+    let cells = |line: &str| -> Vec<String> {
+        // modes.csv quotes names that hold commas: "T(1,0)"
+        let mut out = vec![String::new()];
+        let mut quoted = false;
+        for c in line.chars() {
+            match c {
+                '"' => quoted = !quoted,
+                ',' if !quoted => out.push(String::new()),
+                c => out.last_mut().expect("one cell").push(c),
+            }
+        }
+        out
+    };
+    let header = cells(lines.first()?);
+    if lines.len() < 2 || lines.len() > MAX_ROWS + 1 || header.len() > MAX_COLUMNS {
+        return None;
+    }
+    let number = |c: &str| match c.parse::<f64>() {
+        Ok(x) if c.contains(['e', '.']) && x.is_finite() => significant(x, 6),
+        _ => escape(c),
+    };
+    let row = |cells: Vec<String>, tag: &str| format!("<tr>{}</tr>", cells.iter().map(|c| format!("<{tag}>{}</{tag}>", if tag == "th" { escape(c) } else { number(c) })).collect::<String>());
+    let mut html = String::from("<table style=\"border-collapse:collapse;font-size:90%\" border=\"1\" cellpadding=\"3\">");
+    html += &row(header, "th");
+    for line in &lines[1..] {
+        html += &row(cells(line), "td");
+    }
+    Some(html + "</table>\n")
+}
+
+/// `x` to `digits` significant digits: plain between 1e-3 and 1e6, else in exponent form.
+fn significant(x: f64, digits: usize) -> String {
+    let magnitude = x.abs().log10().floor();
+    if x == 0.0 {
+        "0".into()
+    } else if (-3.0..6.0).contains(&magnitude) {
+        format!("{x:.*}", (digits as f64 - 1.0 - magnitude).max(0.0) as usize)
+    } else {
+        format!("{x:.*e}", digits - 1)
+    }
+}
+
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
@@ -439,6 +500,7 @@ fn write_index(ctx: &Context, out: &Path, produced: &[Produced], warnings: &[Str
     for w in warnings {
         html += &format!("<p style=\"border:2px solid #c00;padding:0.5em\"><strong>Incomplete stream.</strong> {}</p>\n", escape(w));
     }
+    let mut shown = std::collections::HashSet::new();
     for p in produced {
         html += &format!("<section><h2>{}</h2>\n", escape(&p.title));
         // The caption describes the entry's figures together: once, after them.
@@ -450,9 +512,14 @@ fn write_index(ctx: &Context, out: &Path, produced: &[Produced], warnings: &[Str
             let links: Vec<String> = p.tables.iter().map(|t| format!("<a href=\"{t}\">{t}</a>")).collect();
             html += &format!("<p>Numbers: {}</p>\n", links.join(", "));
         }
+        for t in p.tables.iter().filter(|t| t.ends_with(".csv") && shown.insert(t.as_str())) {
+            if let Some(table) = std::fs::read_to_string(out.join(t)).ok().and_then(|text| html_table(&text)) {
+                html += &format!("<details open><summary>{t}</summary>\n{table}</details>\n");
+            }
+        }
         html += "</section>\n";
     }
-    html += "</body></html>\n";
+    html += "<p>Everything above as JSON: <a href=\"summary.json\">summary.json</a>.</p>\n</body></html>\n";
     let path = out.join("index.html");
     std::fs::write(&path, html).map_err(|e| Error::io(&path, e))?;
     let summary = serde_json::json!({ "frames": frames, "first_step": first, "last_step": last, "options": ctx.options, "warnings": warnings, "produced": produced });
@@ -611,4 +678,28 @@ pub fn analyze_source(
         ));
     }
     Ok(analysed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_numbers_read_back_exactly_and_whole_numbers_as_integers() {
+        for x in [78.0, -3.0, 0.0, 1e14, 0.1, 1.0 / 3.0, -2.5e-17, 1e15, 6.02e23, f64::NAN] {
+            let cell = csv_number(x);
+            let back: f64 = cell.parse().unwrap();
+            assert!(back == x || (x.is_nan() && back.is_nan()), "{x} -> {cell}");
+        }
+        assert_eq!((csv_number(78.0).as_str(), csv_number(10450.0).as_str(), csv_number(0.5).as_str()), ("78", "10450", "5e-1"));
+    }
+
+    #[test]
+    fn small_tables_appear_in_the_page_to_six_digits() {
+        assert_eq!((significant(0.123456789, 6).as_str(), significant(-12345.678, 6).as_str(), significant(2.0e-15, 6).as_str()), ("0.123457", "-12345.7", "2.00000e-15"));
+        let table = html_table("side,first,name,lambda\n+,76,\"T(1,0)\",8.847895660242466e-1\n").unwrap();
+        assert!(table.contains("<th>name</th>") && table.contains("<td>T(1,0)</td>") && table.contains("<td>0.884790</td>") && table.contains("<td>76</td>"), "{table}");
+        let long: String = std::iter::once("i,x\n".to_string()).chain((0..100).map(|i| format!("{i},1e0\n"))).collect();
+        assert!(html_table(&long).is_none());
+    }
 }

@@ -635,6 +635,19 @@ fn pattern_figure(title: &str, y_label: &str, axes: &WaveAxes, x: &[f64], points
     fig
 }
 
+/// A y range that shows the bulk of `values`: the 5th to 95th percentile widened by its own
+/// width on both sides, if some values lie beyond that; None if all fit.
+fn robust_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    let mut v: Vec<f64> = values.filter(|x| x.is_finite()).collect();
+    if v.len() < 20 {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let (p5, p95) = (v[v.len() / 20], v[v.len() - 1 - v.len() / 20]);
+    let (lo, hi) = (p5 - (p95 - p5), p95 + (p95 - p5));
+    (v[0] < lo || v[v.len() - 1] > hi).then_some((lo, hi))
+}
+
 /// Columns of per-disk values (the first is q_x), written as one CSV.
 struct Columns(Vec<(String, Vec<f64>)>);
 
@@ -772,9 +785,15 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
         }
         let what = if part == Part::Position { "position" } else { "momentum" };
         for (which, points, fits, y_label) in [("L", &l_points, &l_fits, format!("δ{c}")), ("P", &p_points, &p_fits, format!("(δ{c}·p)/p²"))] {
-            let title = format!("{name}: pure {which} ({pattern} pattern) from the {what} perturbations, step {}", frame.step);
+            // dividing by p^2 blows up the nearly resting disks: they would flatten the sinusoid
+            let range = robust_range(points.iter().flat_map(|(_, y)| y.iter().copied()));
+            let title = format!("{name}: pure {which} ({pattern} pattern) from the {what} perturbations, step {}{}", frame.step, if range.is_some() { " (some disks off scale)" } else { "" });
             let fstem = format!("fig{fig_no}_{stem}_{which}");
-            save_figure(&pattern_figure(&title, &y_label, &axes, &x, points, fits), out, &fstem)?;
+            let mut fig = pattern_figure(&title, &y_label, &axes, &x, points, fits);
+            if let Some((lo, hi)) = range {
+                fig = fig.y_range(lo, hi);
+            }
+            save_figure(&fig, out, &fstem)?;
             figs.push(fstem);
         }
     }
@@ -901,6 +920,17 @@ mod tests {
         assert_eq!((row["kind"].as_str(), row["n_x"].as_str()), ("T", "2"));
         assert!((row["k"].parse::<f64>().unwrap() - k).abs() < 1e-15 && (row["lambda"].parse::<f64>().unwrap() - lambda).abs() < 1e-15, "{row:?}");
         assert!(produced.iter().any(|p| p.figures == ["modes_dispersion"] && p.caption.contains(&format!("c = {:.4}", lambda / k))));
+    }
+
+    /// A few huge values (disks nearly at rest, divided by p^2) do not set the scale; a clean
+    /// sinusoid keeps its own.
+    #[test]
+    fn outliers_leave_the_pattern_on_scale() {
+        let sine: Vec<f64> = (0..100).map(|i| (i as f64 * 0.1).sin()).collect();
+        assert_eq!(robust_range(sine.iter().copied()), None);
+        let spiked: Vec<f64> = sine.iter().copied().chain([40.0, -25.0]).collect();
+        let (lo, hi) = robust_range(spiked.into_iter()).unwrap();
+        assert!(lo < -0.99 && lo > -3.0 && hi > 0.99 && hi < 3.0, "{lo} {hi}");
     }
 
     #[test]

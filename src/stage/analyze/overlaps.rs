@@ -37,18 +37,6 @@ pub struct Overlaps {
     vv: Vec<Mean>,
 }
 
-/// 0-based range (inclusive) of the central, mode-carrying part of a disk spectrum: the same
-/// stretch of positive indices below the null space that the Fig. 8 plot shows, to its
-/// conjugate. None for maps or partial spectra.
-fn central_range(ctx: &Context) -> Option<(usize, usize)> {
-    if !ctx.is_disks() || ctx.k != ctx.d || ctx.n < 2 {
-        return None;
-    }
-    let last = 2 * ctx.n - 4;
-    let first = last.saturating_sub((ctx.d / 6).max(8));
-    Some((first, ctx.d - 1 - first))
-}
-
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     if ctx.k == 0 {
         return None;
@@ -56,7 +44,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     let js: Vec<usize> = ctx.options.j.iter().map(|j| j - 1).filter(|&j| j < ctx.k).collect();
     // Fig. 14: the two positive indices nearest the null space, which carry the slowest
     // modes (T(1,0) and LP(1,0) in the paper's box).
-    let mode_js: Vec<usize> = match central_range(ctx) {
+    let mode_js: Vec<usize> = match ctx.central_range() {
         Some(_) if ctx.n >= 3 => vec![2 * ctx.n - 6, 2 * ctx.n - 4],
         _ => Vec::new(),
     };
@@ -134,7 +122,7 @@ impl Analysis for Overlaps {
         let ctx = &self.ctx;
         let idx: Vec<f64> = (1..=ctx.k).map(|i| i as f64).collect();
         let avg = format!("averaged over {frames} frames ({})", ctx.sample());
-        let central = central_range(ctx);
+        let central = ctx.central_range();
         let mut produced = Vec::new();
 
         if let Some(gv) = &self.gv {
@@ -200,23 +188,19 @@ impl Analysis for Overlaps {
             csv(out, "overlap_clv_clv.csv", &header, rows)?;
             let pick = |j: usize| self.vv_js.iter().position(|&x| x == j).map(|p| self.vv[p].mean());
             if !self.js.is_empty() {
-                let mut fig = Figure::new("Covariant vectors: <|v^j · v^i|>, i != j").x_label("i").y_label("<|v^j · v^i|>");
-                for &j in &self.js {
-                    if let Some(m) = pick(j) {
-                        fig.series(&format!("j = {}", j + 1), &idx, &without_self(&m, j), Marker::Line);
+                let mut figures = Vec::new();
+                for (title, js, stem) in [("Covariant vectors", &self.js, "fig13_clv_overlap"), ("Covariant vectors of the conjugate partners", &self.conjugate_js, "fig13_clv_overlap_conjugate")] {
+                    if js.is_empty() {
+                        continue;
                     }
-                }
-                save_figure(&fig, out, "fig13_clv_overlap")?;
-                let mut figures = vec!["fig13_clv_overlap".to_string()];
-                if !self.conjugate_js.is_empty() {
-                    let mut fig = Figure::new("Covariant vectors of the conjugate partners: <|v^j · v^i|>, i != j").x_label("i").y_label("<|v^j · v^i|>");
-                    for &j in &self.conjugate_js {
+                    let mut fig = Figure::new(&format!("{title}: <|v^j · v^i|>, i != j")).x_label("i").y_label("<|v^j · v^i|>");
+                    for &j in js {
                         if let Some(m) = pick(j) {
                             fig.series(&format!("j = {}", j + 1), &idx, &without_self(&m, j), Marker::Line);
                         }
                     }
-                    save_figure(&fig, out, "fig13_clv_overlap_conjugate")?;
-                    figures.push("fig13_clv_overlap_conjugate".into());
+                    save_figure(&fig, out, stem)?;
+                    figures.push(stem.to_string());
                 }
                 produced.push(Produced {
                     title: "Scalar products between covariant vectors (Fig. 13)".into(),

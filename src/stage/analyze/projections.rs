@@ -73,16 +73,6 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     })
 }
 
-/// 0-based inclusive range of the central (mode-carrying) part, as in the Fig. 8 plot.
-fn central_range(ctx: &Context) -> Option<(usize, usize)> {
-    if ctx.k != ctx.d || ctx.n < 2 {
-        return None;
-    }
-    let last = 2 * ctx.n - 4;
-    let first = last.saturating_sub((ctx.d / 6).max(8));
-    Some((first, ctx.d - 1 - first))
-}
-
 /// Largest |a_i - b_(4N+1-i)| over i: the conjugate symmetry of a pair of spectra.
 fn conjugate_asymmetry(a: &[f64], b: &[f64]) -> f64 {
     let d = a.len();
@@ -118,7 +108,7 @@ impl Analysis for Projections {
             (0..k).map(|i| vec![(i + 1) as f64, ctx.reduced(i), q_gs[i], p_gs[i], qs_gs[i], c_gs[i], q_cv[i], p_cv[i], qs_cv[i], c_cv[i]]),
         )?;
         let idx: Vec<f64> = (1..=k).map(|i| i as f64).collect();
-        let central = central_range(ctx);
+        let central = ctx.central_range();
         let full = k == ctx.d;
         let avg = format!("averaged over {frames} frames ({})", ctx.sample());
         let tables = vec!["projections.csv".to_string()];

@@ -97,7 +97,7 @@ impl Analysis for Spectrum {
             // The mode region: positive exponents next to the null space, with the negated
             // conjugate exponents at the same index (conjugate pairing: lambda_i = -lambda_{4N+1-i}).
             let last = 2 * ctx.n - 4; // 0-based index of lambda_{2N-3}, the smallest positive
-            let first = last.saturating_sub((ctx.d / 6).max(8));
+            let first = ctx.central_range().map_or(0, |(first, _)| first);
             let idx: Vec<f64> = (first..=last).map(|i| (i + 1) as f64).collect();
             let pick = |v: &[f64], conj: bool| -> Vec<f64> { (first..=last).map(|i| if conj { -v[ctx.d - 1 - i] } else { v[i] }).collect() };
             let mut fig = Figure::new("Mode region: λ_i and -λ_(4N+1-i)").x_label("i").y_label("λ");

@@ -304,7 +304,7 @@ impl Analysis for Transversality {
         produced.push(Produced {
             title: "Angles between covariant vectors (Fig. 16)".into(),
             caption: format!(
-                "Distributions of Θ = arccos|v^i·v^j| over {frames} frames for pairs of covariant vectors in F^({}) = v^1..v^{} (the unstable subspace without the mode directions) with index separations i - j = {} (the paper's 1, 2, 4, 20, 50, 100, 200, 300 for D = 792; the larger ones scaled to D = {}).",
+                "Distributions of Θ = arccos|v^i·v^j| over {frames} frames for pairs of covariant vectors in F^({}) = v^1..v^{} (the unstable subspace without the mode directions) with index separations i - j = {} (the paper's 1, 2, 4, 20, 50, 100, 200, 300 for D = 792; the larger ones scaled to D = {}, dropped where they fall on a smaller one or reach beyond F).",
                 th.j,
                 th.j,
                 th.seps.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(", "),
