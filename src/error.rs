@@ -16,9 +16,10 @@ pub enum Error {
     Dynamics(String),
     /// A file is damaged or not what it claims to be.
     Corrupt { path: PathBuf, msg: String },
-    /// The forward stage stopped on a signal (SIGTERM, SIGINT) after `step`, with everything
-    /// up to it saved in the run directory `run`.
-    Stopped { step: u64, total: u64, run: PathBuf },
+    /// The forward stage stopped on `signal` (SIGTERM, SIGINT) after `step`, with everything
+    /// up to it saved in the run directory `run`; `then` says how to continue. The process
+    /// exits as a shell reports death by that signal (128 + signal).
+    Stopped { step: u64, total: u64, run: PathBuf, signal: i32, then: String },
     /// Anything else, already phrased for the user.
     Other(String),
 }
@@ -49,13 +50,19 @@ impl fmt::Display for Error {
             Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
             Error::Dynamics(msg) => write!(f, "dynamics: {msg}"),
             Error::Corrupt { path, msg } => write!(f, "{}: corrupt or unreadable: {msg}", path.display()),
-            Error::Stopped { step, total, run } => write!(
-                f,
-                "stopped by a signal after step {step} of {total}; everything up to it is saved in {}: continue with `clv forward --resume {}`",
-                run.display(),
-                run.display()
-            ),
+            Error::Stopped { step, total, run, then, .. } => write!(f, "stopped by a signal after step {step} of {total} of the forward pass; everything up to it is saved in {}: {then}", run.display()),
             Error::Other(msg) => f.write_str(msg),
+        }
+    }
+}
+
+impl Error {
+    /// The process's exit status for this error: 128 + the signal for a stop on a signal
+    /// (as for death by it, so that a batch system sees the same either way), else 1.
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::Stopped { signal, .. } => 128 + signal,
+            _ => 1,
         }
     }
 }

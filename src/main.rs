@@ -55,6 +55,6 @@ fn main() {
         }
     if let Err(e) = result {
         eprintln!("clv: error: {e}");
-        std::process::exit(1);
+        std::process::exit(e.exit_code());
     }
 }

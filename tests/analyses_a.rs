@@ -375,6 +375,12 @@ fn local_exponents_agree_with_the_spectrum_and_domination_improves() {
     assert!(out[out.len() - 1] < out[0], "swaps must become rarer for longer windows: {out:?}");
     let p12 = dom.col("pair_1_2");
     assert!(p12[p12.len() - 1] <= p12[0]);
+    // Every fraction says how many windows it is of: all frames cut into windows of Delta.
+    let windows = dom.col("windows");
+    assert_eq!(deltas[0], 1.0);
+    for (w, d) in windows.iter().zip(&deltas) {
+        assert!(w * d <= windows[0] && windows[0] < (w + 1.0) * d, "{w} windows of {d} from {} frames", windows[0]);
+    }
 }
 
 #[test]

@@ -192,13 +192,16 @@ fn clv_run_takes_settings_that_change_the_preset() {
     assert_eq!((&run["config"]["steps"], &run["store"]["clv_steps"]), (&serde_json::json!(500), &serde_json::json!(52)));
     let summary: serde_json::Value = serde_json::from_str(&read(&out.join("report/summary.json"))).unwrap();
     assert!(summary["frames"].as_u64().unwrap() >= 52, "{summary}");
-    // `clv run`'s own options may also follow the settings.
+    // `clv run`'s own options may also follow the settings, and so may --help.
+    let help = ok(clv(&["run", "--n", "16", "-h"]));
+    assert!(String::from_utf8_lossy(&help.stdout).contains("--preset"), "{}", common::stderr(&help));
     let quiet = ok(clv(&["run", "--n", "8", "--aspect", "1", "--steps", "500", "--relax-steps", "20", "--quiet", "--out", o]));
     assert!(quiet.stderr.is_empty(), "{}", common::stderr(&quiet));
     for (args, named) in [
         (vec!["run", "--out", o, "--steps", "300", "--out", o], "invalid --out: given twice"),
         (vec!["run", "--steps", "300", "--preset", "henon", "--config", o], "give --config or --preset, not both"),
         (vec!["run", "--steps", "300", "--out"], "invalid --out: needs a value"),
+        (vec!["run", "--steps", "300", "--quiet=false"], "invalid --quiet: takes no value"),
         (vec!["run", "--out", o, "--steps", "300", "--resume", o], "--resume is not a setting of a run"),
         (vec!["run", "--out", o, "--preset", "henon", "--n", "5"], "--n: sets up hard disks"),
         (vec!["run", "--out", o, "--steps", "many"], "'many'"),

@@ -151,7 +151,8 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     for note in report.notes.iter().filter(|_| !args.quiet) {
         eprintln!("clv: {note}");
     }
-    if report.statistics.stopped_early && !args.quiet {
+    // Not a notice: the CLV spectrum of an unfinished sweep is not written.
+    if report.statistics.stopped_early {
         eprintln!("clv: the reader closed the stream after {} frames; stopped (continue later with --resume)", report.statistics.frames);
     }
     if args.json {

@@ -89,6 +89,14 @@ fn own_options_moved(args: &RunArgs, matches: &ArgMatches) -> Result<RunArgs> {
     let mut seen: Vec<&str> = Vec::new();
     let mut rest = args.settings.iter();
     while let Some(setting) = rest.next() {
+        if setting == "-h" || setting == "--help" {
+            let mut cli = Cli::command();
+            cli.build();
+            if let Some(run) = cli.find_subcommand_mut("run") {
+                let _ = run.print_help();
+            }
+            std::process::exit(0);
+        }
         let (flag, inline) = match setting.split_once('=') {
             Some((flag, value)) => (flag, Some(value.to_string())),
             None => (setting.as_str(), None),
@@ -100,10 +108,13 @@ fn own_options_moved(args: &RunArgs, matches: &ArgMatches) -> Result<RunArgs> {
         };
         let id = &own[2..];
         if matches.value_source(id) == Some(ValueSource::CommandLine) || seen.contains(&id) {
-            return Err(Error::param(id, "given twice (before and after the settings); give it once"));
+            return Err(Error::param(id, "given twice; give it once"));
         }
         seen.push(id);
         if own == "--quiet" {
+            if inline.is_some() {
+                return Err(Error::param("quiet", "takes no value: give --quiet alone"));
+            }
             moved.quiet = true;
             continue;
         }
@@ -149,10 +160,7 @@ pub fn run(args: &RunArgs, matches: &ArgMatches) -> Result<()> {
         args.out.join("run").display()
     ));
     let result = clv::stage::pipeline::run(&config, &store, &args.out, &mut feedback, &mut say).map_err(|e| match e {
-        Error::Stopped { step, total, run } => Error::Other(format!(
-            "stopped by a signal after step {step} of {total} of the forward pass; everything up to it is saved in {}: give the same `clv run` command again to continue",
-            run.display()
-        )),
+        Error::Stopped { step, total, run, signal, .. } => Error::Stopped { step, total, run, signal, then: "give the same `clv run` command again to continue".into() },
         e => e,
     })?;
     if let Some(bar) = &feedback.bar {

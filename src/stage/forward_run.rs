@@ -399,13 +399,14 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
         if let Some(bar) = &feedback.bar {
             bar.set_position(n);
         }
-        if signals.requested() && n < total {
+        if let Some(signal) = signals.requested().filter(|_| n < total) {
             if !is_cp {
                 sink.send(R.topic, n, encode_r(n, &fwd.r))?;
                 checkpoint(&fwd, &mut sink)?;
             }
             sink.close_at_checkpoint()?;
-            return Err(Error::Stopped { step: n, total, run: dir.path.clone() });
+            let then = format!("continue with `clv forward --resume {}`", dir.path.display());
+            return Err(Error::Stopped { step: n, total, run: dir.path.clone(), signal, then });
         }
     }
     sink.close()?;

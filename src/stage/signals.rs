@@ -9,14 +9,15 @@
 //! A signal the process was started to ignore (SIGINT of a shell's background job) stays
 //! ignored under both.
 
-use std::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
+use std::sync::atomic::{AtomicI32, AtomicPtr, Ordering};
 
 const SIGNALS: [libc::c_int; 2] = [libc::SIGTERM, libc::SIGINT];
 
-static STOP: AtomicBool = AtomicBool::new(false);
+/// The signal that asked for a stop; 0 for none.
+static STOP: AtomicI32 = AtomicI32::new(0);
 
-extern "C" fn request_stop(_: libc::c_int) {
-    STOP.store(true, Ordering::SeqCst);
+extern "C" fn request_stop(sig: libc::c_int) {
+    STOP.store(sig, Ordering::SeqCst);
 }
 
 /// The message [`explain_and_exit`] writes: leaked, so that the handler only ever reads
@@ -64,19 +65,19 @@ impl Drop for Installed {
 }
 
 /// While this lives, SIGTERM and SIGINT only ask for a stop, which the loop polls with
-/// [`StopOnSignals::requested`].
+/// [`StopOnSignals::requested`] (the signal's number, once one came).
 pub struct StopOnSignals {
     _handlers: Installed,
 }
 
 impl StopOnSignals {
     pub fn install() -> Self {
-        STOP.store(false, Ordering::SeqCst);
+        STOP.store(0, Ordering::SeqCst);
         StopOnSignals { _handlers: Installed::new(request_stop) }
     }
 
-    pub fn requested(&self) -> bool {
-        STOP.load(Ordering::SeqCst)
+    pub fn requested(&self) -> Option<i32> {
+        Some(STOP.load(Ordering::SeqCst)).filter(|&sig| sig != 0)
     }
 }
 

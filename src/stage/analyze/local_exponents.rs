@@ -245,7 +245,7 @@ impl Analysis for LocalExponents {
         let outside: Vec<f64> = pairs.iter().map(|p| finite_mean(p.iter().enumerate().filter(|(i, _)| !self.in_null(*i)).map(|(_, &x)| x))).collect();
         let sel: Vec<usize> = self.js.iter().copied().filter(|&j| j + 1 < ctx.k).collect();
         let borders = self.null_borders();
-        let mut header = vec!["delta".to_string(), "overall".to_string(), "outside_null".to_string()];
+        let mut header = vec!["delta".to_string(), "windows".to_string(), "overall".to_string(), "outside_null".to_string()];
         header.extend(sel.iter().map(|j| format!("pair_{}_{}", j + 1, j + 2)));
         header.extend(borders.iter().map(|(name, _)| name.to_string()));
         let h: Vec<&str> = header.iter().map(String::as_str).collect();
@@ -253,7 +253,7 @@ impl Analysis for LocalExponents {
             &out.join("domination.csv"),
             &h,
             self.deltas.iter().enumerate().map(|(w, &dl)| {
-                let mut row = vec![dl as f64, overall[w], outside[w]];
+                let mut row = vec![dl as f64, self.test.windows(w) as f64, overall[w], outside[w]];
                 row.extend(sel.iter().map(|&j| pairs[w][j]));
                 row.extend(borders.iter().map(|&(_, i)| pairs[w][i]));
                 row
@@ -318,7 +318,7 @@ impl Analysis for LocalExponents {
                 if ctx.is_disks() { ", averaged over the pairs outside the null space" } else { "" },
                 self.deltas[0],
                 overall[0],
-                if longest > 0 { format!("; at Δ = {}: {:.3e}", self.deltas[longest], overall[longest]) } else { String::new() },
+                if longest > 0 { format!("; at Δ = {}: {:.3e} (from {} windows; domination.csv gives every Δ's count)", self.deltas[longest], overall[longest], self.test.windows(longest)) } else { String::new() },
             ),
             figures: vec!["domination".into()],
             tables: vec!["domination.csv".into(), "domination_pairs.csv".into()],

@@ -433,15 +433,15 @@ fn html_table(csv: &str) -> Option<String> {
     let lines: Vec<&str> = csv.lines().collect();
     let cells = |line: &str| -> Vec<String> {
         // modes.csv quotes names that hold commas: "T(1,0)"
-        let mut out = vec![String::new()];
-        let mut quoted = false;
+        let (mut out, mut cell, mut quoted) = (Vec::new(), String::new(), false);
         for c in line.chars() {
             match c {
                 '"' => quoted = !quoted,
-                ',' if !quoted => out.push(String::new()),
-                c => out.last_mut().expect("one cell").push(c),
+                ',' if !quoted => out.push(std::mem::take(&mut cell)),
+                c => cell.push(c),
             }
         }
+        out.push(cell);
         out
     };
     let header = cells(lines.first()?);

@@ -207,7 +207,7 @@ impl Analysis for Transversality {
             self.labels = self
                 .steps
                 .iter()
-                .map(|s| match modes::classify_step(frame, s, &candidates) {
+                .map(|s| match modes::classify_clearly(frame, s, &candidates) {
                     Some(m) if modes::matches_degeneracy(s, m.kind, &candidates.families[m.family]) => format!("{} ({})", candidates.families[m.family].name(m.kind), step_range(s)),
                     _ => format!("{}-fold step ({})", s.len, step_range(s)),
                 })

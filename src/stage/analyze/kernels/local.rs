@@ -74,6 +74,8 @@ pub struct DominationTest {
     /// Per Delta and adjacent pair: swapped and compared windows.
     swaps: Vec<Vec<u64>>,
     compared: Vec<Vec<u64>>,
+    /// Per Delta: completed windows.
+    windows: Vec<u64>,
 }
 
 impl DominationTest {
@@ -87,6 +89,7 @@ impl DominationTest {
             filled: vec![0; deltas.len()],
             swaps: vec![vec![0; pairs]; deltas.len()],
             compared: vec![vec![0; pairs]; deltas.len()],
+            windows: vec![0; deltas.len()],
         }
     }
 
@@ -100,6 +103,7 @@ impl DominationTest {
             }
             self.filled[w] += 1;
             if self.filled[w] == delta {
+                self.windows[w] += 1;
                 for (p, pair) in sums.windows(2).enumerate() {
                     if pair[0].is_finite() && pair[1].is_finite() {
                         self.compared[w][p] += 1;
@@ -119,6 +123,11 @@ impl DominationTest {
             .zip(&self.compared[which])
             .map(|(&s, &t)| if t == 0 { f64::NAN } else { s as f64 / t as f64 })
             .collect()
+    }
+
+    /// The number of completed windows for the `which`-th Delta: what each fraction is of.
+    pub fn windows(&self, which: usize) -> u64 {
+        self.windows[which]
     }
 
     /// Overall swap fraction over all pairs, one per Delta (in the order given to `new`).
