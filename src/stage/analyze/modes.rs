@@ -43,11 +43,11 @@ use std::path::Path;
 /// n_x = 4 in the paper's box.
 pub const MAX_N: usize = 4;
 /// The least share of a step's vectors beyond chance ([`excess`]) in its majority
-/// candidate's span that counts as a classification. Modes have 0.56-0.97 (the paper's run
-/// and ours of N = 40 and 100, a square of N = 100); a step that is no mode 0.05 (our N = 40 system in the paper's
-/// box turned by 90 degrees, before modes along y were candidates: "LP(3,0)" at a fraction
-/// of 0.10 against the chance 4/80 won 56 % of the frames; an 8-dimensional family of N = 8
-/// disks: 0.53 against the chance 0.5).
+/// candidate's span that counts as a classification. Modes have 0.56-0.97 (the paper's run,
+/// ours of N = 40 and 100, a square of N = 100); a step that is no mode 0.05 (our N = 40
+/// system in the paper's box turned by 90 degrees, before modes along y were candidates:
+/// "LP(3,0)" at a fraction of 0.10 against the chance 4/80 won 56 % of the frames; an
+/// 8-dimensional family of N = 8 disks: 0.53 against the chance 0.5).
 pub const MIN_FRACTION: f64 = 0.3;
 /// Neighbouring exponents within this many combined standard errors form a step.
 pub const STEP_TOL: f64 = 3.0;
