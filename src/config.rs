@@ -63,6 +63,18 @@ impl SystemConfig {
         }
     }
 
+    /// The (0-based) indices of the exponents that vanish exactly, by conservation laws and
+    /// the flow's own direction: the six of hard disks' null space (paper indices 2N-2..2N+3),
+    /// Lorenz's lambda_2, none for a map. A finite run measures them as small numbers of
+    /// either sign; Pesin's h_KS must not count those that come out positive.
+    pub fn neutral(&self) -> std::ops::Range<usize> {
+        match self {
+            SystemConfig::Henon { .. } => 0..0,
+            SystemConfig::Lorenz { .. } => 1..2,
+            SystemConfig::Disks { n, .. } => 2 * n - 3..2 * n + 3,
+        }
+    }
+
     /// Phase-space dimension D.
     pub fn dim(&self) -> usize {
         match self {

@@ -105,6 +105,11 @@ fn lorenz_clvs_give_the_flow_direction() {
         // Sprott's values; 2000 frames average them to a few hundredths.
         assert!((l[0] - 0.9056).abs() < 0.05 && l[1].abs() < 0.02 && (l[2] + 14.5723).abs() < 0.05, "{key}: {l:?}");
     }
+    // Pesin's h_KS is lambda_1 alone: the flow direction's lambda_2, zero but measured with
+    // either sign, is never counted.
+    for (h, l) in [("ks_entropy", "exponents"), ("gs_ks_entropy", "gs_exponents")] {
+        assert_eq!(report[h]["value"].as_f64(), Some(vec_of(&report, l)[0]), "{h}: {report}");
+    }
     let fs = frames(&dir.join("frames.mcap"));
     assert_eq!(fs.len(), 2001);
     let lorenz = Lorenz::new(Lorenz::SIGMA, Lorenz::RHO, Lorenz::BETA, 0.1, [0.0; 3]);

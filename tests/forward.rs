@@ -29,7 +29,7 @@ fn henon_exponents_match_published_values() {
     assert!((l[1] - (0.3f64.ln() - 0.41922)).abs() < 5e-4, "lambda_2 = {}", l[1]);
     assert!((l[0] + l[1] - 0.3f64.ln()).abs() < 1e-12, "sum = {}", l[0] + l[1]);
     // h_KS = lambda_1, and D_KY = 1 + lambda_1 / |lambda_2| = 1.2583 (Sprott, ibid.).
-    let h = f.acc.ks_entropy(1.0).unwrap();
+    let h = f.acc.ks_entropy(1.0, c.system.neutral()).unwrap();
     assert_eq!(h.value, l[0]);
     assert!(h.stderr > 0.0 && h.stderr < 5e-4, "stderr of h_KS = {}", h.stderr);
     let d_ky = kaplan_yorke_dimension(&l, 2).unwrap();
@@ -57,7 +57,7 @@ fn check_disk_spectrum(n: usize, steps: u64) {
     assert!(l[2 * n - 4] > 0.01 && l[2 * n + 3] < -0.01, "more than six vanishing exponents");
     // Pesin: h_KS sums the 2N - 3 positive exponents (the vanishing ones add nothing); a
     // flow that preserves phase volume has the Kaplan-Yorke dimension of its phase space.
-    let h = f.acc.ks_entropy(0.6).unwrap();
+    let h = f.acc.ks_entropy(0.6, c.system.neutral()).unwrap();
     let positive: f64 = l[..2 * n - 3].iter().sum();
     assert!((h.value - positive).abs() < 1e-9, "h_KS = {}, sum of the 2N - 3 leading exponents = {positive}", h.value);
     assert!(h.stderr > 0.0 && h.stderr < 0.1 * h.value, "stderr of h_KS = {}", h.stderr);

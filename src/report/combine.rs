@@ -87,9 +87,11 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
     }
     let varying: Vec<f64> = chi2.iter().copied().filter(|c| c.is_finite()).collect();
     let mean_chi2_per_dof = varying.iter().sum::<f64>() / varying.len().max(1) as f64;
-    let ks = ks_entropy(&exponents).map(|value| {
-        // Each run's sum over the exponents positive in the combined spectrum.
-        let per_run: Vec<f64> = runs.iter().map(|r| r.exponents.iter().zip(&exponents).filter(|(_, c)| **c > 0.0).map(|(x, _)| x).sum()).collect();
+    let neutral = first.system.neutral();
+    let ks = ks_entropy(&exponents, neutral.clone()).map(|value| {
+        // Each run's sum over the exponents counted in the combined spectrum.
+        let counted = |i: usize, c: f64| c > 0.0 && !neutral.contains(&i);
+        let per_run: Vec<f64> = runs.iter().map(|r| r.exponents.iter().zip(&exponents).enumerate().filter(|(i, (_, c))| counted(*i, **c)).map(|(_, (x, _))| x).sum()).collect();
         Estimate { value, stderr: weighted_mean(&per_run, &weights).1 }
     });
     Ok(Combined {

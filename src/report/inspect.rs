@@ -191,7 +191,7 @@ impl Inspection {
             let show: Vec<String> = self.exponents.iter().take(4).map(|x| format!("{x:.5}")).collect();
             let _ = writeln!(s, "spectrum so far: lambda_1.. = {} ... lambda_k = {:.5}", show.join(", "), self.exponents.last().unwrap_or(&f64::NAN));
             let mut sums = Vec::new();
-            if let Some(h) = crate::stage::forward::ks_entropy(&self.exponents) {
+            if let Some(h) = crate::stage::forward::ks_entropy(&self.exponents, self.run.config.system.neutral()) {
                 sums.push(format!("h_KS = {h:.5}"));
             }
             if let Some(d) = crate::stage::forward::kaplan_yorke_dimension(&self.exponents, self.run.config.system.dim()) {

@@ -54,7 +54,8 @@ pub struct SpectrumReport {
     pub exponents: Vec<f64>,
     /// Standard error of each exponent (block averages).
     pub stderr: Vec<f64>,
-    /// h_KS, the sum of the positive exponents (Pesin's identity); None when all k are positive.
+    /// h_KS, the sum of the positive exponents outside those that vanish by symmetry
+    /// (Pesin's identity, [`crate::stage::forward::ks_entropy`]); None when all k are positive.
     pub ks_entropy: Option<Estimate>,
     /// D_KY (Kaplan-Yorke); None when the k exponents do not decide it.
     pub kaplan_yorke_dimension: Option<f64>,
@@ -69,7 +70,7 @@ impl SpectrumReport {
         let exponents = acc.exponents(config.tau);
         SpectrumReport {
             stderr: acc.stderr(config.tau),
-            ks_entropy: acc.ks_entropy(config.tau),
+            ks_entropy: acc.ks_entropy(config.tau, config.system.neutral()),
             kaplan_yorke_dimension: kaplan_yorke_dimension(&exponents, config.system.dim()),
             exponents,
             statistics,

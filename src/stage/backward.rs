@@ -909,11 +909,11 @@ pub fn run(
     let mut report = BackwardReport {
         exponents: acc.exponents(1.0),
         stderr: acc.stderr(1.0),
-        ks_entropy: acc.ks_entropy(1.0),
+        ks_entropy: acc.ks_entropy(1.0, config.system.neutral()),
         gs_exponents: gs.exponents,
         gs_stderr: gs.stderr,
         gs_ks_entropy: gs.ks_entropy,
-        gs_window: acc_gs.as_ref().map(|a| WindowSpectrum { exponents: a.exponents(tau), stderr: a.stderr(tau), ks_entropy: a.ks_entropy(tau) }),
+        gs_window: acc_gs.as_ref().map(|a| WindowSpectrum { exponents: a.exponents(tau), stderr: a.stderr(tau), ks_entropy: a.ks_entropy(tau, config.system.neutral()) }),
         options: opts.clone(),
         statistics: stats.clone(),
         notes,

@@ -80,24 +80,28 @@ impl Accumulator {
         (0..self.sum.len()).map(|i| standard_error(&self.blocks.iter().map(|b| b[i] / t).collect::<Vec<_>>())).collect()
     }
 
-    /// Kolmogorov-Sinai entropy by Pesin's identity, h_KS = sum of the positive lambda_i,
-    /// with its standard error from the block sums of the same exponents (NaN with fewer than
-    /// two completed blocks). None when every one of the k exponents is positive: the
-    /// positive part of the spectrum was then not all computed.
-    pub fn ks_entropy(&self, tau: f64) -> Option<Estimate> {
+    /// Kolmogorov-Sinai entropy by Pesin's identity, h_KS = sum of the positive lambda_i
+    /// outside the `neutral` indices ([`ks_entropy`]), with its standard error from the block
+    /// sums of the same exponents (NaN with fewer than two completed blocks). None when every
+    /// one of the k exponents is positive: the positive part of the spectrum was then not all
+    /// computed.
+    pub fn ks_entropy(&self, tau: f64, neutral: std::ops::Range<usize>) -> Option<Estimate> {
         let lambda = self.exponents(tau);
-        let value = ks_entropy(&lambda)?;
-        let positive = |sums: &[f64], t: f64| sums.iter().zip(&lambda).filter(|(_, l)| **l > 0.0).map(|(s, _)| s / t).sum::<f64>();
+        let value = ks_entropy(&lambda, neutral.clone())?;
+        let counted = |i: usize, l: f64| l > 0.0 && !neutral.contains(&i);
+        let positive = |sums: &[f64], t: f64| sums.iter().zip(&lambda).enumerate().filter(|(i, (_, l))| counted(*i, **l)).map(|(_, (s, _))| s / t).sum::<f64>();
         let t = self.block_len as f64 * tau;
         let per_block: Vec<f64> = self.blocks.iter().map(|b| positive(b, t)).collect();
         Some(Estimate { value, stderr: standard_error(&per_block) })
     }
 }
 
-/// h_KS = sum of the positive lambda_i (Pesin's identity); None when all are positive (the
-/// spectrum does not reach the non-positive part).
-pub fn ks_entropy(lambda: &[f64]) -> Option<f64> {
-    lambda.iter().any(|&l| l <= 0.0).then(|| lambda.iter().filter(|&&l| l > 0.0).sum())
+/// h_KS = sum of the positive lambda_i (Pesin's identity), leaving out the `neutral` indices
+/// (exponents zero by symmetry, [`crate::config::SystemConfig::neutral`], which a finite run
+/// may measure slightly positive); None when all are positive (the spectrum does not reach
+/// the non-positive part).
+pub fn ks_entropy(lambda: &[f64], neutral: std::ops::Range<usize>) -> Option<f64> {
+    lambda.iter().any(|&l| l <= 0.0).then(|| lambda.iter().enumerate().filter(|&(i, &l)| l > 0.0 && !neutral.contains(&i)).map(|(_, l)| l).sum())
 }
 
 /// The exponents averaged over consecutive blocks of a run: the batch means its standard
@@ -337,13 +341,25 @@ mod tests {
             let wobble = if n % 4 < 2 { 0.1 } else { -0.1 };
             acc.add_logs([1.0 + wobble, -0.5 - 0.3 * wobble, -2.0].into_iter());
         }
-        let h = acc.ks_entropy(0.5).unwrap();
+        let h = acc.ks_entropy(0.5, 0..0).unwrap();
         assert_eq!(h.value, acc.exponents(0.5)[0]);
         assert_eq!(h.stderr, acc.stderr(0.5)[0]);
         assert!(h.stderr > 0.0);
         let mut all_positive = Accumulator::new(2, 2);
         all_positive.add_logs([1.0, 0.5].into_iter());
-        assert_eq!(all_positive.ks_entropy(1.0), None);
+        assert_eq!(all_positive.ks_entropy(1.0, 0..0), None);
+        // A flow's direction has exponent zero, measured slightly positive in a finite run
+        // (Lorenz: lambda_2 = +3e-4): not counted.
+        let mut flow = Accumulator::new(3, 2);
+        for n in 0..20 {
+            let wobble = if n % 4 < 2 { 0.1 } else { -0.1 };
+            flow.add_logs([0.9 + wobble, 3e-4 + 0.01 * wobble, -14.5].into_iter());
+        }
+        let lambda = flow.exponents(1.0);
+        assert!(lambda[1] > 0.0);
+        assert_eq!(flow.ks_entropy(1.0, 0..0).unwrap().value, lambda[0] + lambda[1]);
+        let h = flow.ks_entropy(1.0, 1..2).unwrap();
+        assert_eq!((h.value, h.stderr), (lambda[0], flow.stderr(1.0)[0]));
     }
 
     /// Feeding 4B blocks' worth of steps with the doubling rule gives the blocks of an

@@ -62,14 +62,15 @@ impl Analysis for Spectrum {
         fig.hline(0.0);
         save_figure(&fig, out, "fig2_spectrum")?;
         // The spectrum.json of builds before h_KS was reported has the exponents but no error.
-        let gs_h = ctx.gs.as_ref().and_then(|g| g.ks_entropy.or_else(|| ks_entropy(&g.exponents).map(|value| Estimate { value, stderr: f64::NAN })));
+        let neutral = ctx.run.as_ref().map_or(0..0, |m| m.config.system.neutral());
+        let gs_h = ctx.gs.as_ref().and_then(|g| g.ks_entropy.or_else(|| ks_entropy(&g.exponents, neutral.clone()).map(|value| Estimate { value, stderr: f64::NAN })));
         let mut produced = vec![Produced {
             title: "Lyapunov spectrum (Fig. 2)".into(),
             caption: format!(
                 "Forward Gram-Schmidt exponents (time average of ln R_ii) and backward covariant exponents (time average of the local CLV exponents over {frames} frames) against the reduced index {reduced}. \
                  Kolmogorov-Sinai entropy h_KS, the sum of the positive exponents (Pesin's identity): {} (GS), {} (CLV).",
                 Estimate::or_unknown(gs_h),
-                Estimate::or_unknown(self.acc.ks_entropy(1.0)),
+                Estimate::or_unknown(self.acc.ks_entropy(1.0, neutral)),
             ) + &ctx.run.as_ref().map_or(String::new(), |run| {
                 format!(
                     " The GS averages are over the whole run ({} steps), the CLV averages over the frames' steps only: they differ by that window's own fluctuation, which the CLV errors measure. \
