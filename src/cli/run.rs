@@ -180,7 +180,7 @@ pub fn run(args: &RunArgs, matches: &ArgMatches) -> Result<()> {
         Estimate::or_unknown(window.and_then(|w| w.ks_entropy))
     ));
     let gs = clv::report::SpectrumSummary::read(&result.run_dir.join("spectrum.json")).ok();
-    if let Some(d) = gs.and_then(|g| g.blocks).and_then(|b| clv::stage::analyze::kernels::convergence::diagnose(&b.exponents)) {
+    if let Some(d) = gs.and_then(|g| g.blocks).and_then(|b| clv::stage::analyze::kernels::convergence::diagnose(&b.exponents, config.system.neutral())) {
         say(format!("convergence of the GS spectrum ({} blocks): {}", d.blocks, d.verdict()));
     }
     let figures: usize = result.produced.iter().map(|p| p.figures.len()).sum();

@@ -126,7 +126,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     let (exponents, stderr) = newest.as_ref().map(|(s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
     let convergence = newest.as_ref().and_then(|(_, acc)| {
         let blocks = acc.as_ref()?.block_averages(meta.config.tau);
-        let d = crate::stage::analyze::kernels::convergence::diagnose(&blocks.exponents)?;
+        let d = crate::stage::analyze::kernels::convergence::diagnose(&blocks.exponents, meta.config.system.neutral())?;
         Some(Convergence { blocks: d.blocks, block_steps: blocks.block_steps, tests: d.numbers(), verdict: d.verdict().to_string() })
     });
     Ok(Inspection {

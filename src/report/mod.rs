@@ -102,7 +102,7 @@ impl SpectrumReport {
         if let Some(d) = self.kaplan_yorke_dimension {
             let _ = writeln!(s, "Kaplan-Yorke dimension: {d:.6} (of D = {})", self.config.system.dim());
         }
-        if let Some(d) = crate::stage::analyze::kernels::convergence::diagnose(&self.blocks.exponents) {
+        if let Some(d) = crate::stage::analyze::kernels::convergence::diagnose(&self.blocks.exponents, self.config.system.neutral()) {
             let _ = writeln!(s, "convergence ({} blocks of {} steps): {}; {}", d.blocks, self.blocks.block_steps, d.numbers(), d.verdict());
         }
         let t = st.simulated_time;

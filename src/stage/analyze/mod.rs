@@ -461,15 +461,14 @@ fn html_table(csv: &str) -> Option<String> {
     Some(html + "</table>\n")
 }
 
-/// `x` to `digits` significant digits: plain between 1e-3 and 1e6, else in exponent form.
+/// `x` rounded to `digits` significant digits, written in its shortest form: plain between
+/// 1e-3 and 1e6 (0.38, 1, 0.0454545), else in exponent form (3.69706e-4).
 fn significant(x: f64, digits: usize) -> String {
-    let magnitude = x.abs().log10().floor();
-    if x == 0.0 {
-        "0".into()
-    } else if (-3.0..6.0).contains(&magnitude) {
-        format!("{x:.*}", (digits as f64 - 1.0 - magnitude).max(0.0) as usize)
+    let rounded: f64 = format!("{x:.*e}", digits.max(1) - 1).parse().unwrap_or(x);
+    if rounded == 0.0 || (1e-3..1e6).contains(&rounded.abs()) {
+        format!("{rounded}")
     } else {
-        format!("{x:.*e}", digits - 1)
+        format!("{rounded:e}")
     }
 }
 
@@ -696,9 +695,10 @@ mod tests {
 
     #[test]
     fn small_tables_appear_in_the_page_to_six_digits() {
-        assert_eq!((significant(0.123456789, 6).as_str(), significant(-12345.678, 6).as_str(), significant(2.0e-15, 6).as_str()), ("0.123457", "-12345.7", "2.00000e-15"));
+        assert_eq!((significant(0.123456789, 6).as_str(), significant(-12345.678, 6).as_str(), significant(2.0e-15, 6).as_str()), ("0.123457", "-12345.7", "2e-15"));
+        assert_eq!((significant(0.99999999, 6).as_str(), significant(0.38, 6).as_str(), significant(3.697061e-4, 6).as_str()), ("1", "0.38", "3.69706e-4"));
         let table = html_table("side,first,name,lambda\n+,76,\"T(1,0)\",8.847895660242466e-1\n").unwrap();
-        assert!(table.contains("<th>name</th>") && table.contains("<td>T(1,0)</td>") && table.contains("<td>0.884790</td>") && table.contains("<td>76</td>"), "{table}");
+        assert!(table.contains("<th>name</th>") && table.contains("<td>T(1,0)</td>") && table.contains("<td>0.88479</td>") && table.contains("<td>76</td>"), "{table}");
         let long: String = std::iter::once("i,x\n".to_string()).chain((0..100).map(|i| format!("{i},1e0\n"))).collect();
         assert!(html_table(&long).is_none());
     }

@@ -287,7 +287,7 @@ fn finite(x: f64) -> Option<f64> {
 }
 
 fn fmt(x: f64) -> String {
-    if x.is_finite() { super::csv_number(x) } else { "nan".into() }
+    super::csv_number(x)
 }
 
 impl Analysis for Modes {
@@ -549,9 +549,9 @@ fn candidates_text(cands: &Candidates) -> String {
     let together = if together.is_empty() {
         String::new()
     } else {
-        format!(", and those of one |k| together, which the box's symmetry makes degenerate (steps of 2 exponents per wave vector for T, 4 for LP): {}", together.join(", "))
+        format!(", each alone, and those of one |k| together, which the box's symmetry makes degenerate (steps of 2 exponents per wave vector for T, 4 for LP): {}", together.join(", "))
     };
-    format!("the wave vectors k = 2π (n_x/L_x, n_y/L_y) with |k| ≤ 2π·{MAX_N}/max(L_x, L_y) = {k_max:.3}, alone: {}{together}", singles.join(", "))
+    format!("the wave vectors k = 2π (n_x/L_x, n_y/L_y) with |k| ≤ 2π·{MAX_N}/max(L_x, L_y) = {k_max:.3}: {}{together}", singles.join(", "))
 }
 
 /// Least-squares line through the origin, y = c x: c and its standard error from the
@@ -1006,7 +1006,7 @@ mod tests {
         let rows = read_csv(&out.join("modes.csv"));
         let lp = rows.iter().find(|r| r["side"] == "+").unwrap();
         assert_eq!((lp["kind"].as_str(), lp["n_x"].as_str(), lp["degeneracy"].as_str()), ("LP", "1", "4"));
-        assert_eq!(lp["fraction_gs"], "nan"); // classified with CLVs: no GS vectors
+        assert_eq!(lp["fraction_gs"], "NaN"); // classified with CLVs: no GS vectors
         assert!(lp["fraction_clv"].parse::<f64>().unwrap() > 0.999);
         let rec = read_csv(&out.join("modes_lp.csv"));
         assert_eq!(rec.len(), 4); // CLV only: L and P for Figs. 11 and 12

@@ -121,6 +121,8 @@ impl Analysis for Overlaps {
     fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
         let ctx = &self.ctx;
         let idx: Vec<f64> = (1..=ctx.k).map(|i| i as f64).collect();
+        // a handful of indices (a map's two) are points, not a continuum
+        let line = if ctx.k <= 8 { Marker::LinePoints } else { Marker::Line };
         let avg = format!("averaged over {frames} frames ({})", ctx.sample());
         let central = ctx.central_range();
         let mut produced = Vec::new();
@@ -133,7 +135,7 @@ impl Analysis for Overlaps {
                 (0..ctx.k).map(|i| vec![(i + 1) as f64, ctx.reduced(i), mean[i], std[i]]),
             )?;
             let mut fig = Figure::new("GS and covariant vectors of the same exponent: <|g^i · v^i|>").x_label("i").y_label("<|g^i · v^i|>");
-            fig.series("<|g^i · v^i|>", &idx, &mean, Marker::Line);
+            fig.series("<|g^i · v^i|>", &idx, &mean, line);
             save_figure(&fig, out, "fig3_gs_clv_overlap")?;
             let mut figures = vec!["fig3_gs_clv_overlap".to_string()];
             if let Some((a, b)) = central {
@@ -168,7 +170,7 @@ impl Analysis for Overlaps {
             csv(out, "overlap_clv_gs.csv", &header, rows)?;
             let mut fig = Figure::new("Covariant vector v^j against all GS vectors: <|v^j · g^i|>").x_label("i").y_label("<|v^j · g^i|>");
             for (m, j) in vg.iter().zip(&self.js) {
-                fig.series(&format!("j = {}", j + 1), &idx, &m.mean(), Marker::Line);
+                fig.series(&format!("j = {}", j + 1), &idx, &m.mean(), line);
             }
             save_figure(&fig, out, "fig4_clv_gs_overlap")?;
             produced.push(Produced {
@@ -196,7 +198,7 @@ impl Analysis for Overlaps {
                     let mut fig = Figure::new(&format!("{title}: <|v^j · v^i|>, i != j")).x_label("i").y_label("<|v^j · v^i|>");
                     for &j in js {
                         if let Some(m) = pick(j) {
-                            fig.series(&format!("j = {}", j + 1), &idx, &without_self(&m, j), Marker::Line);
+                            fig.series(&format!("j = {}", j + 1), &idx, &without_self(&m, j), line);
                         }
                     }
                     save_figure(&fig, out, stem)?;

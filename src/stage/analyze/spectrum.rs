@@ -74,7 +74,7 @@ impl Analysis for Spectrum {
             ) + &ctx.run.as_ref().map_or(String::new(), |run| {
                 format!(
                     " The GS averages are over the whole run ({} steps), the CLV averages over the frames' steps only: they differ by that window's own fluctuation, which the CLV errors measure. \
-                     The backward stage gives the GS spectrum over the frames' steps too (`gs_window` in clv_spectrum.json, and its table), the comparison like for like.",
+                     The backward stage gives the GS spectrum over the frames' steps too (`gs_window` in RUN_DIR/clv_spectrum.json, and the table `clv backward` prints), the comparison like for like.",
                     run.config.steps
                 )
             }),

@@ -12,8 +12,10 @@
 //!   one exponent. Blocks shorter than the correlation time make r_1 clearly positive; their
 //!   standard errors are then too small.
 //!
-//! Exponents whose block averages do not vary beyond round-off (the null space of a
-//! Hamiltonian system) are left out: their z and r_1 would measure round-off.
+//! Exponents that vanish by symmetry (the `neutral` indices: a null space, a flow's
+//! direction) and any whose block averages do not vary beyond round-off are left out: their
+//! z and r_1 would measure round-off, or, for the covariant vectors of a null space, the
+//! drift that a finite backward window builds into them (e_(k+3) - s e_k).
 
 use crate::stage::forward::standard_error;
 
@@ -149,8 +151,9 @@ pub fn running(blocks: &[Vec<f64>]) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Both tests over `blocks` (oldest first; at least 4, else None).
-pub fn diagnose(blocks: &[Vec<f64>]) -> Option<Diagnostics> {
+/// Both tests over `blocks` (oldest first; at least 4, else None), leaving out the `neutral`
+/// indices.
+pub fn diagnose(blocks: &[Vec<f64>], neutral: std::ops::Range<usize>) -> Option<Diagnostics> {
     let nb = blocks.len();
     let k = blocks.first()?.len();
     if nb < 4 {
@@ -163,7 +166,7 @@ pub fn diagnose(blocks: &[Vec<f64>]) -> Option<Diagnostics> {
     };
     let spreads: Vec<f64> = (0..k).map(|i| spread(&column(i))).collect();
     let scale = spreads.iter().cloned().fold(0.0, f64::max);
-    let varies: Vec<usize> = (0..k).filter(|&i| spreads[i] > 1e-9 * scale && scale > 0.0).collect();
+    let varies: Vec<usize> = (0..k).filter(|&i| spreads[i] > 1e-9 * scale && scale > 0.0 && !neutral.contains(&i)).collect();
     if varies.is_empty() {
         return None;
     }
@@ -247,7 +250,7 @@ mod tests {
     fn a_stationary_run_with_independent_blocks_passes() {
         let mut drifting = 0.0;
         for seed in 0..20 {
-            let d = diagnose(&blocks(|_, i| 3.0 - 0.1 * i as f64, 0.0, seed)).unwrap();
+            let d = diagnose(&blocks(|_, i| 3.0 - 0.1 * i as f64, 0.0, seed), 0..0).unwrap();
             assert_eq!((d.tested, d.blocks), (30, 40));
             assert!(d.r1 < d.r1_limit(), "seed {seed}: r1 = {}", d.r1);
             drifting += d.drifting / 20.0;
@@ -259,9 +262,9 @@ mod tests {
     /// shorter than the correlation time (AR(1) with coefficient 0.8) fail the r_1 test.
     #[test]
     fn drift_and_correlated_blocks_are_caught() {
-        let d = diagnose(&blocks(|b, i| 3.0 - 0.1 * i as f64 + 0.5 * (-(b as f64) / 15.0).exp(), 0.0, 1)).unwrap();
+        let d = diagnose(&blocks(|b, i| 3.0 - 0.1 * i as f64 + 0.5 * (-(b as f64) / 15.0).exp(), 0.0, 1), 0..0).unwrap();
         assert!(d.drifting > 0.9 && d.max_z > 5.0, "{d:?}");
-        let d = diagnose(&blocks(|_, i| 3.0 - 0.1 * i as f64, 0.8, 2)).unwrap();
+        let d = diagnose(&blocks(|_, i| 3.0 - 0.1 * i as f64, 0.8, 2), 0..0).unwrap();
         assert!(d.r1 > d.r1_limit() + 0.2, "{d:?}");
     }
 
@@ -273,7 +276,14 @@ mod tests {
         for (n, a) in b.iter_mut().enumerate() {
             a[7] = 1e-16 * (n % 3) as f64;
         }
-        assert_eq!(diagnose(&b).unwrap().tested, 29);
-        assert_eq!(diagnose(&b[..3]), None);
+        assert_eq!(diagnose(&b, 0..0).unwrap().tested, 29);
+        assert_eq!(diagnose(&b[..3], 0..0), None);
+        // a drifting exponent inside the neutral range (a null-space CLV's shear) is not tested
+        for (n, a) in b.iter_mut().enumerate() {
+            a[9] = -0.01 * n as f64;
+        }
+        assert!(diagnose(&b, 0..0).unwrap().max_z > 5.0);
+        let d = diagnose(&b, 7..10).unwrap();
+        assert!(d.tested == 27 && d.max_z < 5.0, "{d:?}");
     }
 }
