@@ -277,9 +277,18 @@ impl Analysis for LocalExponents {
             let y: Vec<f64> = pairs.iter().map(|p| p[j]).collect();
             fig.series(&format!("pair ({}, {})", j + 1, j + 2), &x, &y, Marker::LinePoints);
         }
-        for (name, i) in &borders {
-            let y: Vec<f64> = pairs.iter().map(|p| p[*i]).collect();
-            fig.series(&format!("{} ({}, {})", name.replace('_', " "), i + 1, i + 2), &x, &y, Marker::LinePoints);
+        let border_curves: Vec<(String, Vec<f64>)> =
+            borders.iter().map(|(name, i)| (format!("{} ({}, {})", name.replace('_', " "), i + 1, i + 2), pairs.iter().map(|p| p[*i]).collect())).collect();
+        match border_curves.as_slice() {
+            // one curve drawn over the other would hide it (both are zero once dominated)
+            [(a, ya), (b, yb)] if ya == yb => {
+                fig.series(&format!("{a} and {}", b.trim_start_matches("border ")), &x, ya, Marker::LinePoints);
+            }
+            curves => {
+                for (label, y) in curves {
+                    fig.series(label, &x, y, Marker::LinePoints);
+                }
+            }
         }
         fig.hline(0.0);
         save_figure(&fig, out, "domination")?;
