@@ -257,9 +257,10 @@ pub struct ModeRow {
     pub lambda: f64,
     /// Majority class over the frames ("T", "L", "P", "LP"; "-" if unclassified).
     pub kind: String,
-    /// The (first) wave vector of the majority candidate; 0, 0 if unclassified.
-    pub n_x: i32,
-    pub n_y: i32,
+    /// The (first) wave vector of the majority candidate; none (empty cells, null) if
+    /// unclassified.
+    pub n_x: Option<i32>,
+    pub n_y: Option<i32>,
     /// Its wave number |k| (NaN if unclassified).
     pub k: f64,
     /// "T(1,0)", "LP(2,0)", "T(1,0)+T(0,1)" (several wave vectors of one |k|), ...;
@@ -371,7 +372,7 @@ impl Analysis for Modes {
             let beyond_chance = fraction.zip(candidate).map_or(f64::NAN, |(f, (k, family))| excess(f, family.dim(k), d));
             let clear = beyond_chance >= MIN_FRACTION;
             let (kind, family) = candidate.filter(|_| clear).map_or((None, None), |(k, f)| (Some(k), Some(f)));
-            let wave = family.map_or(Wave { n_x: 0, n_y: 0 }, |f| f.waves[0]);
+            let wave = family.map(|f| f.waves[0]);
             let lambda = ctx.gs.as_ref().map_or(f64::NAN, |g| g.exponents[acc.step.start..acc.step.start + acc.step.len].iter().sum::<f64>() / acc.step.len as f64);
             rows.push(ModeRow {
                 side: if is_positive(&acc.step, d) { "+".into() } else { "-".into() },
@@ -385,8 +386,8 @@ impl Analysis for Modes {
                 },
                 lambda,
                 kind: kind.map_or("-".into(), |k| format!("{k:?}")),
-                n_x: wave.n_x,
-                n_y: wave.n_y,
+                n_x: wave.map(|w| w.n_x),
+                n_y: wave.map(|w| w.n_y),
                 k: family.map_or(f64::NAN, |f| f.k),
                 name: kind.zip(family).map_or("unclassified".into(), |(k, f)| f.name(k)),
                 best: candidate.map_or("-".into(), |(k, f)| f.name(k)),
@@ -413,8 +414,8 @@ impl Analysis for Modes {
                     r.detection.clone(),
                     fmt(r.lambda),
                     r.kind.clone(),
-                    r.n_x.to_string(),
-                    r.n_y.to_string(),
+                    r.n_x.map_or(String::new(), |n| n.to_string()),
+                    r.n_y.map_or(String::new(), |n| n.to_string()),
                     fmt(r.k),
                     r.name.clone(),
                     r.best.clone(),
@@ -577,7 +578,8 @@ fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Prod
     }
     let wave_number = |r: &ModeRow| r.k;
     let stderr = |r: &ModeRow| ctx.gs.as_ref().map_or(f64::NAN, |g| g.stderr[r.first - 1..r.last].iter().sum::<f64>() / r.degeneracy as f64);
-    let table: Vec<Vec<String>> = modes.iter().map(|r| vec![r.kind.clone(), r.name.clone(), r.n_x.to_string(), r.n_y.to_string(), fmt(wave_number(r)), fmt(r.lambda), fmt(stderr(r)), fmt(r.lambda / wave_number(r))]).collect();
+    let number = |n: Option<i32>| n.map_or(String::new(), |n| n.to_string());
+    let table: Vec<Vec<String>> = modes.iter().map(|r| vec![r.kind.clone(), r.name.clone(), number(r.n_x), number(r.n_y), fmt(wave_number(r)), fmt(r.lambda), fmt(stderr(r)), fmt(r.lambda / wave_number(r))]).collect();
     write_text_csv(&out.join("modes_dispersion.csv"), &["kind", "name", "n_x", "n_y", "k", "lambda", "stderr", "lambda_over_k"], &table)?;
     let mut kinds: Vec<&str> = modes.iter().map(|r| r.kind.as_str()).collect();
     kinds.dedup();
@@ -1150,7 +1152,7 @@ mod tests {
         let rows = read_csv(&out.join("modes.csv"));
         assert_eq!(rows.len(), 2, "{rows:?}");
         for r in &rows {
-            assert_eq!((r["name"].as_str(), r["kind"].as_str(), r["consistent"].as_str()), ("unclassified", "-", "false"), "{r:?}");
+            assert_eq!((r["name"].as_str(), r["kind"].as_str(), r["consistent"].as_str(), r["n_x"].as_str()), ("unclassified", "-", "false", ""), "{r:?}");
             assert!(r["best"] != "-" && r["fraction_gs"].parse::<f64>().unwrap() < MIN_FRACTION, "{r:?}");
         }
         assert!(produced[0].caption.contains("of the best candidate") && !out.join("modes_dispersion.csv").exists(), "{}", produced[0].caption);
