@@ -24,19 +24,7 @@ fn pipeline(name: &str, flags: &[&str]) -> PathBuf {
     report
 }
 
-/// Cells of one CSV line (double-quoted cells may contain commas).
-fn split_csv(line: &str) -> Vec<String> {
-    let (mut cells, mut cell, mut quoted) = (Vec::new(), String::new(), false);
-    for c in line.chars() {
-        match c {
-            '"' => quoted = !quoted,
-            ',' if !quoted => cells.push(std::mem::take(&mut cell)),
-            _ => cell.push(c),
-        }
-    }
-    cells.push(cell);
-    cells
-}
+use clv::stage::analyze::csv_cells as split_csv;
 
 fn read_csv(path: &Path) -> Vec<BTreeMap<String, String>> {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));

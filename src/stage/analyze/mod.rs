@@ -425,25 +425,33 @@ pub struct Analysed {
     pub warnings: Vec<String>,
 }
 
+/// Cells of one CSV line as the report writes them (RFC 4180: double-quoted cells may hold
+/// commas, as modes.csv's "T(1,0)", and doubled quotes).
+pub fn csv_cells(line: &str) -> Vec<String> {
+    let (mut cells, mut cell, mut quoted) = (Vec::new(), String::new(), false);
+    let mut chars = line.chars().peekable();
+    while let Some(c) = chars.next() {
+        match (c, quoted) {
+            ('"', true) if chars.peek() == Some(&'"') => {
+                cell.push('"');
+                chars.next();
+            }
+            ('"', _) => quoted = !quoted,
+            (',', false) => cells.push(std::mem::take(&mut cell)),
+            _ => cell.push(c),
+        }
+    }
+    cells.push(cell);
+    cells
+}
+
 /// A small CSV table (the paper's Tables II-IV, the mode table) as HTML, numbers to six
 /// significant digits; None for tables too large to read on a page (the CSV has them all).
 fn html_table(csv: &str) -> Option<String> {
     const MAX_ROWS: usize = 24;
     const MAX_COLUMNS: usize = 18;
     let lines: Vec<&str> = csv.lines().collect();
-    let cells = |line: &str| -> Vec<String> {
-        // modes.csv quotes names that hold commas: "T(1,0)"
-        let (mut out, mut cell, mut quoted) = (Vec::new(), String::new(), false);
-        for c in line.chars() {
-            match c {
-                '"' => quoted = !quoted,
-                ',' if !quoted => out.push(std::mem::take(&mut cell)),
-                c => cell.push(c),
-            }
-        }
-        out.push(cell);
-        out
-    };
+    let cells = csv_cells;
     let header = cells(lines.first()?);
     if lines.len() < 2 || lines.len() > MAX_ROWS + 1 || header.len() > MAX_COLUMNS {
         return None;

@@ -71,24 +71,7 @@ pub fn out_dir(name: &str) -> PathBuf {
     dir
 }
 
-/// Cells of one CSV line (double-quoted cells may contain commas).
-pub fn split_csv(line: &str) -> Vec<String> {
-    let (mut cells, mut cell, mut quoted) = (Vec::new(), String::new(), false);
-    let mut chars = line.chars().peekable();
-    while let Some(c) = chars.next() {
-        match (c, quoted) {
-            ('"', true) if chars.peek() == Some(&'"') => {
-                cell.push('"');
-                chars.next();
-            }
-            ('"', _) => quoted = !quoted,
-            (',', false) => cells.push(std::mem::take(&mut cell)),
-            _ => cell.push(c),
-        }
-    }
-    cells.push(cell);
-    cells
-}
+use super::csv_cells as split_csv;
 
 /// Rows of a CSV file as maps from header to cell.
 pub fn read_csv(path: &std::path::Path) -> Vec<std::collections::BTreeMap<String, String>> {
