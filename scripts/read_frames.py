@@ -12,7 +12,8 @@ As a library:
         f["v"]        # (D, k) array: column j is the covariant vector v^(j+1), unit norm;
                       # None in frames without vectors (clv backward --vectors-every)
         f["g"]        # (D, k) Gram-Schmidt vectors, or None without --with-gs
-        f["local"]    # (k,) local exponents over [t_n, t_n+1]
+        f["local"]    # (k,) local CLV exponents over [t_n, t_n+1]
+        f["gs_local"] # (k,) local GS exponents over [t_n, t_n+1], or None (files before 2026-11-25)
         f["phase"]    # (D,) phase point (q_x1, q_y1, ..., p_yN)
 
 Frames are stored newest first (the backward pass runs backward in time). The file's
@@ -40,6 +41,7 @@ def read_frames(path):
                 "phase": np.frombuffer(m["phase"], "<f8"),
                 "v": v.reshape(k, d).T if v.size else None,
                 "local": np.frombuffer(m["local"], "<f8"),
+                "gs_local": np.frombuffer(m["gs_local"], "<f8") if "gs_local" in m else None,
                 "g": g.reshape(k, d).T if g.size else None,
             }
 

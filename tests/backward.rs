@@ -178,6 +178,14 @@ fn the_gs_spectrum_over_the_window_is_the_forward_runs_over_those_steps() {
     }
     assert!((window[0] - vec_of(&report, "exponents")[0]).abs() < 1e-12 * window[0], "{} {}", window[0], vec_of(&report, "exponents")[0]);
     assert_eq!(vec_of(&report["gs_window"], "stderr").len(), 16);
+    // Each frame carries its own share, ln |[R_(m+1)]_ii| / tau: their mean is the window's
+    // spectrum (what the spectrum analysis plots in Fig. 2).
+    let fs = frames(&dir.join("frames.mcap"));
+    assert_eq!(fs.len() as u64, last + 1 - first);
+    for i in 0..16 {
+        let mean = fs.iter().map(|f| f.gs_local[i]).sum::<f64>() / fs.len() as f64;
+        assert!((mean - window[i]).abs() < 1e-12 * (1.0 + window[i].abs()), "lambda_{}: frames {mean}, gs_window {}", i + 1, window[i]);
+    }
 }
 
 fn check_disks(n: usize, steps: &str) {

@@ -839,8 +839,9 @@ pub fn run(
             // The CLV spectrum is the mean of the frames' local exponents (accumulated with
             // tau = 1), exactly as an analysis of the frame stream computes it.
             acc.add_logs(local.iter().copied());
+            let ln_r: Vec<f64> = (0..k).map(|i| r[(i, i)].abs().ln()).collect();
             if let Some(acc_gs) = acc_gs.as_mut() {
-                acc_gs.add_logs((0..k).map(|i| r[(i, i)].abs().ln()));
+                acc_gs.add_logs(ln_r.iter().copied());
             }
             let frame = Arc::new(Frame {
                 step: m,
@@ -850,6 +851,7 @@ pub fn run(
                 phase: seg.phase[(m - seg.s0) as usize * d..(m - seg.s0 + 1) as usize * d].to_vec(),
                 v,
                 local,
+                gs_local: ln_r.iter().map(|l| l / tau).collect(),
                 g,
             });
             if stats.frames == 0 {

@@ -17,6 +17,9 @@ pub struct Frame {
     pub v: Vec<f64>,
     /// Local CLV exponents over [t_n, t_{n+1}], k values.
     pub local: Vec<f64>,
+    /// Local GS exponents over [t_n, t_{n+1}], ln |[R_{n+1}]_ii| / tau, k values; empty in
+    /// frames written before they were carried.
+    pub gs_local: Vec<f64>,
     /// G_n, column-major D x k, when the backward stage ran with --with-gs.
     pub g: Option<Vec<f64>>,
 }

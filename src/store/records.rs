@@ -131,7 +131,7 @@ impl crate::stage::frame::Frame {
     pub fn encode(&self) -> Vec<u8> {
         let g: &[f64] = self.g.as_deref().unwrap_or(&[]);
         super::schema::FRAME
-            .encoder(8 * (self.v.len() + g.len() + self.phase.len() + self.k))
+            .encoder(8 * (self.v.len() + g.len() + self.phase.len() + 2 * self.k))
             .u64("step", self.step)
             .f64("time", self.time)
             .u64("d", self.d as u64)
@@ -139,6 +139,7 @@ impl crate::stage::frame::Frame {
             .f64s("phase", &self.phase)
             .f64s("v", &self.v)
             .f64s("local", &self.local)
+            .f64s("gs_local", &self.gs_local)
             .f64s("g", g)
             .finish()
     }
@@ -147,10 +148,11 @@ impl crate::stage::frame::Frame {
         let mut m = super::schema::FRAME.decode(bytes)?;
         let (d, k, step) = (m.u64("d") as usize, m.u64("k") as usize, m.u64("step"));
         let (phase, v, local, g) = (m.take_f64s("phase"), m.take_f64s("v"), m.take_f64s("local"), m.take_f64s("g"));
-        if phase.len() != d || !(v.is_empty() || v.len() == d * k) || local.len() != k || !(g.is_empty() || g.len() == d * k) {
+        let gs_local = m.take_optional_f64s("gs_local");
+        if phase.len() != d || !(v.is_empty() || v.len() == d * k) || local.len() != k || !(gs_local.is_empty() || gs_local.len() == k) || !(g.is_empty() || g.len() == d * k) {
             return Err(format!("frame at step {step}: array lengths do not match D = {d}, k = {k}"));
         }
-        Ok(Self { step, time: m.f64("time"), d, k, phase, v, local, g: if g.is_empty() { None } else { Some(g) } })
+        Ok(Self { step, time: m.f64("time"), d, k, phase, v, local, gs_local, g: if g.is_empty() { None } else { Some(g) } })
     }
 }
 
@@ -163,11 +165,22 @@ mod tests {
     #[test]
     fn frames_round_trip_with_and_without_vectors() {
         let (d, k) = (4, 2);
-        let full = Frame { step: 12, time: 7.2, d, k, phase: vec![0.5; d], v: (0..d * k).map(|i| i as f64 / 7.0).collect(), local: vec![1.5, -1.5], g: Some(vec![0.25; d * k]) };
+        let full = Frame { step: 12, time: 7.2, d, k, phase: vec![0.5; d], v: (0..d * k).map(|i| i as f64 / 7.0).collect(), local: vec![1.5, -1.5], gs_local: vec![1.25, -1.75], g: Some(vec![0.25; d * k]) };
         let bare = Frame { v: Vec::new(), g: None, ..full.clone() };
         for f in [&full, &bare] {
             assert_eq!(&Frame::decode(&f.encode()).unwrap(), f);
         }
+        // A frame written before frames carried their local GS exponents still reads.
+        let mut old = crate::store::cbor::MapWriter::new(8, 0);
+        old.u64("step", 12);
+        old.f64("time", 7.2);
+        old.u64("d", d as u64);
+        old.u64("k", k as u64);
+        old.f64s("phase", &full.phase);
+        old.f64s("v", &full.v);
+        old.f64s("local", &full.local);
+        old.f64s("g", &[]);
+        assert_eq!(Frame::decode(&old.finish()).unwrap(), Frame { gs_local: Vec::new(), g: None, ..full.clone() });
         let short = Frame { v: vec![1.0; d * k - 1], ..full.clone() };
         let err = Frame::decode(&short.encode()).unwrap_err();
         assert!(err.contains("step 12") && err.contains("D = 4"), "{err}");

@@ -21,7 +21,16 @@ pub struct Schema {
     pub name: &'static str,
     /// The schema file, verbatim.
     pub text: &'static str,
-    fields: OnceLock<Vec<(String, FieldType)>>,
+    fields: OnceLock<Vec<Field>>,
+}
+
+/// One declared field of a schema.
+pub struct Field {
+    pub name: String,
+    pub t: FieldType,
+    /// Listed in the schema's `required`. A field added to a schema after files were
+    /// written with it is optional, so that those files still read; writers always write it.
+    pub required: bool,
 }
 
 impl Schema {
@@ -29,11 +38,12 @@ impl Schema {
         Schema { topic, name, text, fields: OnceLock::new() }
     }
 
-    /// The declared fields (all are required).
-    pub fn fields(&self) -> &[(String, FieldType)] {
+    /// The declared fields.
+    pub fn fields(&self) -> &[Field] {
         self.fields.get_or_init(|| {
             let v: serde_json::Value = serde_json::from_str(self.text).expect("embedded schema is valid JSON");
             let props = v["properties"].as_object().expect("schema has properties");
+            let required: Vec<&str> = v["required"].as_array().expect("schema has required").iter().filter_map(|r| r.as_str()).collect();
             props
                 .iter()
                 .map(|(name, p)| {
@@ -44,14 +54,14 @@ impl Schema {
                         Some("text") => FieldType::Text,
                         other => panic!("schema {}: field {name} has unknown x-type {other:?}", self.name),
                     };
-                    (name.clone(), t)
+                    Field { name: name.clone(), t, required: required.contains(&name.as_str()) }
                 })
                 .collect()
         })
     }
 
     fn field(&self, name: &str) -> Option<FieldType> {
-        self.fields().iter().find(|(n, _)| n == name).map(|(_, t)| *t)
+        self.fields().iter().find(|f| f.name == name).map(|f| f.t)
     }
 
     /// Start a message of this schema.
@@ -62,12 +72,13 @@ impl Schema {
     /// Decode and check a message of this schema.
     pub fn decode(&'static self, bytes: &[u8]) -> Result<Decoded, String> {
         let map = cbor::decode_map(bytes).map_err(|e| format!("{} message: {e}", self.name))?;
-        for (name, t) in self.fields() {
+        for Field { name, t, required } in self.fields() {
             match (map.get(name), t) {
                 (Some(Value::U64(_)), FieldType::U64)
                 | (Some(Value::F64(_)), FieldType::F64)
                 | (Some(Value::F64s(_)), FieldType::F64s)
                 | (Some(Value::Text(_)), FieldType::Text) => {}
+                (None, _) if !required => {}
                 (None, _) => return Err(format!("{} message lacks field {name:?}", self.name)),
                 (Some(v), _) => return Err(format!("{} message: field {name:?} should be {t:?}, found {v:?}", self.name)),
             }
@@ -149,6 +160,15 @@ impl Decoded {
             _ => panic!("{}: {name} is not a declared f64[] field (or was taken)", self.schema.name),
         }
     }
+    /// An optional f64[] field: empty where the message (written before the field was added)
+    /// lacks it.
+    pub fn take_optional_f64s(&mut self, name: &str) -> Vec<f64> {
+        assert!(self.schema.fields().iter().any(|f| f.name == name && f.t == FieldType::F64s && !f.required), "{}: {name} is not a declared optional f64[] field", self.schema.name);
+        match self.map.remove(name) {
+            Some(Value::F64s(x)) => x,
+            _ => Vec::new(),
+        }
+    }
     pub fn text(&self, name: &str) -> &str {
         match self.map.get(name) {
             Some(Value::Text(x)) => x,
@@ -162,19 +182,20 @@ mod tests {
     use super::*;
 
     #[test]
-    fn schema_files_parse_and_declare_every_field_as_required() {
+    fn schema_files_parse_and_describe_every_field() {
         for s in RUN_SCHEMAS.iter().chain([&&FRAME]) {
             let v: serde_json::Value = serde_json::from_str(s.text).unwrap();
             assert_eq!(v["title"], s.name);
             assert_eq!(v["x-topic"], s.topic);
-            let mut required: Vec<String> = serde_json::from_value(v["required"].clone()).unwrap();
-            let mut declared: Vec<String> = s.fields().iter().map(|(n, _)| n.clone()).collect();
-            required.sort();
-            declared.sort();
-            assert_eq!(required, declared, "{}", s.name);
-            for (name, _) in s.fields() {
-                let desc = v["properties"][name]["description"].as_str().unwrap_or("");
-                assert!(desc.len() > 3, "{}: field {name} has no description", s.name);
+            let required: Vec<String> = serde_json::from_value(v["required"].clone()).unwrap();
+            for r in &required {
+                assert!(s.fields().iter().any(|f| &f.name == r), "{}: required field {r} is not declared", s.name);
+            }
+            for f in s.fields() {
+                let desc = v["properties"][&f.name]["description"].as_str().unwrap_or("");
+                assert!(desc.len() > 3, "{}: field {} has no description", s.name, f.name);
+                // An optional field exists only for files written before it: say since when.
+                assert!(f.required || desc.to_lowercase().contains("absent"), "{}: optional field {} does not say when it is absent", s.name, f.name);
             }
         }
     }

@@ -361,7 +361,7 @@ mod tests {
 
     fn frame(step: u64, local: Vec<f64>) -> Frame {
         let k = local.len();
-        Frame { step, time: 0.6 * step as f64, d: k, k, phase: vec![0.0; k], v: vec![0.0; k * k], local, g: None }
+        Frame { step, time: 0.6 * step as f64, d: k, k, phase: vec![0.0; k], v: vec![0.0; k * k], local, gs_local: Vec::new(), g: None }
     }
 
     #[test]

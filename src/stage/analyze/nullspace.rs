@@ -236,7 +236,7 @@ mod tests {
             }
             v
         };
-        Frame { step, time: 0.5 * step as f64, d, k: d, phase, v: build(null), local: vec![0.0; d], g: gs_null.map(build) }
+        Frame { step, time: 0.5 * step as f64, d, k: d, phase, v: build(null), local: vec![0.0; d], gs_local: Vec::new(), g: gs_null.map(build) }
     }
 
     #[test]

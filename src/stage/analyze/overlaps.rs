@@ -262,7 +262,7 @@ mod tests {
 
     fn frame(step: u64, d: usize, v: Vec<f64>, g: Option<Vec<f64>>) -> Frame {
         let k = v.len() / d;
-        Frame { step, time: step as f64, d, k, phase: vec![1.0; d], v, local: vec![0.0; k], g }
+        Frame { step, time: step as f64, d, k, phase: vec![1.0; d], v, local: vec![0.0; k], gs_local: Vec::new(), g }
     }
 
     fn identity(d: usize) -> Vec<f64> {

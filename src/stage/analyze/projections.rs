@@ -242,7 +242,7 @@ mod tests {
             let v = make(second);
             // GS vectors: CLVs with dq and dp swapped, so eta_q^GS = eta_p^CLV
             let g: Vec<f64> = v.chunks(d).flat_map(|c| c[h..].iter().chain(&c[..h]).copied().collect::<Vec<_>>()).collect();
-            a.consume(&Frame { step: s, time: s as f64, d, k: d, phase: vec![0.0; d], v, local: vec![0.0; d], g: Some(g) }).unwrap();
+            a.consume(&Frame { step: s, time: s as f64, d, k: d, phase: vec![0.0; d], v, local: vec![0.0; d], gs_local: Vec::new(), g: Some(g) }).unwrap();
         }
         let out = scratch("known");
         let produced = a.finish(&out, 2).unwrap();
@@ -282,7 +282,7 @@ mod tests {
         let mut a = new(&ctx).unwrap();
         let d = 8;
         let v: Vec<f64> = (0..d * d).map(|x| if x % (d + 1) == 0 { 1.0 } else { 0.0 }).collect();
-        a.consume(&Frame { step: 0, time: 0.0, d, k: d, phase: vec![0.0; d], v, local: vec![0.0; d], g: None }).unwrap();
+        a.consume(&Frame { step: 0, time: 0.0, d, k: d, phase: vec![0.0; d], v, local: vec![0.0; d], gs_local: Vec::new(), g: None }).unwrap();
         let out = scratch("nogs");
         let produced = a.finish(&out, 1).unwrap();
         assert_eq!(produced.len(), 2, "Figs. 7 and 9 only");

@@ -12,6 +12,10 @@ use std::path::Path;
 pub struct Spectrum {
     ctx: Context,
     acc: Accumulator,
+    /// The frames' local GS exponents: the GS spectrum over the same steps as the CLV one.
+    acc_gs: Accumulator,
+    /// Frames without local GS exponents (written before frames carried them).
+    without_gs: u64,
     /// Oldest and newest step consumed.
     steps: Option<(u64, u64)>,
 }
@@ -26,7 +30,8 @@ pub fn null_shear_exponent(s1: f64, s2: f64) -> f64 {
 }
 
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
-    Some(Box::new(Spectrum { ctx: ctx.clone(), acc: Accumulator::new(ctx.k, ctx.block_len(false)), steps: None }))
+    let acc = Accumulator::new(ctx.k, ctx.block_len(false));
+    Some(Box::new(Spectrum { ctx: ctx.clone(), acc_gs: acc.clone(), acc, without_gs: 0, steps: None }))
 }
 
 impl Analysis for Spectrum {
@@ -38,6 +43,11 @@ impl Analysis for Spectrum {
     }
     fn consume(&mut self, frame: &Frame) -> Result<()> {
         self.acc.add_logs(frame.local.iter().copied());
+        if frame.gs_local.is_empty() {
+            self.without_gs += 1;
+        } else {
+            self.acc_gs.add_logs(frame.gs_local.iter().copied());
+        }
         self.steps = Some(self.steps.map_or((frame.step, frame.step), |(a, b)| (a.min(frame.step), b.max(frame.step))));
         Ok(())
     }
@@ -46,38 +56,54 @@ impl Analysis for Spectrum {
         let ctx = &self.ctx;
         let (clv, clv_err) = (self.acc.exponents(1.0), self.acc.stderr(1.0));
         let nan = vec![f64::NAN; ctx.k];
-        let (gs, gs_err) = ctx.gs.as_ref().map_or((nan.clone(), nan), |g| (g.exponents.clone(), g.stderr.clone()));
+        let (run_gs, run_gs_err) = ctx.gs.as_ref().map_or((nan.clone(), nan.clone()), |g| (g.exponents.clone(), g.stderr.clone()));
+        // Like for like when every frame carried its GS exponents; the whole run's otherwise.
+        let same_steps = self.without_gs == 0 && frames > 0;
+        let (window_gs, window_gs_err) = if same_steps { (self.acc_gs.exponents(1.0), self.acc_gs.stderr(1.0)) } else { (nan.clone(), nan) };
+        let (gs, gs_err) = if same_steps { (&window_gs, &window_gs_err) } else { (&run_gs, &run_gs_err) };
         let x: Vec<f64> = (0..ctx.k).map(|i| ctx.reduced(i)).collect();
         write_csv(
             &out.join("spectrum.csv"),
-            &["i", "i_over_D", "lambda_gs", "stderr_gs", "lambda_clv", "stderr_clv"],
-            (0..ctx.k).map(|i| vec![(i + 1) as f64, x[i], gs[i], gs_err[i], clv[i], clv_err[i]]),
+            &["i", "i_over_D", "lambda_gs", "stderr_gs", "lambda_gs_window", "stderr_gs_window", "lambda_clv", "stderr_clv"],
+            (0..ctx.k).map(|i| vec![(i + 1) as f64, x[i], run_gs[i], run_gs_err[i], window_gs[i], window_gs_err[i], clv[i], clv_err[i]]),
         )?;
         let reduced = if ctx.is_disks() { "i/4N" } else { "i/D" };
         // A line between a handful of exponents (the Henon map's two) would look like data.
         let marker = if ctx.k <= 8 { Marker::Points } else { Marker::Line };
         let mut fig = Figure::new("Lyapunov spectrum: GS forward, CLV backward").x_label(reduced).y_label("λ_i");
-        fig.series("GS (forward)", &x, &gs, marker);
+        fig.series(if same_steps { "GS (forward), same steps" } else { "GS (forward), whole run" }, &x, gs, marker);
         fig.series("CLV (backward)", &x, &clv, marker);
         fig.hline(0.0);
         save_figure(&fig, out, "fig2_spectrum")?;
         // The spectrum.json of builds before h_KS was reported has the exponents but no error.
         let neutral = ctx.run.as_ref().map_or(0..0, |m| m.config.system.neutral());
-        let gs_h = ctx.gs.as_ref().and_then(|g| g.ks_entropy.or_else(|| ks_entropy(&g.exponents, neutral.clone()).map(|value| Estimate { value, stderr: f64::NAN })));
-        let mut produced = vec![Produced {
-            title: "Lyapunov spectrum (Fig. 2)".into(),
-            caption: format!(
+        let run_h = ctx.gs.as_ref().and_then(|g| g.ks_entropy.or_else(|| ks_entropy(&g.exponents, neutral.clone()).map(|value| Estimate { value, stderr: f64::NAN })));
+        let clv_h = Estimate::or_unknown(self.acc.ks_entropy(1.0, neutral.clone()));
+        let caption = if same_steps {
+            format!(
+                "Forward Gram-Schmidt exponents (time average of ln R_ii) and backward covariant exponents (time average of the local CLV exponents), both over the same {frames} frames' steps, against the reduced index {reduced}: \
+                 they agree within the errors wherever the spectrum is not degenerate. Kolmogorov-Sinai entropy h_KS, the sum of the positive exponents (Pesin's identity): {} (GS), {clv_h} (CLV). \
+                 The GS spectrum over the whole forward run{} is more precise (columns lambda_gs, stderr_gs of spectrum.csv; the figure's GS spectrum is lambda_gs_window): h_KS = {}.",
+                Estimate::or_unknown(self.acc_gs.ks_entropy(1.0, neutral)),
+                ctx.run.as_ref().map_or(String::new(), |run| format!(" ({} steps)", run.config.steps)),
+                Estimate::or_unknown(run_h),
+            )
+        } else {
+            format!(
                 "Forward Gram-Schmidt exponents (time average of ln R_ii) and backward covariant exponents (time average of the local CLV exponents over {frames} frames) against the reduced index {reduced}. \
-                 Kolmogorov-Sinai entropy h_KS, the sum of the positive exponents (Pesin's identity): {} (GS), {} (CLV).",
-                Estimate::or_unknown(gs_h),
-                Estimate::or_unknown(self.acc.ks_entropy(1.0, neutral)),
+                 Kolmogorov-Sinai entropy h_KS, the sum of the positive exponents (Pesin's identity): {} (GS), {clv_h} (CLV).",
+                Estimate::or_unknown(run_h),
             ) + &ctx.run.as_ref().map_or(String::new(), |run| {
                 format!(
                     " The GS averages are over the whole run ({} steps), the CLV averages over the frames' steps only: they differ by that window's own fluctuation, which the CLV errors measure. \
-                     The backward stage gives the GS spectrum over the frames' steps too (`gs_window` in RUN_DIR/clv_spectrum.json, and the table `clv backward` prints), the comparison like for like.",
+                     These frames were written before they carried their GS exponents; the backward stage gives the GS spectrum over the frames' steps (`gs_window` in RUN_DIR/clv_spectrum.json), the comparison like for like.",
                     run.config.steps
                 )
-            }),
+            })
+        };
+        let mut produced = vec![Produced {
+            title: "Lyapunov spectrum (Fig. 2)".into(),
+            caption,
             figures: vec!["fig2_spectrum".into()],
             tables: vec!["spectrum.csv".into()],
         }];
@@ -110,9 +136,10 @@ impl Analysis for Spectrum {
             produced.push(Produced {
                 title: "Mode region of the spectrum (Fig. 8)".into(),
                 caption: format!(
-                    "The positive exponents λ_{}..λ_{} next to the null space, with the negated conjugate exponents at the same index (paper Fig. 8). Steps of equal exponents are where Lyapunov modes may sit; the mode table says which steps were found and what they are. {}",
+                    "The positive exponents λ_{}..λ_{} next to the null space, with the negated conjugate exponents at the same index (paper Fig. 8); the GS exponents are those of {}. Steps of equal exponents are where Lyapunov modes may sit; the mode table says which steps were found and what they are. {}",
                     first + 1,
                     last + 1,
+                    if same_steps { "the frames' steps, as the CLV ones" } else { "the whole run" },
                     typical_error(&gs_err[first..=last], &clv_err[first..=last])
                 ),
                 figures: vec!["fig8_mode_region".into()],
@@ -165,5 +192,44 @@ mod tests {
         let produced = a.finish(&out_dir("spectrum-h"), frames).unwrap();
         let caption = &produced[0].caption;
         assert!(caption.contains(&format!("identity): {want_gs:.6} (GS), {want_clv:.6} ± ")), "{caption}");
+    }
+
+    /// Frames that carry their local GS exponents give the GS spectrum over the same steps as
+    /// the CLV one: it is what Fig. 2 shows, in its own columns of spectrum.csv beside the
+    /// whole run's; one frame without them (an older file) falls back to the whole run's.
+    #[test]
+    fn the_figure_compares_gs_and_clv_over_the_same_steps() {
+        let n = 4;
+        let d = 4 * n;
+        let ctx = context("disks", n, d, 4.0, 4.0, Some(spectrum(n, 2)), false);
+        let gs_local = |step: u64, i: usize| (d / 2) as f64 - i as f64 - 0.5 + if step % 3 == 0 { 0.3 } else { -0.15 };
+        for missing in [false, true] {
+            let mut a = new(&ctx).unwrap();
+            let mut want = vec![0.0; d];
+            for step in 0..60u64 {
+                let mut f = frame(step, vec![0.0; d], vec![0.0; d * d], None);
+                f.local = vec![1.0; d];
+                if !(missing && step == 17) {
+                    f.gs_local = (0..d).map(|i| gs_local(step, i)).collect();
+                }
+                for (w, g) in want.iter_mut().zip(&f.gs_local) {
+                    *w += g / 60.0;
+                }
+                a.consume(&f).unwrap();
+            }
+            let out = out_dir(&format!("spectrum-window-{missing}"));
+            let produced = a.finish(&out, 60).unwrap();
+            let rows = crate::stage::analyze::testing::read_csv(&out.join("spectrum.csv"));
+            for (i, row) in rows.iter().enumerate() {
+                let window: f64 = row["lambda_gs_window"].parse().unwrap();
+                if missing {
+                    assert!(window.is_nan(), "{row:?}");
+                } else {
+                    assert!((window - want[i]).abs() < 1e-12, "lambda_{}: {window} against {}", i + 1, want[i]);
+                }
+                assert_eq!(row["lambda_gs"], crate::stage::analyze::csv_number(spectrum(n, 2).exponents[i]));
+            }
+            assert_eq!(produced[0].caption.contains("both over the same 60 frames' steps"), !missing, "{}", produced[0].caption);
+        }
     }
 }

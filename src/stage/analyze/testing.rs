@@ -60,7 +60,7 @@ pub fn context(system: &str, n: usize, d: usize, lx: f64, ly: f64, gs: Option<Sp
 
 pub fn frame(step: u64, phase: Vec<f64>, v: Vec<f64>, g: Option<Vec<f64>>) -> Frame {
     let d = phase.len();
-    Frame { step, time: step as f64, d, k: v.len() / d, phase, local: vec![0.0; v.len() / d], v, g }
+    Frame { step, time: step as f64, d, k: v.len() / d, phase, local: vec![0.0; v.len() / d], gs_local: Vec::new(), v, g }
 }
 
 /// A fresh output directory for one test.
