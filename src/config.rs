@@ -71,7 +71,8 @@ impl SystemConfig {
         match self {
             SystemConfig::Henon { .. } => 0..0,
             SystemConfig::Lorenz { .. } => 1..2,
-            SystemConfig::Disks { n, .. } => 2 * n - 3..2 * n + 3,
+            // A stored configuration is validated (N >= 2) before it is used; saturate anyway.
+            SystemConfig::Disks { n, .. } => (2 * n).saturating_sub(3)..2 * n + 3,
         }
     }
 
@@ -104,6 +105,9 @@ pub struct RunConfig {
     pub blocks: usize,
 }
 
+/// The longest time between two QR steps that [`RunConfig::validate`] accepts.
+pub const MAX_TAU: f64 = 1e4;
+
 impl RunConfig {
     /// The same run, perhaps on another number of threads (which the numbers do not depend
     /// on: a run may continue, and be replayed backward, on any).
@@ -119,8 +123,8 @@ impl RunConfig {
     }
 
     pub fn validate(&self) -> Result<()> {
-        if matches!(self.system, SystemConfig::Disks { n: 0, .. }) {
-            return Err(Error::param("n", "must be at least 1 disk"));
+        if matches!(self.system, SystemConfig::Disks { n: 0 | 1, .. }) {
+            return Err(Error::param("n", "must be at least 2 disks (one disk alone never collides)"));
         }
         let d = self.system.dim();
         if self.vectors == 0 || self.vectors > d {
@@ -128,6 +132,14 @@ impl RunConfig {
         }
         if !(self.tau > 0.0 && self.tau.is_finite()) {
             return Err(Error::param("tau", format!("must be a positive number, got {}", self.tau)));
+        }
+        // Between two QR steps the tangent vectors grow like e^(lambda_1 tau) and overflow
+        // beyond e^709: no chaotic system gets through a much longer interval in one piece.
+        if self.tau > MAX_TAU {
+            return Err(Error::param("tau", format!(
+                "{} is longer than a QR interval can be (the tangent vectors grow like e^(lambda_1 tau) between two QR steps and overflow beyond e^709); give at most {MAX_TAU:e}",
+                format!("{:e}", self.tau)
+            )));
         }
         if matches!(self.system, SystemConfig::Henon { .. }) && self.tau != 1.0 {
             return Err(Error::param("tau", "the Henon map advances one iteration per step: tau must be 1"));

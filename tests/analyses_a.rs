@@ -340,7 +340,7 @@ fn ks_entropy_is_the_sum_of_the_positive_exponents() {
     let caption = s["produced"][0]["caption"].as_str().unwrap();
     let stated = caption.split("Pesin's identity): ").nth(1).unwrap_or_else(|| panic!("no h_KS in {caption:?}"));
     let spectrum = Table::read("spectrum.csv");
-    for (part, column) in stated.split(", ").zip(["lambda_gs", "lambda_clv"]) {
+    for (part, column) in stated.split(", ").zip(["lambda_gs_window", "lambda_clv"]) {
         let (value, rest) = part.split_once(" ± ").unwrap_or_else(|| panic!("no error in {part:?}"));
         let value: f64 = value.parse().unwrap();
         let error: f64 = rest.split(' ').next().unwrap().parse().unwrap();

@@ -432,6 +432,9 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
         (vec!["forward", "--n", "4", "--tau=-1", "--out", o], "--tau"),
         (vec!["forward", "--n", "4", "--steps", "100", "--relax-steps", "10", "--checkpoint-every", "500", "--out", o], "--checkpoint-every"),
         (vec!["forward", "--n", "4", "--steps", "100", "--clv-steps", "90", "--transient", "50", "--out", o], "--clv-steps"),
+        // A sum that wraps around u64 is still too long.
+        (vec!["forward", "--n", "4", "--steps", "100", "--clv-steps", "100", "--transient", "18446744073709551600", "--out", o], "--clv-steps"),
+        (vec!["forward", "--n", "4", "--tau", "1e300", "--steps", "1", "--relax-steps", "0", "--out", o], "--tau"),
         (vec!["forward", "--system", "rossler", "--out", o], "rossler"),
         // More memory than any machine has: refused, not aborted by a failed allocation.
         (vec!["forward", "--n", "100000000", "--steps", "100", "--out", o], "--vectors: all D = 400000000 vectors need about"),

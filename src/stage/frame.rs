@@ -38,8 +38,9 @@ impl Frame {
 
 /// Whether the frame of `step` is on a stride of m steps: the one rule of every stride of the
 /// pipeline (`clv backward --vectors-every` and `--save-every`, `clv analyze --every`). By
-/// the step, not by the order of the frames, so that a file (read oldest first) and a pipe
-/// (newest first) agree, and a stride that is a multiple of another lands on its frames.
+/// the step, not by the frames' position in a stream, so that a stream that starts anywhere
+/// (a resumed sweep, a file that keeps every `--save-every`-th step) lands on the same frames,
+/// and a stride that is a multiple of another lands on its frames.
 pub fn on_stride(step: u64, m: u64) -> bool {
     step.is_multiple_of(m.max(1))
 }

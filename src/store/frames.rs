@@ -4,6 +4,9 @@
 //! closed and the file fsynced, so that a killed backward stage can salvage every frame up to
 //! its last progress record and continue. The finished file is renamed to `FILE`.
 //! Standard output carries the same MCAP stream without seeking, for shell pipes.
+//!
+//! Files and pipes alike hold the frames in the order the backward sweep forms them, newest
+//! step first, and are read in that order.
 
 use super::schema::FRAME;
 use super::segment::{read_stream, ReadMode, RUN_METADATA};

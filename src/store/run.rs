@@ -68,7 +68,7 @@ impl StoreConfig {
         if self.segment_checkpoints == 0 {
             return Err(Error::param("segment-checkpoints", "must be at least 1"));
         }
-        if self.clv_steps + self.transient > config.steps {
+        if self.clv_steps.checked_add(self.transient).is_none_or(|needed| needed > config.steps) {
             return Err(Error::param("clv-steps", format!(
                 "the CLV window ({}) plus the backward transient ({}) must fit in the accumulated --steps ({})",
                 self.clv_steps, self.transient, config.steps

@@ -27,6 +27,12 @@ impl Henon {
         (self.x, self.y)
     }
 
+    /// The inverse map, x = y', y = (x' - a + y'^2) / b: what draws the stable manifold,
+    /// along which backward iteration stretches.
+    pub fn inverse(a: f64, b: f64, [x, y]: [f64; 2]) -> [f64; 2] {
+        [y, (x - a + y * y) / b]
+    }
+
     /// The Jacobian [[-2x, b], [1, 0]] at (x, y).
     pub fn jacobian(&self) -> [[f64; 2]; 2] {
         [[-2.0 * self.x, self.b], [1.0, 0.0]]
@@ -93,6 +99,18 @@ impl DynamicalSystem for Henon {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_inverse_undoes_the_map() {
+        let mut h = Henon::new(Henon::A, Henon::B, 0.3, -0.2);
+        for _ in 0..20 {
+            let (x, y) = h.point();
+            h.advance(&mut Tangent::zeros(2, 0)).unwrap();
+            let (x1, y1) = h.point();
+            let [bx, by] = Henon::inverse(Henon::A, Henon::B, [x1, y1]);
+            assert!((bx - x).abs() < 1e-12 && (by - y).abs() < 1e-12, "({bx}, {by}) against ({x}, {y})");
+        }
+    }
 
     /// Finite differences: the tangent map equals (F(x + eps u) - F(x)) / eps up to O(eps).
     #[test]

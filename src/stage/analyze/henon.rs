@@ -95,7 +95,7 @@ pub fn stable_curve(ab: (f64, f64), base: [f64; 2], dir: [f64; 2], n: usize, eps
     let image = |t: f64| {
         let mut p = [base[0] + t * dir[0], base[1] + t * dir[1]];
         for _ in 0..n {
-            p = [p[1], (p[0] - a + p[1] * p[1]) / b];
+            p = Henon::inverse(a, b, p);
         }
         p
     };
@@ -163,9 +163,10 @@ impl Analysis for HenonPicture {
         let i0 = (quarter..pts.len() - quarter).max_by(|&i, &j| score(&pts[i]).total_cmp(&score(&pts[j]))).unwrap_or(0);
         let zero = &pts[i0];
 
-        // Stable manifold through point 0.
-        let n = BACKWARD_STEPS.min(pts.len() - 1 - i0);
-        let base = &pts[i0 + n];
+        // Stable manifold through point 0, from the latest frame with vectors at most
+        // BACKWARD_STEPS steps later (a frame file with --save-every m holds every m-th step).
+        let base = pts[i0..].iter().take_while(|p| p.step - zero.step <= BACKWARD_STEPS as u64).filter(|p| p.v.len() >= 4).last().unwrap_or(zero);
+        let n = (base.step - zero.step) as usize;
         let mut curve = Vec::new();
         let mut eps_used = f64::NAN;
         if base.v.len() >= 4 {
@@ -280,6 +281,34 @@ mod tests {
             let cross = (dx * dir[1] - dy * dir[0]).abs() / dx.hypot(dy);
             assert!(cross < 1e-2, "{cross}");
         }
+    }
+
+    /// A frame file that keeps every 3rd step (`--save-every 3`): the stable manifold still
+    /// passes through point 0, mapped back by the steps between its frames, not by the
+    /// frames' count.
+    #[test]
+    fn the_stable_manifold_passes_through_point_0_when_frames_skip_steps() {
+        let ctx = context("henon", 0, 2, 0.0, 0.0, None, false);
+        let mut a = new(&ctx).expect("henon");
+        let mut p = [0.1, 0.1];
+        for _ in 0..100 {
+            p = step(p);
+        }
+        for s in 0..120u64 {
+            if s % 3 == 0 {
+                let (c, si) = ((s as f64).cos(), (s as f64).sin());
+                a.consume(&frame(1000 + s, p.to_vec(), vec![c, si, -si, c], None)).unwrap();
+            }
+            p = step(p);
+        }
+        let out = out_dir("henon-skip");
+        a.finish(&out, 40).unwrap();
+        let zero = &read_csv(&out.join("henon_vectors.csv"))[0];
+        let at: Vec<f64> = ["x", "y"].iter().map(|c| zero[*c].parse().unwrap()).collect();
+        let curve = read_csv(&out.join("henon_stable_manifold.csv"));
+        let t0 = curve.iter().find(|r| r["t"].parse::<f64>().unwrap() == 0.0).expect("t = 0 is inside the box");
+        let got: Vec<f64> = ["x", "y"].iter().map(|c| t0[*c].parse().unwrap()).collect();
+        assert!(dist([got[0], got[1]], [at[0], at[1]]) < 1e-8, "the curve's t = 0 is {got:?}, point 0 is {at:?}");
     }
 
     #[test]

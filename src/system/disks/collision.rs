@@ -172,19 +172,11 @@ mod tests {
         assert!(c.iter().zip(&d).all(|(x, y)| x.to_bits() == y.to_bits()));
     }
 
-    /// The independently computed 8 x 8 collision matrix of `shared/fixtures`: apply the map
+    /// The independently computed 8 x 8 collision matrix of tests/fixtures: apply the map
     /// to each unit vector of (dq1, dq2, dp1, dp2) and compare column by column.
     #[test]
     fn matches_fixture_collision_matrix() {
-        let text = std::fs::read_to_string(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../shared/fixtures/two-disk-collision.json"
-        ));
-        let Ok(text) = text else {
-            eprintln!("fixture not present; skipping");
-            return;
-        };
-        let f: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let f: serde_json::Value = serde_json::from_str(include_str!("../../../tests/fixtures/two-disk-collision.json")).unwrap();
         let m: Vec<Vec<f64>> = serde_json::from_value(f["collision_matrix"].clone()).unwrap();
         let n: [f64; 2] = serde_json::from_value(f["normal"].clone()).unwrap();
         let v0: Vec<[f64; 2]> = serde_json::from_value(f["vel0"].clone()).unwrap();

@@ -190,7 +190,7 @@ impl Engine {
         }
         let mut collisions = 0u64;
         let mut events = 0u64;
-        let limit = 1_000_000 + 100_000 * n as u64 * (tau.ceil() as u64).max(1);
+        let limit = (100_000 * n as u64).saturating_mul((tau.ceil() as u64).max(1)).saturating_add(1_000_000);
         while let Some(ev) = self.heap.pop() {
             events += 1;
             if events > limit {

@@ -103,16 +103,11 @@ fn tangent_matches_finite_differences_n16() {
     check_finite_differences(16, 1..=5, 3);
 }
 
-/// The fixture of `shared/fixtures`: two disks, one collision, the exact Jacobian over
+/// The fixture of tests/fixtures: two disks, one collision, the exact Jacobian over
 /// [0, 1.5], computed independently of this code.
 #[test]
 fn matches_two_disk_fixture() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/fixtures/two-disk-collision.json");
-    let Ok(text) = std::fs::read_to_string(path) else {
-        eprintln!("fixture not present; skipping");
-        return;
-    };
-    let f: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let f: serde_json::Value = serde_json::from_str(include_str!("../../../tests/fixtures/two-disk-collision.json")).unwrap();
     let get = |key: &str| -> Vec<[f64; 2]> { serde_json::from_value(f[key].clone()).unwrap() };
     let (lx, ly, tt) = (f["Lx"].as_f64().unwrap(), f["Ly"].as_f64().unwrap(), f["T"].as_f64().unwrap());
     let mut s = HardDisks::from_state(lx, ly, tt, get("pos0"), get("vel0")).unwrap();
