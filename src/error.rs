@@ -42,11 +42,7 @@ impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Error::Param { name, msg } => write!(f, "invalid --{name}: {msg}"),
-            Error::Io { path, source } if source.raw_os_error() == Some(28) => write!(
-                f,
-                "{}: disk full ({source}); every finished file is intact: free space, then continue with `clv forward --resume RUN_DIR` (or `clv backward RUN_DIR --resume`)",
-                path.display()
-            ),
+            Error::Io { path, source } if source.is_disk_full() => write!(f, "{}: disk full ({source}); every file finished before it is intact: free space, then give the command again", path.display()),
             Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
             Error::Dynamics(msg) => write!(f, "dynamics: {msg}"),
             Error::Corrupt { path, msg } => write!(f, "{}: corrupt or unreadable: {msg}", path.display()),
@@ -56,7 +52,28 @@ impl fmt::Display for Error {
     }
 }
 
+trait DiskFull {
+    fn is_disk_full(&self) -> bool;
+}
+
+impl DiskFull for std::io::Error {
+    fn is_disk_full(&self) -> bool {
+        self.kind() == std::io::ErrorKind::StorageFull || self.raw_os_error() == Some(28)
+    }
+}
+
 impl Error {
+    /// A full disk, said with how this command continues once there is space (`then`, e.g.
+    /// "continue with `clv forward --resume RUN`"); any other error as it is.
+    pub fn on_full_disk(self, then: impl FnOnce() -> String) -> Self {
+        match self {
+            Error::Io { path, source } if source.is_disk_full() => {
+                Error::Other(format!("{}: disk full ({source}); every file finished before it is intact: free space, then {}", path.display(), then()))
+            }
+            other => other,
+        }
+    }
+
     /// The process's exit status for this error: 128 + the signal for a stop on a signal
     /// (as for death by it, so that a batch system sees the same either way), else 1.
     pub fn exit_code(&self) -> i32 {

@@ -319,7 +319,7 @@ fn killed_backward_resumes_to_identical_frames() {
                 let refused = clv(&["backward", &d, "--quiet", "--out", &out, "--resume", "--vectors-every", "5"]);
                 assert!(!refused.status.success() && common::stderr(&refused).contains("--resume"), "{}", common::stderr(&refused));
             }
-            let report = backward_json(&dir, &["--out", &out, "--resume"]);
+            let report = backward_json(&dir, &[&["--out", out.as_str()][..], &common::resume_flag(&dir), &flags].concat());
             assert_eq!(report["exponents"], want_report["exponents"]);
         } else {
             backward_json(&dir, &[&["--out", &format!("{d}/again-{trial}.mcap")][..], &flags].concat());

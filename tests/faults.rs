@@ -66,9 +66,10 @@ fn sigkill_at_many_points_then_resume_is_bit_identical() {
         });
         kills += 1;
         // Kill the resuming process too, early (while it salvages the frames) or later.
-        kills += kill_after(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"], at(backward_ms, 0.5)) as usize;
+        let again = [&["backward", dir.to_str().unwrap(), "--quiet", "--out", o][..], &resume_flag(&dir)].concat();
+        kills += kill_after(&again, at(backward_ms, 0.5)) as usize;
         if !out.exists() {
-            ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--out", o, "--resume"]));
+            ok(clv(&[&["backward", dir.to_str().unwrap(), "--quiet", "--out", o][..], &resume_flag(&dir)].concat()));
         }
         assert!(frames(&out) == want_frames, "backward trial {trial}: frames differ after resume");
         let _ = std::fs::remove_file(dir.join("backward.json"));
@@ -122,7 +123,8 @@ fn a_crash_between_any_two_durable_steps_is_recovered() {
             let o = f.to_str().unwrap();
             if crashed(&clv_env(&["backward", d, "--quiet", "--out", o], &env), &at) {
                 reached.insert(*point);
-                ok(clv(&["backward", d, "--quiet", "--out", o, "--resume"]));
+                // Crashed before its first record (while writing it), a sweep starts again.
+                ok(clv(&[&["backward", d, "--quiet", "--out", o][..], &resume_flag(&dir)].concat()));
             }
             assert!(frames(&f) == want_frames, "backward crashed at {at}: the resumed frames differ");
 
@@ -160,7 +162,7 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
         let out = clv_env(&args, &[("CLV_FAULT_DISK_FULL_AFTER", limit)]);
         let err = stderr(&out);
         assert!(!out.status.success(), "limit {limit}: should fail");
-        assert!(err.contains("disk full") && err.contains(dir.to_str().unwrap()) && err.contains("--resume"), "{err}");
+        assert!(err.contains("disk full") && err.contains(&format!("clv forward --resume {}", dir.display())) && !err.contains("RUN_DIR"), "{err}");
         assert!(!err.contains("panicked"));
         // Every finished segment is intact.
         for seg in (clv::store::RunDir { path: dir.clone() }).segments().unwrap() {
@@ -176,7 +178,7 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
     ok(clv(&["backward", d, "--quiet", "--out", full.to_str().unwrap()]));
     let part = dir.join("part.mcap");
     let out = clv_env(&["backward", d, "--quiet", "--out", part.to_str().unwrap()], &[("CLV_FAULT_DISK_FULL_AFTER", "2000000")]);
-    assert!(!out.status.success() && stderr(&out).contains("disk full"), "{}", stderr(&out));
+    assert!(!out.status.success() && stderr(&out).contains("disk full") && stderr(&out).contains(&format!("clv backward {d} --resume")), "{}", stderr(&out));
     ok(clv(&["backward", d, "--quiet", "--out", part.to_str().unwrap(), "--resume"]));
     assert!(frames(&part) == frames(&full));
     // A new sweep stopped by a full disk before its first segment, after a finished sweep
@@ -703,4 +705,114 @@ fn a_read_only_run_directory_is_named_with_the_way_out() {
     let _ = std::fs::remove_dir_all(&base);
     let err = stderr(&out);
     assert!(!out.status.success() && err.contains("is not writable") && err.contains("cp -r"), "{err}");
+}
+
+/// The small JSON records beside the segments carry checksums: one changed digit in the
+/// backward progress record or in spectrum.json is refused (and named by `clv inspect`),
+/// never continued from; `clv forward --resume` rewrites a damaged spectrum.json exactly.
+#[test]
+fn damaged_or_edited_records_are_refused_not_continued_from() {
+    let (dir, _) = reference("records");
+    let d = dir.to_str().unwrap();
+    let want = dir.parent().unwrap().join("want.mcap");
+    ok(clv(&["backward", d, "--quiet", "--out", want.to_str().unwrap()]));
+    let out = dir.parent().unwrap().join("part.mcap");
+    let o = out.to_str().unwrap();
+    assert!(crashed(&clv_env(&["backward", d, "--quiet", "--out", o], &[("CLV_FAULT_CRASH_AT", "frames-synced#3")]), "frames-synced#3"));
+    let record = dir.join("backward.json");
+    let text = std::fs::read_to_string(&record).unwrap();
+    let at: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let at = at["at"].as_u64().unwrap();
+    std::fs::write(&record, text.replacen(&format!("\"at\": {at}"), &format!("\"at\": {}", at - 50), 1)).unwrap();
+    let refused = clv(&["backward", d, "--quiet", "--out", o, "--resume"]);
+    let err = stderr(&refused);
+    assert!(!refused.status.success() && err.contains("backward.json") && err.contains("damaged or edited") && err.contains("without --resume"), "{err}");
+    let seen = String::from_utf8_lossy(&clv(&["inspect", d]).stdout).to_string();
+    assert!(seen.contains("DAMAGE") && seen.contains("backward.json") && !seen.contains("all finished files intact"), "{seen}");
+    // The way out it names: the sweep again from the start, to the same frames.
+    std::fs::remove_file(dir.parent().unwrap().join("part.mcap.tmp")).unwrap();
+    ok(clv(&["backward", d, "--quiet", "--out", o]));
+    assert!(frames(&out) == frames(&want));
+
+    let spectrum = dir.join("spectrum.json");
+    let good = std::fs::read(&spectrum).unwrap();
+    let lambda_1 = serde_json::from_slice::<serde_json::Value>(&good).unwrap()["exponents"][0].to_string();
+    let text = String::from_utf8(good.clone()).unwrap();
+    let digit = lambda_1.as_bytes()[0] as char;
+    let other = if digit == '4' { "3" } else { "4" };
+    std::fs::write(&spectrum, text.replacen(&lambda_1, &format!("{other}{}", &lambda_1[1..]), 1)).unwrap();
+    for cmd in [vec!["backward", d, "--quiet", "--save-every", "0"], vec!["combine", d, d]] {
+        let refused = clv(&cmd);
+        let err = stderr(&refused);
+        assert!(!refused.status.success() && err.contains("spectrum.json") && err.contains("damaged or edited") && err.contains("clv forward --resume"), "{cmd:?}: {err}");
+    }
+    let seen = String::from_utf8_lossy(&clv(&["inspect", d]).stdout).to_string();
+    assert!(seen.contains("DAMAGE") && seen.contains("spectrum.json"), "{seen}");
+    ok(clv(&["forward", "--resume", d, "--quiet"]));
+    // The same numbers, all but the wall-clock time (up to the last checkpoint, not to the
+    // writing of the file) and so the checksum.
+    let comparable = |bytes: &[u8]| {
+        let mut v: serde_json::Value = serde_json::from_slice(bytes).unwrap();
+        v["statistics"]["wall_seconds"] = serde_json::Value::Null;
+        v["crc32"] = serde_json::Value::Null;
+        v
+    };
+    assert!(comparable(&std::fs::read(&spectrum).unwrap()) == comparable(&good), "the rewritten spectrum.json differs from the original");
+    assert!(dir.join("spectrum.json.damaged").exists());
+}
+
+/// A sweep's frame file is found by the run, not by the directory the command runs in: a
+/// resume from elsewhere, or of a moved run, continues the run's own file; the interrupted
+/// file of another run is refused, not spliced in; --resume with no sweep recorded is
+/// refused instead of starting one with other options; and a refused sweep leaves no record.
+#[test]
+fn a_resumed_sweep_continues_its_own_frames_only() {
+    let (dir, _) = reference("own-frames");
+    let base = dir.parent().unwrap().to_path_buf();
+    let d = dir.to_str().unwrap();
+    ok(clv(&["backward", d, "--quiet", "--with-gs"]));
+    let want = frames(&dir.join("frames.mcap"));
+    std::fs::remove_file(dir.join("frames.mcap")).unwrap();
+    std::fs::remove_file(dir.join("backward.json")).unwrap();
+    // --resume with nothing recorded: refused, and nothing started.
+    let refused = clv(&["backward", d, "--quiet", "--resume"]);
+    let err = stderr(&refused);
+    assert!(!refused.status.success() && err.contains("--resume") && err.contains("no backward sweep"), "{err}");
+    assert!(!dir.join("backward.json").exists());
+    // Started here, with the default file inside the run, then the run moved and resumed
+    // from another working directory.
+    let run_in = |cwd: &Path, args: &[&str], env: &[(&str, &str)]| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_clv"));
+        c.args(args).current_dir(cwd).envs(env.iter().copied());
+        c.output().unwrap()
+    };
+    assert!(crashed(&run_in(&base, &["backward", "run", "--quiet", "--with-gs"], &[("CLV_FAULT_CRASH_AT", "frames-synced#3")]), "frames-synced#3"));
+    let moved = base.join("moved");
+    std::fs::rename(&dir, &moved).unwrap();
+    ok(run_in(Path::new("/"), &["backward", moved.to_str().unwrap(), "--quiet", "--resume"], &[]));
+    assert!(frames(&moved.join("frames.mcap")) == want, "the moved run's resumed frames differ");
+    // Another run's interrupted file in place of this run's: refused with the way out.
+    let (other, _) = {
+        let dir = scratch("faults", "own-frames-other").join("run");
+        let mut args = forward_args(&dir);
+        args.extend(["--seed".into(), "7".into()]);
+        ok(clv(&args.iter().map(String::as_str).collect::<Vec<_>>()));
+        (dir, ())
+    };
+    let m = moved.to_str().unwrap();
+    for run in [m, other.to_str().unwrap()] {
+        let _ = std::fs::remove_file(Path::new(run).join("frames.mcap"));
+        // After its eighth segment: 150 frames past the backward transient of 250 steps.
+        assert!(crashed(&clv_env(&["backward", run, "--quiet", "--with-gs"], &[("CLV_FAULT_CRASH_AT", "frames-synced#8")]), "frames-synced#8"));
+    }
+    std::fs::copy(other.join("frames.mcap.tmp"), moved.join("frames.mcap.tmp")).unwrap();
+    let refused = clv(&["backward", m, "--quiet", "--resume"]);
+    let err = stderr(&refused);
+    assert!(!refused.status.success() && err.contains("another run") && err.contains("without --resume"), "{err}");
+    // A refused --out leaves no record behind.
+    std::fs::remove_file(moved.join("backward.json")).unwrap();
+    let run_json = moved.join("run.json");
+    let refused = clv(&["backward", m, "--quiet", "--out", run_json.to_str().unwrap()]);
+    assert!(!refused.status.success() && stderr(&refused).contains("already exists"), "{}", stderr(&refused));
+    assert!(!moved.join("backward.json").exists(), "a refused sweep left a progress record");
 }

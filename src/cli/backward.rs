@@ -89,7 +89,13 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         return Err(Error::param("out", "- writes a binary MCAP stream, and standard output is a terminal; pipe it into `clv analyze -` (or another reader), or give a file"));
     }
     if stored.is_none() || given("out") {
-        opts.frames_path = if to_stdout { None } else { Some(args.out.clone().unwrap_or_else(|| clv::store::RunDir { path: args.dir.clone() }.frames_path())) };
+        opts.frames_path = match (to_stdout, args.out.clone()) {
+            (true, _) => None,
+            (false, out) => {
+                let path = out.unwrap_or_else(|| clv::store::RunDir { path: args.dir.clone() }.frames_path());
+                Some(BackwardOptions::record_frames_path(&args.dir, &path)?)
+            }
+        };
     }
     if given("save_every") && args.save_every == 0 && given("out") && !to_stdout {
         return Err(Error::param("save-every", "0 would keep no frame in the file --out names; give m >= 1 (the frames of the steps that are multiples of m), or leave out --out to compute only the CLV spectrum"));
@@ -106,7 +112,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if stored.is_none() || given("vectors_every") {
         opts.vectors_every = args.vectors_every;
     }
-    if let Some(path) = &opts.frames_path
+    if let Some(path) = &opts.frames_file(&args.dir)
         && let Some(warning) = clv::store::run::space_warning(path, backward::frame_file_bytes(&meta, &opts)) {
             eprintln!("clv: {warning} (--save-every m keeps one frame in m)");
         }

@@ -335,6 +335,10 @@ fn spectrum(config: RunConfig, json: bool, quiet: bool) -> Result<()> {
     }
     while fwd.step < total {
         fwd.step()?;
+        // As often as a stored run checks it (at its checkpoints), and at the end.
+        if fwd.step % 100 == 0 || fwd.step == total {
+            forward_run::check_energy(fwd.step, start.energy, fwd.system.invariants().energy)?;
+        }
         if let Some(bar) = &bar {
             bar.inc(1);
         }

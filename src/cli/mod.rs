@@ -149,7 +149,7 @@ pub fn parse(raw: Vec<String>) -> Result<(Cli, ArgMatches)> {
 /// Run the parsed subcommand.
 pub fn execute(cli: &Cli, matches: &ArgMatches) -> Result<()> {
     let sub = |name| matches.subcommand_matches(name).expect("subcommand parsed");
-    match &cli.command {
+    let result = match &cli.command {
         Command::Forward(args) => forward::forward(args, sub("forward")),
         Command::Backward(args) => backward::backward(args, sub("backward")),
         Command::Inspect(args) => inspect::inspect(args),
@@ -158,6 +158,24 @@ pub fn execute(cli: &Cli, matches: &ArgMatches) -> Result<()> {
         Command::Combine(args) => clv::report::combine::combine(&args.runs).and_then(|c| if args.json { print_json(&c) } else { emit(&c.table()) }),
         Command::Bench(args) => bench::bench(args),
         Command::Config(args) => RunConfig::preset(&args.preset).and_then(|c| emit(&clv::report::config_file::render(&args.preset, &c, &clv::store::run::StoreConfig::for_run(&c)))),
+    };
+    result.map_err(|e| e.on_full_disk(|| how_to_continue(&cli.command)))
+}
+
+/// What a person does to continue a command a full disk stopped, once there is space.
+fn how_to_continue(command: &Command) -> String {
+    match command {
+        Command::Forward(args) => match args.resume.as_ref().or(args.out.as_ref()) {
+            Some(run) => format!("continue with `clv forward --resume {}`", run.display()),
+            None => "give the command again".into(),
+        },
+        Command::Backward(args) => format!(
+            "continue with `clv backward {} --resume` (without --resume if it says no sweep was recorded)",
+            args.dir.display()
+        ),
+        Command::Analyze(_) => "give the command again with --overwrite, which replaces the unfinished report".into(),
+        Command::Run(_) => "give the same `clv run` command again: it continues where it stopped".into(),
+        _ => "give the command again".into(),
     }
 }
 

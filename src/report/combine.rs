@@ -108,14 +108,16 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
 
 fn read(path: &Path) -> Result<RunSpectrum> {
     let file = if path.is_dir() { path.join("spectrum.json") } else { path.to_path_buf() };
-    let text = std::fs::read_to_string(&file).map_err(|e| {
+    let bytes = std::fs::read(&file).map_err(|e| {
         if path.is_dir() && e.kind() == std::io::ErrorKind::NotFound {
             Error::Other(format!("{} has no spectrum.json: the run is not finished (`clv forward --resume {}`) or not a run directory", path.display(), path.display()))
         } else {
             Error::io(&file, e)
         }
     })?;
-    let run: RunSpectrum = serde_json::from_str(&text).map_err(|e| Error::corrupt(&file, format!("{e}; a spectrum.json written by `clv forward --out` is expected")))?;
+    let (run, _): (RunSpectrum, _) = crate::store::checked_json::from_slice(&file, &bytes).map_err(|e| {
+        Error::Other(format!("{e}; a spectrum.json written by `clv forward --out` is expected (a damaged one is rewritten by `clv forward --resume RUN_DIR`)"))
+    })?;
     if run.exponents.len() != run.stderr.len() || run.exponents.len() != run.config.vectors {
         return Err(Error::corrupt(&file, format!("{} exponents and {} errors for k = {}", run.exponents.len(), run.stderr.len(), run.config.vectors)));
     }

@@ -48,6 +48,9 @@ pub struct Inspection {
     pub convergence: Option<Convergence>,
     /// run.json disagrees with the copy a segment was written with.
     pub meta_mismatch: Option<String>,
+    /// The checksummed records beside the segments (spectrum.json, backward.json,
+    /// clv_spectrum.json) that fail their check, with what to do.
+    pub damaged_records: Vec<String>,
 }
 
 /// [`crate::stage::analyze::kernels::convergence`] over the blocks completed so far.
@@ -121,6 +124,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         }
     }
     set_aside.sort();
+    let damaged_records = damaged_records(&dir);
     previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));
     let total_steps = meta.config.relax_steps + meta.config.steps;
     let (exponents, stderr) = newest.as_ref().map(|(s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
@@ -137,8 +141,9 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         checkpoints: segments.iter().map(|s| s.checkpoints).sum(),
         // A segment left unfinished by a kill is the expected trace of an interrupted run,
         // not damage: --resume discards and recomputes it.
-        intact: segments.iter().all(|s| s.damage.is_none()) && meta_mismatch.is_none(),
+        intact: segments.iter().all(|s| s.damage.is_none()) && meta_mismatch.is_none() && damaged_records.is_empty(),
         meta_mismatch,
+        damaged_records,
         segments,
         partial_segments,
         set_aside,
@@ -149,6 +154,24 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         convergence,
         run: meta,
     })
+}
+
+/// The run's checksummed records that exist and fail their check ([`crate::store::checked_json`]).
+fn damaged_records(dir: &RunDir) -> Vec<String> {
+    let run = dir.path.display();
+    let records = [
+        ("spectrum.json", format!("`clv forward --resume {run}` rewrites it from the run's last checkpoint")),
+        ("backward.json", format!("the backward sweep it records cannot be resumed; `clv backward {run}` without --resume starts it over")),
+        ("clv_spectrum.json", format!("`clv backward {run}` without --resume computes it again")),
+    ];
+    records
+        .into_iter()
+        .filter_map(|(name, what_to_do)| {
+            let path = dir.path.join(name);
+            let e = crate::store::checked_json::read::<serde_json::Value>(&path).err().filter(|_| path.exists())?;
+            Some(format!("{e}; {what_to_do}"))
+        })
+        .collect()
 }
 
 impl Inspection {
@@ -207,10 +230,13 @@ impl Inspection {
         if let Some(m) = &self.meta_mismatch {
             let _ = writeln!(s, "DAMAGE: {m}");
         }
+        for m in &self.damaged_records {
+            let _ = writeln!(s, "DAMAGE: {m}");
+        }
         let verdict = if self.intact {
             "all finished files intact"
         } else if self.segments.iter().all(|s| s.damage.is_none()) {
-            "DAMAGE FOUND in run.json (see above)"
+            "DAMAGE FOUND outside the segments (see above)"
         } else {
             "DAMAGE FOUND (see above): `clv forward --resume` recomputes the damaged segments"
         };

@@ -132,7 +132,6 @@ pub struct SpectrumSummary {
 
 impl SpectrumSummary {
     pub fn read(path: &std::path::Path) -> crate::Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| crate::Error::io(path, e))?;
-        serde_json::from_str(&text).map_err(|e| crate::Error::corrupt(path, e.to_string()))
+        crate::store::checked_json::read(path).map(|(s, _)| s)
     }
 }

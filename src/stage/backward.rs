@@ -22,9 +22,10 @@
 //!   bit for bit from there.
 
 use super::forward::{Accumulator, Estimate, Forward, ForwardState};
-use super::frame::{multiples_in, on_stride, Frame};
+use super::frame::{on_stride, Frame};
 use crate::config::RunConfig;
 use crate::error::{Error, Result};
+use crate::store::checked_json;
 use crate::linalg::{pack_upper, par, unpack_upper, unpack_upper_into};
 use crate::rng::Rng;
 use crate::store::frames::{tmp_path, FrameFile, Flow, StreamInfo};
@@ -59,6 +60,8 @@ pub struct BackwardOptions {
     pub with_gs: bool,
     /// Keep the frames of the steps that are multiples of m in the frame file (0: no file).
     pub save_every: u64,
+    /// The frame file: relative to the run directory when inside it (so that a moved run
+    /// still finds it), absolute otherwise ([`BackwardOptions::frames_file`]).
     pub frames_path: Option<PathBuf>,
     /// Form V_n = G_n C_n (and copy G_n) only for the frames whose step n is a multiple of m
     /// ([`on_stride`]); the others carry the phase point and the local exponents.
@@ -73,6 +76,20 @@ fn one() -> u64 {
 }
 
 impl BackwardOptions {
+    /// The frame file `file` as the options record it: relative to the run directory `run`
+    /// when inside it, else absolute; never relative to the directory the command runs in,
+    /// which a later --resume may not share.
+    pub fn record_frames_path(run: &Path, file: &Path) -> Result<PathBuf> {
+        let absolute = |p: &Path| std::path::absolute(p).map_err(|e| Error::io(p, e));
+        let (run, file) = (absolute(run)?, absolute(file)?);
+        Ok(file.strip_prefix(&run).map_or(file.clone(), Path::to_path_buf))
+    }
+
+    /// The frame file of a sweep of the run in `run`, if it writes one.
+    pub fn frames_file(&self, run: &Path) -> Option<PathBuf> {
+        self.frames_path.as_ref().map(|p| run.join(p))
+    }
+
     /// The options as the flags of `clv backward` that give them.
     pub fn as_flags(&self) -> String {
         let out = self.frames_path.as_ref().map_or("-".to_string(), |p| p.display().to_string());
@@ -223,7 +240,7 @@ fn progress_path(dir: &RunDir) -> PathBuf {
 /// The options of the sweep recorded in the run's progress record, if there is one.
 pub fn stored_options(run: &Path) -> Option<BackwardOptions> {
     let text = std::fs::read_to_string(progress_path(&RunDir { path: run.to_path_buf() })).ok()?;
-    serde_json::from_str::<Progress>(&text).ok().map(|p| p.options)
+    checked_json::from_slice::<Progress>(Path::new("backward.json"), text.as_bytes()).ok().map(|(p, _)| p.options)
 }
 
 pub fn report_path(dir: &RunDir) -> PathBuf {
@@ -611,8 +628,9 @@ pub fn run(
     dir.check_meta(&meta)?;
     let (config, store) = (&meta.config, &meta.store);
     let total = config.relax_steps + config.steps;
-    let gs: crate::report::SpectrumSummary = crate::report::SpectrumSummary::read(&dir.spectrum_path()).map_err(|_| {
-        Error::Other(format!("the forward run in {} is not complete (no spectrum.json); finish it with `clv forward --resume {}`", path.display(), path.display()))
+    let gs = crate::report::SpectrumSummary::read(&dir.spectrum_path()).map_err(|e| match dir.spectrum_path().exists() {
+        false => Error::Other(format!("the forward run in {} is not complete (no spectrum.json); finish it with `clv forward --resume {}`", path.display(), path.display())),
+        true => Error::Other(format!("{e}; `clv forward --resume {}` rewrites it from the run's last checkpoint", path.display())),
     })?;
     if opts.vectors_every == 0 {
         return Err(Error::param("vectors-every", "must be at least 1 (1: every frame carries V_n)"));
@@ -625,30 +643,34 @@ pub fn run(
     let d = config.system.dim();
     let tau = config.tau;
 
-    let frames_path = opts.frames_path.clone();
+    let frames_path = opts.frames_file(&dir.path);
     let saving = opts.save_every > 0 && frames_path.is_some();
     let metadata = stream_info(&dir, &meta, opts).metadata();
     let progress_file = progress_path(&dir);
     let mut notes = Vec::new();
     let record = match std::fs::read_to_string(&progress_file) {
         Ok(text) if resume => Some(text),
+        // A sweep writes its record before anything else: without one there is nothing of
+        // it to continue, and its options are unknown (starting over with the defaults would
+        // quietly drop e.g. --with-gs, and could take another sweep's frame file).
         Err(e) if resume && e.kind() == std::io::ErrorKind::NotFound => {
-            notes.push(format!("no progress record in {}: the sweep had not finished a segment, so it starts from the beginning", progress_file.display()));
-            if let Some(stale) = frames_path.as_ref().map(|f| tmp_path(f)).filter(|t| t.exists()) {
-                std::fs::remove_file(&stale).map_err(|e| Error::io(&stale, e))?;
-            }
-            None
+            return Err(Error::param("resume", format!(
+                "there is no backward sweep of {} to continue ({} does not exist: none was started, or it stopped before it could record itself); \
+                 give the command without --resume, with the options you want",
+                dir.path.display(),
+                progress_file.display()
+            )));
         }
         Err(e) if resume => return Err(Error::io(&progress_file, e)),
         // A new sweep replaces the progress record: refuse where that would strand the
         // frames an interrupted sweep with other options left in its file.
         Ok(text) => {
-            if let Ok(p) = serde_json::from_str::<Progress>(&text)
+            if let Ok((p, _)) = checked_json::from_slice::<Progress>(&progress_file, text.as_bytes())
                 && !p.done
                 && p.options != *opts
-                && let Some(stranded) = p.options.frames_path.as_ref().map(|f| tmp_path(f)).filter(|t| t.exists())
+                && let Some(stranded) = p.options.frames_file(&dir.path).map(|f| tmp_path(&f)).filter(|t| t.exists())
             {
-                let file = p.options.frames_path.as_ref().map(|f| f.display().to_string()).unwrap_or_default();
+                let file = p.options.frames_file(&dir.path).map(|f| f.display().to_string()).unwrap_or_default();
                 return Err(Error::Other(format!(
                     "{} holds the progress of an interrupted backward sweep into {file} (down to step {}, {} frames in {}), which a new sweep would make impossible to resume; \
                      finish it first with `clv backward {} --out {file} --resume`, or delete {} to give it up",
@@ -666,7 +688,9 @@ pub fn run(
     };
     let prior: Option<Progress> = match record {
         Some(text) => {
-            let p: Progress = serde_json::from_str(&text).map_err(|e| Error::corrupt(&progress_file, e.to_string()))?;
+            let (p, _): (Progress, _) = checked_json::from_slice(&progress_file, text.as_bytes()).map_err(|e| {
+                Error::Other(format!("{e}; the sweep cannot be continued from it: give the command without --resume to start the sweep over (the forward run is not affected)"))
+            })?;
             if p.options != *opts {
                 return Err(Error::param("resume", format!(
                     "the interrupted sweep recorded in {} was started with {}, not {}; continue it with `clv backward {} --resume` and no other flags, or run without --resume to start over",
@@ -689,11 +713,17 @@ pub fn run(
             None
         }
     };
+    // Refused before the new sweep records itself: a refusal leaves nothing behind.
+    if let (None, true, Some(f)) = (&prior, saving, frames_path.as_ref())
+        && f.exists()
+    {
+        return Err(Error::param("out", format!("{} already exists; refusing to overwrite it: choose another --out (or delete it yourself, if it is a frame file you no longer need)", f.display())));
+    }
     if prior.as_ref().is_some_and(|p| p.done) {
         // The sweep finished earlier: its report is the answer.
         let path = report_path(&dir);
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-        let mut report: BackwardReport = serde_json::from_str(&text).map_err(|e| Error::corrupt(&path, e.to_string()))?;
+        let (mut report, _): (BackwardReport, _) = checked_json::from_slice(&path, text.as_bytes())?;
         report.notes = notes;
         if frames_path.is_none() {
             report.notes.push(format!(
@@ -737,12 +767,15 @@ pub fn run(
         // record left in place would point --resume at another sweep, and strand this one's
         // frames).
         let fresh = Progress { options: opts.clone(), at: resume_at, c: pack_upper(c.as_ref()), acc: acc.clone(), acc_gs: acc_gs.clone(), stats: stats.clone(), done: false };
-        write_atomic(&progress_file, &serde_json::to_vec(&fresh).map_err(|e| Error::Other(e.to_string()))?)?;
+        write_atomic(&progress_file, &checked_json::to_vec(&fresh)?)?;
     }
     let mut frame_file = match (&frames_path, saving, &prior) {
         // The frames saved before the record: those of the steps that are multiples of
         // --save-every among the ones the sweep had emitted, window.last down.
-        (Some(f), true, Some(p)) => Some(FrameFile::salvage(f, &metadata, multiples_in((window.last + 1).saturating_sub(p.stats.frames), window.last, opts.save_every))?),
+        (Some(f), true, Some(p)) => {
+            let kept: Vec<u64> = ((window.last + 1).saturating_sub(p.stats.frames)..=window.last).rev().filter(|&m| on_stride(m, opts.save_every)).collect();
+            Some(FrameFile::salvage(f, &metadata, &kept)?)
+        }
         (Some(f), true, None) => Some(FrameFile::create(f, &metadata)?),
         _ => None,
     };
@@ -882,7 +915,7 @@ pub fn run(
         let at = seg.s0;
         let _ = free_tx.try_send(seg);
         let p = Progress { options: opts.clone(), at, c: pack_upper(c.as_ref()), acc: acc.clone(), acc_gs: acc_gs.clone(), stats: stats.clone(), done: false };
-        write_atomic(&progress_file, &serde_json::to_vec(&p).map_err(|e| Error::Other(e.to_string()))?)?;
+        write_atomic(&progress_file, &checked_json::to_vec(&p)?)?;
         // The recomputation gets every thread only now: the record above is written on this
         // thread, and a spinning QR worker must not share its core.
         cores.set_sweeping(false);
@@ -926,11 +959,11 @@ pub fn run(
     if let Some(file) = frame_file {
         file.finish()?;
     }
-    let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Other(e.to_string()))?;
+    let json = checked_json::to_vec(&report)?;
     // The CLV spectrum of an earlier sweep with other options (another C, transient, file)
     // can be hours of work: kept beside the new one, not replaced.
     let path = report_path(&dir);
-    if let Some(earlier) = std::fs::read_to_string(&path).ok().and_then(|text| serde_json::from_str::<BackwardReport>(&text).ok())
+    if let Some((earlier, _)) = std::fs::read(&path).ok().and_then(|bytes| checked_json::from_slice::<BackwardReport>(&path, &bytes).ok())
         && earlier.options != *opts
     {
         let mut i = 1;
@@ -941,9 +974,9 @@ pub fn run(
         std::fs::rename(&path, &kept).map_err(|e| Error::io(&path, e))?;
         report.notes.push(format!("the CLV spectrum of the earlier sweep, made with {}, is kept as {}", earlier.options.as_flags(), kept.display()));
     }
-    write_atomic(&path, json.as_bytes())?;
+    write_atomic(&path, &json)?;
     let done = Progress { options: opts.clone(), at: window.first, c: Vec::new(), acc, acc_gs, stats, done: true };
-    write_atomic(&progress_file, &serde_json::to_vec(&done).map_err(|e| Error::Other(e.to_string()))?)?;
+    write_atomic(&progress_file, &checked_json::to_vec(&done)?)?;
     Ok(report)
 }
 

@@ -24,6 +24,19 @@ use std::time::Instant;
 /// below it; anything larger means the dynamics went wrong).
 pub const ENERGY_TOLERANCE: f64 = 1e-8;
 
+/// Stop at step `n` if the energy drifted from `energy0` by more than [`ENERGY_TOLERANCE`]
+/// (relative): the dynamics has lost its accuracy, and no number from it may be reported.
+pub fn check_energy(n: u64, energy0: f64, energy: f64) -> Result<()> {
+    let drift = ((energy - energy0) / energy0).abs();
+    if drift > ENERGY_TOLERANCE {
+        return Err(Error::Dynamics(format!(
+            "step {n}: the energy drifted by {drift:.2e} (relative) from its start value {energy0}; \
+             the dynamics has lost its accuracy, so the run stops here rather than report wrong numbers"
+        )));
+    }
+    Ok(())
+}
+
 /// How a forward job ended.
 pub struct Outcome {
     pub report: SpectrumReport,
@@ -252,9 +265,17 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
     let fwd = Forward::resume(&meta.config, &last.checkpoint.state)?;
     if step >= total {
         let report = report_of(meta, &fwd, last.stats.energy_initial, last.stats.wall_seconds);
-        if !dir.spectrum_path().exists() {
+        let spectrum = dir.spectrum_path();
+        if !spectrum.exists() {
             // Killed after its last segment was finished, before the spectrum was written.
-            feedback.notice(format!("the run was complete but {} was not written yet; writing it", dir.spectrum_path().display()));
+            feedback.notice(format!("the run was complete but {} was not written yet; writing it", spectrum.display()));
+            write_spectrum(dir, &report)?;
+        } else if let Err(e) = crate::report::SpectrumSummary::read(&spectrum) {
+            // The spectrum is the last checkpoint's sums divided out: rewritten exactly, with
+            // the damaged file kept aside for whoever wants to see what happened to it.
+            let aside = spectrum.with_extension("json.damaged");
+            std::fs::rename(&spectrum, &aside).map_err(|e| Error::io(&spectrum, e))?;
+            feedback.notice(format!("{e}; rewrote it from the run's last checkpoint (the damaged file is kept as {})", aside.display()));
             write_spectrum(dir, &report)?;
         }
         drop_superseded()?;
@@ -356,13 +377,7 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
     let checkpoint = |fwd: &Forward, sink: &mut Sink| -> Result<()> {
         let n = fwd.step;
         let inv = fwd.system.invariants();
-        let drift = ((inv.energy - energy0) / energy0).abs();
-        if drift > ENERGY_TOLERANCE {
-            return Err(Error::Dynamics(format!(
-                "step {n}: the energy drifted by {drift:.2e} (relative) from its start value {energy0}; \
-                 the dynamics has lost its accuracy, so the run stops here rather than store wrong numbers"
-            )));
-        }
+        check_energy(n, energy0, inv.energy)?;
         let stats = Stats {
             step: n,
             time: fwd.time(),
@@ -418,6 +433,17 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
 
 /// RUN_DIR/spectrum.json: the spectrum of a finished run, written last.
 fn write_spectrum(dir: &RunDir, report: &SpectrumReport) -> Result<()> {
-    let json = serde_json::to_string_pretty(report).map_err(|e| Error::Other(e.to_string()))?;
-    write_atomic(&dir.spectrum_path(), json.as_bytes())
+    write_atomic(&dir.spectrum_path(), &crate::store::checked_json::to_vec(report)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_energy_drift_beyond_the_tolerance_stops_the_run_naming_the_step() {
+        assert!(check_energy(100, 16.0, 16.0 * (1.0 + 0.5 * ENERGY_TOLERANCE)).is_ok());
+        let err = check_energy(300, 16.0, 16.0 * (1.0 + 2.0 * ENERGY_TOLERANCE)).unwrap_err().to_string();
+        assert!(err.contains("step 300") && err.contains("energy drifted"), "{err}");
+    }
 }

@@ -90,7 +90,7 @@ impl FrameFile {
     /// directory or a report is); refuses if FILE exists.
     pub fn create(path: &Path, metadata: &BTreeMap<String, String>) -> Result<Self> {
         if path.exists() {
-            return Err(Error::Other(format!("{} already exists; refusing to overwrite it (remove it or choose another --out)", path.display())));
+            return Err(Error::Other(format!("{} already exists; refusing to overwrite it: choose another --out (or delete it yourself, if it is a frame file you no longer need)", path.display())));
         }
         if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
@@ -102,14 +102,17 @@ impl FrameFile {
         Ok(FrameFile { path: path.to_path_buf(), tmp, out, sync_handle, frames: 0 })
     }
 
-    /// Continue an interrupted file: keep its first `keep` frames (all complete chunks up to
-    /// the last progress record), rewrite them into a fresh FILE.tmp and append from there.
+    /// Continue an interrupted file: keep its first frames, those of the steps `keep` (newest
+    /// first: all complete chunks up to the last progress record), rewrite them into a fresh
+    /// FILE.tmp and append from there. The interrupted file must be this sweep's (its
+    /// metadata `metadata`), and hold exactly those steps: frames of another run or sweep
+    /// are never spliced in.
     /// The interrupted file is kept as FILE.tmp.old until the copy is synced, and a salvage
     /// that was itself interrupted starts again from that copy.
     ///
     /// A sweep killed after it renamed the finished FILE, before its progress record said
     /// so, left no FILE.tmp: FILE itself is then the interrupted file, if this sweep wrote it.
-    pub fn salvage(path: &Path, metadata: &BTreeMap<String, String>, keep: u64) -> Result<Self> {
+    pub fn salvage(path: &Path, metadata: &BTreeMap<String, String>, keep: &[u64]) -> Result<Self> {
         let tmp = tmp_path(path);
         let old = tmp.with_extension("tmp.old");
         if !old.exists() && !tmp.exists() && path.exists() {
@@ -132,7 +135,7 @@ impl FrameFile {
             if tmp.exists() {
                 std::fs::remove_file(&tmp).map_err(|e| Error::io(&tmp, e))?;
             }
-        } else if keep > 0 {
+        } else if !keep.is_empty() {
             std::fs::rename(&tmp, &old).map_err(|e| Error::io(&tmp, e))?;
         } else if tmp.exists() {
             std::fs::remove_file(&tmp).map_err(|e| Error::io(&tmp, e))?;
@@ -140,14 +143,39 @@ impl FrameFile {
         super::fault::crash_point("salvage-moved");
         let mut file = FrameFile::create(path, metadata)?;
         if old.exists() {
+            let give_up = format!(
+                "it cannot be continued: delete {} (and {}, if it exists) and give the command without --resume, which starts the sweep over",
+                old.display(),
+                tmp.display()
+            );
+            let mut ours = false;
             read_stream(&old, std::io::BufReader::new(File::open(&old).map_err(|e| Error::io(&old, e))?), ReadMode::Salvage, |m| {
-                if m.topic == FRAME.topic && file.frames < keep {
+                if m.topic == RUN_METADATA {
+                    let theirs: BTreeMap<String, String> = serde_json::from_slice(m.data).unwrap_or_default();
+                    ours = ["run.json", "backward.json"].iter().all(|key| theirs.get(*key) == metadata.get(*key));
+                    if !ours {
+                        return Err(Error::Other(format!(
+                            "{} holds the frames of another run or backward sweep (its run.json or backward.json metadata differs from this sweep's): {give_up}",
+                            old.display()
+                        )));
+                    }
+                }
+                if m.topic == FRAME.topic && (file.frames as usize) < keep.len() {
+                    let want = keep[file.frames as usize];
+                    if !ours || m.step != want {
+                        return Err(Error::corrupt(&old, format!(
+                            "its frame {} is of step {}, where this sweep's progress record expects step {want}{}; {give_up}",
+                            file.frames + 1,
+                            m.step,
+                            if ours { "" } else { " (and the file does not begin with this sweep's metadata)" }
+                        )));
+                    }
                     file.write_raw(m.step, m.data)?;
                 }
                 Ok(())
             })?;
-            if file.frames < keep {
-                return Err(Error::corrupt(&old, format!("holds {} complete frames, the progress record says {keep}", file.frames)));
+            if (file.frames as usize) < keep.len() {
+                return Err(Error::corrupt(&old, format!("holds {} complete frames, the progress record says {}; {give_up}", file.frames, keep.len())));
             }
             file.sync()?;
             super::fault::crash_point("salvage-copied");

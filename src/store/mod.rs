@@ -14,6 +14,7 @@
 //! at most the segment in progress and resumes bit for bit.
 
 pub mod cbor;
+pub mod checked_json;
 pub mod fault;
 pub mod frames;
 pub mod records;

@@ -149,6 +149,12 @@ pub fn kill_after(args: &[&str], delay_ms: u64) -> bool {
 
 /// Kill `args` after `delay_ms`; while the process ends before the kill (machines and their
 /// load vary), clear what it wrote with `reset` and try again with half the delay.
+/// How a person continues a killed `clv backward`, as its messages say: with --resume when
+/// the sweep recorded itself (RUN/backward.json), without when it was killed before that.
+pub fn resume_flag(run: &Path) -> Vec<&'static str> {
+    if run.join("backward.json").exists() { vec!["--resume"] } else { Vec::new() }
+}
+
 pub fn kill_landing(args: &[&str], mut delay_ms: u64, reset: impl Fn()) {
     while !kill_after(args, delay_ms) {
         assert!(delay_ms > 0, "{args:?} ends before it can be killed");
