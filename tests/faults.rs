@@ -816,3 +816,134 @@ fn a_resumed_sweep_continues_its_own_frames_only() {
     assert!(!refused.status.success() && stderr(&refused).contains("already exists"), "{}", stderr(&refused));
     assert!(!moved.join("backward.json").exists(), "a refused sweep left a progress record");
 }
+
+/// A finished Henon run in `base/run` and the frame file of its backward sweep (the report
+/// tests below need frames, quickly).
+fn henon_frames(base: &Path) -> std::path::PathBuf {
+    let run = base.join("run");
+    let r = run.to_str().unwrap();
+    ok(clv(&["forward", "--system", "henon", "--steps", "3000", "--out", r, "--quiet"]));
+    ok(clv(&["backward", r, "--with-gs", "--quiet"]));
+    run.join("frames.mcap")
+}
+
+/// The report files of `dir` (names and bytes), leaving out `except`.
+fn report_contents(dir: &Path, except: &[&str]) -> std::collections::BTreeMap<String, Vec<u8>> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|name| !except.contains(&name.as_str()))
+        .map(|name| (name.clone(), std::fs::read(dir.join(&name)).unwrap()))
+        .collect()
+}
+
+/// `clv analyze --overwrite` removes only the earlier report's own files, whatever its
+/// summary.json (edited, or from elsewhere) lists, and writes its files in place of
+/// symbolic links found in the report, never through them.
+#[test]
+fn an_overwritten_report_touches_no_file_outside_it() {
+    let base = scratch("faults", "report-outside");
+    let frames = henon_frames(&base);
+    let f = frames.to_str().unwrap();
+    let rep = base.join("report");
+    ok(clv(&["analyze", f, "--out", rep.to_str().unwrap(), "--quiet"]));
+    let outside = ["victim.txt", "absolute.txt", "picture.png", "picture.svg", "linked.csv", "linked.png"];
+    for name in outside {
+        std::fs::write(base.join(name), name).unwrap();
+    }
+    std::fs::write(rep.join(".hidden"), "mine").unwrap();
+    let summary_path = rep.join("summary.json");
+    let mut summary: serde_json::Value = serde_json::from_slice(&std::fs::read(&summary_path).unwrap()).unwrap();
+    let absolute = base.join("absolute.txt").display().to_string();
+    summary["produced"][0]["tables"].as_array_mut().unwrap().extend(["../victim.txt", absolute.as_str(), ".hidden", "."].map(serde_json::Value::from));
+    summary["produced"][0]["figures"].as_array_mut().unwrap().push("../picture".into());
+    std::fs::write(&summary_path, serde_json::to_vec(&summary).unwrap()).unwrap();
+    for (link, target) in [("spectrum.csv", "../linked.csv"), ("fig2_spectrum.png", "../linked.png")] {
+        std::fs::remove_file(rep.join(link)).unwrap();
+        std::os::unix::fs::symlink(target, rep.join(link)).unwrap();
+    }
+    ok(clv(&["analyze", f, "--out", rep.to_str().unwrap(), "--overwrite", "--quiet"]));
+    for name in outside {
+        assert_eq!(std::fs::read_to_string(base.join(name)).unwrap_or_default(), name, "{name} outside the report was changed");
+    }
+    assert_eq!(std::fs::read_to_string(rep.join(".hidden")).unwrap(), "mine");
+    for name in ["spectrum.csv", "fig2_spectrum.png"] {
+        assert!(std::fs::symlink_metadata(rep.join(name)).unwrap().is_file(), "{name} is still a link");
+    }
+    assert!(std::fs::read_to_string(rep.join("spectrum.csv")).unwrap().starts_with("i,"));
+    // Nor does a report leave temporary files behind.
+    assert!(std::fs::read_dir(&rep).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".clv-tmp")));
+}
+
+/// A report killed while `clv analyze --overwrite` writes it is marked incomplete (index.html
+/// says so and how to regenerate it; no summary.json), holds none of the earlier report's
+/// files, and the same command again leaves exactly the files of an uninterrupted run. So
+/// for `clv run`, whose report is found in that state: it writes the report again.
+#[test]
+fn an_interrupted_overwrite_says_so_and_the_command_again_gives_a_clean_report() {
+    let base = scratch("faults", "report-interrupted");
+    let frames = henon_frames(&base);
+    let stream = ok(clv(&["backward", base.join("run").to_str().unwrap(), "--with-gs", "--out", "-", "--quiet"])).stdout;
+    let rep = base.join("report");
+    let r = rep.to_str().unwrap();
+    // The earlier report: every analysis, and a file of the user's own.
+    ok(clv(&["analyze", frames.to_str().unwrap(), "--out", r, "--quiet"]));
+    std::fs::write(rep.join("notes.txt"), "mine").unwrap();
+    let args = |out: &str| ["analyze", "-", "--out", out, "--overwrite", "--only", "spectrum,henon", "--quiet"].map(String::from);
+    let analyze = |out: &str| {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args(out)).stdin(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+        std::io::Write::write_all(child.stdin.as_mut().unwrap(), &stream).unwrap();
+        drop(child.stdin.take());
+        child.wait_with_output().unwrap()
+    };
+    // Half the stream, and a kill once the analyses have started on it.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args(r)).stdin(Stdio::piped()).spawn().unwrap();
+    std::io::Write::write_all(child.stdin.as_mut().unwrap(), &stream[..stream.len() / 2]).unwrap();
+    let started = std::time::Instant::now();
+    while rep.join("summary.json").exists() || rep.join("local_exponents.csv").exists() {
+        assert!(started.elapsed() < Duration::from_secs(60), "the analyses did not start on half a stream");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let html = std::fs::read_to_string(rep.join("index.html")).unwrap();
+    assert!(html.contains("Incomplete report") && html.contains("--overwrite"), "{html}");
+    // The new analyses write at the end of the stream: nothing of either report is left.
+    assert_eq!(report_contents(&rep, &[]).into_keys().collect::<Vec<_>>(), ["index.html", "notes.txt"]);
+    // The same command again, and the same into a new directory.
+    let out = analyze(r);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let clean = base.join("clean");
+    let out = analyze(clean.to_str().unwrap());
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(std::fs::read_to_string(rep.join("notes.txt")).unwrap(), "mine");
+    let (got, want) = (report_contents(&rep, &["notes.txt"]), report_contents(&clean, &[]));
+    assert_eq!(got.keys().collect::<Vec<_>>(), want.keys().collect::<Vec<_>>());
+    assert!(got == want, "the regenerated report differs from an uninterrupted one");
+
+    // `clv run` finds its report as a killed analysis leaves it: it analyses again.
+    let out = base.join("clv-run");
+    let o = out.to_str().unwrap();
+    ok(clv(&["run", "--preset", "henon", "--steps", "3000", "--out", o, "--quiet"]));
+    let report = out.join("report");
+    let before = report_contents(&report, &[]);
+    clv::stage::analyze::begin_report(&report, "a killed clv run").unwrap();
+    assert!(!report.join("summary.json").exists() && !report.join("fig1_henon.png").exists());
+    ok(clv(&["run", "--preset", "henon", "--steps", "3000", "--out", o, "--quiet"]));
+    assert!(report_contents(&report, &[]) == before, "clv run did not write its report again");
+}
+
+/// Window lengths of which none fits in the frames are refused, naming --deltas and the
+/// longest that fits, rather than giving a table of NaN; one that fits among them is kept.
+#[test]
+fn finite_time_windows_longer_than_the_stream_are_refused() {
+    let base = scratch("faults", "report-deltas");
+    let frames = henon_frames(&base);
+    let f = frames.to_str().unwrap();
+    let rep = base.join("report");
+    let out = clv(&["analyze", f, "--out", rep.to_str().unwrap(), "--deltas", "100000,5000"]);
+    let err = stderr(&out);
+    assert!(!out.status.success() && err.contains("invalid --deltas") && err.contains("give lengths up to"), "{err}");
+    assert!(!rep.join("index.html").exists(), "a refused report was written");
+    ok(clv(&["analyze", f, "--out", rep.to_str().unwrap(), "--deltas", "100000,5", "--only", "local_exponents", "--quiet"]));
+}

@@ -28,9 +28,9 @@ pub struct AnalyzeArgs {
     /// Run only these analyses (comma-separated names, e.g. spectrum,localization; an unknown name lists those that apply).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
-    /// Replace an earlier report in --out: its files that the new report does not write are
-    /// removed once the new index is written (without it, a directory that holds files is
-    /// refused).
+    /// Replace an earlier report in --out: once the first frame arrives, its files go and
+    /// index.html says the report is incomplete until the new one is written (without it, a
+    /// directory that holds files is refused).
     #[arg(long)]
     pub overwrite: bool,
     /// No progress bar or closing summary.
@@ -56,10 +56,9 @@ pub fn analyze(args: &AnalyzeArgs) -> Result<()> {
             format!("{} already holds files (an earlier report?); choose another --out, or add --overwrite to replace them", args.out.display()),
         ));
     }
-    // --overwrite replaces the report: what the earlier one wrote and the new one does not is
-    // removed once the new index is written (not before: a stream that brings no frame
-    // leaves the earlier report as it was). Other files in --out are not touched.
-    let earlier = if holds_files { clv::stage::analyze::report_files(&args.out) } else { None };
+    // --overwrite replaces the report: the earlier one's files go when the first frame
+    // arrives (analyze::begin_report; a stream that brings none leaves the report as it
+    // was). Other files in --out are not touched.
     // The number of frames is not known ahead (a stream on stdin): count and rate only.
     let bar = (!args.quiet).then(|| clv::report::progress::frames("analyze"));
     let mut on_frame = |frames: u64| {
@@ -74,14 +73,6 @@ pub fn analyze(args: &AnalyzeArgs) -> Result<()> {
     let result = clv::stage::analyze::analyze_source(&args.source, &args.out, args.every, args.j.clone(), args.deltas.clone(), &args.only, &mut on_frame);
     if let Some(bar) = &bar {
         bar.finish_and_clear();
-    }
-    // An index that was not rewritten lists what it listed before: nothing is stale.
-    if let Some(earlier) = earlier {
-        let now = clv::stage::analyze::report_files(&args.out).unwrap_or_else(|| earlier.clone());
-        for stale in earlier.difference(&now) {
-            let path = args.out.join(stale);
-            std::fs::remove_file(&path).or_else(|e| if e.kind() == std::io::ErrorKind::NotFound { Ok(()) } else { Err(e) }).map_err(|e| Error::io(&path, e))?;
-        }
     }
     let clv::stage::analyze::Analysed { produced, frames, warnings } = result?;
     for w in &warnings {

@@ -14,6 +14,17 @@
 //! What limits a report as a whole is said once, at its head (index.html, summary.json): a
 //! stream that covers less than the window its metadata describes, such as one continued
 //! with `clv backward --resume`, would otherwise give a report that looks complete.
+//!
+//! A report directory is written so that what is on disk never passes for what it is not
+//! ([`begin_report`], [`write_report_file`]): when the first frame arrives, index.html is
+//! replaced by a page that says the report is being written, and the earlier report's
+//! summary.json and files go; summary.json, the mark of a finished report, is written last.
+//! A report killed midway thus says so, and the command given again leaves exactly the
+//! files of an uninterrupted one. Every file is written under a temporary name and renamed
+//! into place (whole or absent when the process dies; a symbolic link in the way is
+//! replaced, not written through), and only plain file names directly inside the report
+//! directory are ever removed, whatever an edited summary.json lists. The files are not
+//! fsynced: a report lost to a power cut is regenerated, not recovered.
 
 pub mod convergence;
 pub mod henon;
@@ -157,11 +168,23 @@ impl Context {
                  so the vector statistics can sample every m-th step only for m a multiple of {vectors_every}, not {every}"
             )));
         }
+        let given_deltas = deltas.is_some();
         let deltas = deltas.unwrap_or_else(|| [1u64, 2, 5, 10, 20, 50, 100, 200, 500].into_iter().filter(|&dl| dl * 4 <= clv_steps.max(4)).collect());
         if deltas.contains(&0) {
             return Err(Error::param("deltas", "window lengths must be at least 1 step"));
         }
         let frame_steps = run.as_ref().zip(backward.as_ref()).and_then(|(m, o)| Window::of(m, o).ok()?.frame_steps(o));
+        // Windows of Delta consecutive frames (not computed for a file of every m-th step):
+        // lengths of which none fits would give a table of NaN only.
+        if let Some((oldest, newest)) = frame_steps.filter(|_| given_deltas && saved_every == 1) {
+            let frames = newest - oldest + 1;
+            if deltas.iter().all(|&dl| dl > frames) {
+                return Err(Error::param(
+                    "deltas",
+                    format!("{source} holds the {frames} frames of steps {oldest}..{newest}, fewer than every window length given ({deltas:?}): no window would fit; give lengths up to {frames} steps"),
+                ));
+            }
+        }
         if let Some((oldest, newest)) = frame_steps
             && newest / every * every < oldest
         {
@@ -328,7 +351,7 @@ pub struct Analyzer {
 
 impl Analyzer {
     pub fn start(ctx: Context, analyses: Vec<Box<dyn Analysis>>, out: &Path) -> Result<Self> {
-        std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+        begin_report(out, &ctx.source)?;
         let every = ctx.options.every;
         let mut workers = Vec::new();
         for mut analysis in analyses {
@@ -527,11 +550,89 @@ fn write_index(ctx: &Context, out: &Path, produced: &[Produced], warnings: &[Str
         html += "</section>\n";
     }
     html += "<p>Everything above as JSON: <a href=\"summary.json\">summary.json</a>.</p>\n</body></html>\n";
-    let path = out.join("index.html");
-    std::fs::write(&path, html).map_err(|e| Error::io(&path, e))?;
+    write_report_file(&out.join("index.html"), html.as_bytes())?;
+    // Last: a report with a summary.json is finished.
     let summary = serde_json::json!({ "frames": frames, "first_step": first, "last_step": last, "options": ctx.options, "warnings": warnings, "produced": produced });
-    let path = out.join("summary.json");
-    std::fs::write(&path, serde_json::to_vec_pretty(&summary).unwrap_or_default()).map_err(|e| Error::io(&path, e))
+    write_report_file(&out.join("summary.json"), &serde_json::to_vec_pretty(&summary).unwrap_or_default())
+}
+
+/// The suffix of the temporary names of [`write_report_file`] (after a leading dot).
+const TMP_SUFFIX: &str = ".clv-tmp";
+
+/// Write one file of a report whole: under a temporary name beside it, renamed over `path`.
+/// A killed process leaves the earlier file or the new one, never half of one, and a
+/// symbolic link at `path` is replaced by the file instead of written through.
+pub fn write_report_file(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write as _;
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}{TMP_SUFFIX}"));
+    // A leftover of a killed run: removed (a link itself, never its target), then created
+    // anew, so that nothing already there is written through.
+    let _ = std::fs::remove_file(&tmp);
+    let written = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp).and_then(|mut f| f.write_all(bytes));
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(Error::io(&tmp, e));
+    }
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+}
+
+/// Whether `name` can be a file of a report: a plain name directly inside the report
+/// directory (no directory part, not absolute, not hidden, not `..`).
+fn is_report_name(name: &str) -> bool {
+    let mut parts = Path::new(name).components();
+    !name.starts_with('.') && !name.contains(['/', '\\']) && matches!((parts.next(), parts.next()), (Some(std::path::Component::Normal(n)), None) if n == name)
+}
+
+/// Remove the report file `name` from `out`: a regular file, or a symbolic link (the link,
+/// never its target). A name that is not a report's ([`is_report_name`]), a directory, or a
+/// missing file is left alone.
+fn remove_report_file(out: &Path, name: &str) -> Result<()> {
+    if !is_report_name(name) {
+        return Ok(());
+    }
+    let path = out.join(name);
+    match std::fs::symlink_metadata(&path) {
+        Ok(m) if m.is_file() || m.is_symlink() => std::fs::remove_file(&path).map_err(|e| Error::io(&path, e)),
+        _ => Ok(()),
+    }
+}
+
+/// The page index.html shows while a report is written, and after a write that did not end.
+fn unfinished_page(out: &Path, source: &str) -> String {
+    format!(
+        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>clv analyses: incomplete</title></head><body>\n\
+         <h1>Incomplete report</h1>\n<p>clv is writing this report (from <code>{}</code>), or was stopped before it finished \
+         (a signal, an error, a full disk): the files here may be missing or partial, and there is no summary.json.</p>\n\
+         <p>To write it again, give the command that wrote it once more with <code>--overwrite</code>: \
+         <code>clv analyze SOURCE --out {} --overwrite</code> with the same options, or for the report of <code>clv run</code> the same <code>clv run</code> command.</p>\n</body></html>\n",
+        escape(source),
+        escape(&out.display().to_string())
+    )
+}
+
+/// Start writing a report into `out` (made if missing): index.html becomes a page that says
+/// the report is incomplete, then the earlier report's summary.json and the files it lists
+/// are removed, and temporary files a killed writer left. Files a report does not write
+/// (notes of the user's own) stay.
+pub fn begin_report(out: &Path, source: &str) -> Result<()> {
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let earlier = report_files(out).unwrap_or_default();
+    write_report_file(&out.join("index.html"), unfinished_page(out, source).as_bytes())?;
+    remove_report_file(out, "summary.json")?;
+    for name in earlier.iter().filter(|n| *n != "index.html") {
+        remove_report_file(out, name)?;
+    }
+    for entry in std::fs::read_dir(out).map_err(|e| Error::io(out, e))?.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name.starts_with('.') && name.ends_with(TMP_SUFFIX) {
+            let path = entry.path();
+            if entry.file_type().is_ok_and(|t| t.is_file() || t.is_symlink()) {
+                std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Write a CSV table: a header line and rows of numbers (full precision).
@@ -543,7 +644,7 @@ pub fn write_csv(path: &Path, header: &[&str], rows: impl IntoIterator<Item = Ve
         let cells: Vec<String> = row.iter().map(|&x| csv_number(x)).collect();
         let _ = writeln!(s, "{}", cells.join(","));
     }
-    std::fs::write(path, s).map_err(|e| Error::io(path, e))
+    write_report_file(path, s.as_bytes())
 }
 
 /// A CSV cell: whole numbers (indices, steps, counts, flags) as integers, `78` rather than
@@ -558,7 +659,8 @@ pub fn csv_number(x: f64) -> String {
 }
 
 /// The files of the report in `out`, as its summary.json lists them (index.html and
-/// summary.json included); None without a readable summary.
+/// summary.json included), but only names that can be a report's ([`is_report_name`]: an
+/// edited summary.json cannot name a file elsewhere); None without a readable summary.
 pub fn report_files(out: &Path) -> Option<std::collections::BTreeSet<String>> {
     let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("summary.json")).ok()?).ok()?;
     let mut files: std::collections::BTreeSet<String> = ["index.html".to_string(), "summary.json".to_string()].into();
@@ -567,12 +669,14 @@ pub fn report_files(out: &Path) -> Option<std::collections::BTreeSet<String>> {
         files.extend(names("figures").into_iter().flat_map(|stem| [format!("{stem}.png"), format!("{stem}.svg")]));
         files.extend(names("tables"));
     }
+    files.retain(|name| is_report_name(name));
     Some(files)
 }
 
-/// Save a figure as PNG and SVG.
+/// Save a figure as SVG and PNG ([`write_report_file`]).
 pub fn save_figure(fig: &crate::report::plot::Figure, out: &Path, stem: &str) -> Result<()> {
-    fig.save(out, stem).map_err(|e| Error::io(out.join(stem), e))
+    write_report_file(&out.join(format!("{stem}.svg")), fig.to_svg().as_bytes())?;
+    write_report_file(&out.join(format!("{stem}.png")), &fig.to_png())
 }
 
 /// Running mean and standard error (from the spread over frames) of a set of quantities.
@@ -709,5 +813,36 @@ mod tests {
         assert!(table.contains("<th>name</th>") && table.contains("<td>T(1,0)</td>") && table.contains("<td>0.88479</td>") && table.contains("<td>76</td>"), "{table}");
         let long: String = std::iter::once("i,x\n".to_string()).chain((0..100).map(|i| format!("{i},1e0\n"))).collect();
         assert!(html_table(&long).is_none());
+    }
+
+    #[test]
+    fn only_plain_names_inside_the_report_are_report_files() {
+        for name in ["spectrum.csv", "fig2_spectrum.png", "a..b.csv"] {
+            assert!(is_report_name(name), "{name}");
+        }
+        for name in ["", ".", "..", "../victim.txt", "/etc/passwd", "sub/x.csv", "a\\b.csv", ".hidden", ".x.clv-tmp"] {
+            assert!(!is_report_name(name), "{name}");
+        }
+    }
+
+    #[test]
+    fn report_files_replace_links_and_removal_spares_their_targets() {
+        let dir = std::env::temp_dir().join(format!("clv-report-files-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let out = dir.join("report");
+        std::fs::create_dir_all(&out).unwrap();
+        std::fs::write(dir.join("target.txt"), "theirs").unwrap();
+        std::os::unix::fs::symlink("../target.txt", out.join("a.csv")).unwrap();
+        write_report_file(&out.join("a.csv"), b"ours").unwrap();
+        assert_eq!(std::fs::read_to_string(dir.join("target.txt")).unwrap(), "theirs");
+        assert!(std::fs::symlink_metadata(out.join("a.csv")).unwrap().is_file());
+        std::os::unix::fs::symlink("../target.txt", out.join("b.csv")).unwrap();
+        std::fs::create_dir(out.join("c.csv")).unwrap();
+        for name in ["b.csv", "c.csv", "../target.txt", "missing.csv"] {
+            remove_report_file(&out, name).unwrap();
+        }
+        assert!(std::fs::symlink_metadata(out.join("b.csv")).is_err() && out.join("c.csv").is_dir());
+        assert_eq!(std::fs::read_to_string(dir.join("target.txt")).unwrap(), "theirs");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

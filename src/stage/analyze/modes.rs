@@ -33,7 +33,7 @@
 use super::kernels::modes::{self as km, Candidates, Family, ModeKind, ModeMatch, Part, SineFit, Step, Wave};
 use super::kernels::vecset;
 use super::{save_figure, write_csv, Analysis, Context, Mean, Produced};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
 use crate::stage::frame::Frame;
 use serde::Serialize;
@@ -204,7 +204,7 @@ pub(super) fn write_text_csv(path: &Path, header: &[&str], rows: &[Vec<String>])
     for row in rows {
         s += &line(row.iter().map(|c| quote(c)).collect());
     }
-    std::fs::write(path, s).map_err(|e| Error::io(path, e))
+    super::write_report_file(path, s.as_bytes())
 }
 
 struct StepAcc {
@@ -441,8 +441,7 @@ impl Analysis for Modes {
             "note": why,
             "modes": rows,
         });
-        let path = out.join("modes.json");
-        std::fs::write(&path, serde_json::to_vec_pretty(&json).unwrap_or_default()).map_err(|e| Error::io(&path, e))?;
+        super::write_report_file(&out.join("modes.json"), &serde_json::to_vec_pretty(&json).unwrap_or_default())?;
 
         // Averaged sine fits of the two-fold steps classified T.
         let mut fit_rows = Vec::new();

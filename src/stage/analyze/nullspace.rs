@@ -11,7 +11,7 @@
 use super::kernels::angles::max_principal_angle;
 use super::kernels::nullspace::{null_projections, null_space_angle};
 use super::{save_figure, write_csv, Analysis, Context, Produced};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
 use crate::stage::frame::Frame;
 use serde::Serialize;
@@ -129,8 +129,7 @@ impl Analysis for NullSpace {
             "alpha": table.alpha,
             "beta": table.beta,
         });
-        let path = out.join("nullspace_tables.json");
-        std::fs::write(&path, serde_json::to_vec_pretty(&json).unwrap_or_default()).map_err(|e| Error::io(&path, e))?;
+        super::write_report_file(&out.join("nullspace_tables.json"), &serde_json::to_vec_pretty(&json).unwrap_or_default())?;
         tables.push("nullspace_tables.json".into());
 
         self.rows.sort_by_key(|r| r.step);
