@@ -5,6 +5,7 @@
 mod analyze;
 mod backward;
 mod bench;
+mod config_file;
 mod forward;
 mod inspect;
 mod run;
@@ -110,7 +111,7 @@ fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
     }
     let Some(file) = file else { return Ok(raw) };
     let mut argv = raw[..2].to_vec();
-    argv.extend(clv::report::config_file::expand(std::path::Path::new(&file), &config_keys())?);
+    argv.extend(config_file::expand(std::path::Path::new(&file), &config_keys())?);
     // A bad value in the file is the file's error, not the command line's.
     if let Err(e) = Cli::try_parse_from(&argv) {
         return Err(Error::Other(format!("{file}: {}", first_line(&e))));
@@ -157,7 +158,7 @@ pub fn execute(cli: &Cli, matches: &ArgMatches) -> Result<()> {
         Command::Run(args) => run::run(args, sub("run")),
         Command::Combine(args) => clv::report::combine::combine(&args.runs).and_then(|c| if args.json { print_json(&c) } else { emit(&c.table()) }),
         Command::Bench(args) => bench::bench(args),
-        Command::Config(args) => RunConfig::preset(&args.preset).and_then(|c| emit(&clv::report::config_file::render(&args.preset, &c, &clv::store::run::StoreConfig::for_run(&c)))),
+        Command::Config(args) => RunConfig::preset(&args.preset).and_then(|c| emit(&config_file::render(&args.preset, &c, &clv::store::run::StoreConfig::for_run(&c)))),
     };
     result.map_err(|e| e.on_full_disk(|| how_to_continue(&cli.command)))
 }

@@ -55,7 +55,7 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
     let mut argv = vec!["clv".to_string(), "forward".to_string()];
     match &args.config {
         Some(path) => {
-            argv.extend(clv::report::config_file::expand(path, &keys)?);
+            argv.extend(super::config_file::expand(path, &keys)?);
             // A bad value in the file is the file's error, not the command line's.
             Cli::try_parse_from(&argv).map_err(|e| Error::Other(format!("{}: {}", path.display(), first_line(&e))))?;
         }

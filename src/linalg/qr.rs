@@ -1,4 +1,4 @@
-//! The QR step Gbar_n = G_n R_n (paper Eq. 4) with explicit G_n and a positive diagonal of R.
+//! The QR step Gbar_n = G_n R_n (paper Sec. 3) with explicit G_n and a positive diagonal of R.
 //!
 //! A forward step spends nearly all its time here (8/3 D^3 flops for k = D), so this is our
 //! own driver around faer's sequential kernels, built to use two cores well:
@@ -601,5 +601,6 @@ mod tests {
         let mut g = Tangent::zeros(8, 0);
         let mut r = Mat::zeros(0, 0);
         Qr::new(8, 0, 2).factor(&mut g, &mut r);
+        assert_eq!((g.rows_mut().len(), r.nrows(), r.ncols()), (0, 0, 0));
     }
 }

@@ -1,7 +1,6 @@
 //! What a person sees: the spectrum table and the JSON summary of a run.
 
 pub mod combine;
-pub mod config_file;
 pub mod inspect;
 pub mod plot;
 pub mod progress;

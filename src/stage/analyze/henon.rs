@@ -19,8 +19,7 @@
 //!   (along the stable manifold), and the orthogonal GS vectors g^1 = v^1, g^2 when the
 //!   frames carry them.
 
-use super::modes::write_text_csv;
-use super::{save_figure, write_csv, Analysis, Context, Produced};
+use super::{save_figure, write_csv, write_text_csv, Analysis, Context, Produced};
 use crate::config::SystemConfig;
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};

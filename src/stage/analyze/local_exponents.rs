@@ -1,7 +1,9 @@
 //! Local exponents and the domination test (paper Sec. 6, the conclusion).
 //!
 //! The local CLV exponent Lambda_l(t_n) = ln |D phi^tau v^l(t_n)| / tau (every frame carries
-//! them) fluctuates strongly; averaged over Delta steps it gives a finite-time exponent. The
+//! them) fluctuates strongly. Frame n carries the growth over [t_n, t_(n+1)], the step
+//! column says n; the paper (Sec. 6) writes the growth over [t_(n-1), t_n] as Lambda at
+//! t_n, one step later than here. The fluctuations averaged over Delta steps it gives a finite-time exponent. The
 //! Oseledec splitting is dominated if the finite-time exponents do not change their order for
 //! any Delta beyond some finite Delta_0, so the fraction of windows in which an index i+1
 //! overtakes index i must vanish as Delta grows.

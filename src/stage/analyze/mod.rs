@@ -31,6 +31,7 @@ pub mod henon;
 pub mod kernels;
 pub mod local_exponents;
 pub mod localization;
+pub mod mode_steps;
 pub mod modes;
 pub mod nullspace;
 pub mod overlaps;
@@ -69,7 +70,7 @@ pub struct Context {
     pub run: Option<RunMeta>,
     /// The forward (Gram-Schmidt) spectrum of the run, if known.
     pub gs: Option<SpectrumSummary>,
-    /// "disks" or "henon".
+    /// "disks", "henon" or "lorenz".
     pub system: String,
     pub d: usize,
     pub k: usize,
@@ -643,6 +644,18 @@ pub fn write_csv(path: &Path, header: &[&str], rows: impl IntoIterator<Item = Ve
     for row in rows {
         let cells: Vec<String> = row.iter().map(|&x| csv_number(x)).collect();
         let _ = writeln!(s, "{}", cells.join(","));
+    }
+    write_report_file(path, s.as_bytes())
+}
+
+/// Write a CSV whose cells are already formatted (text columns such as mode names); cells
+/// with commas or quotes are quoted (RFC 4180).
+pub fn write_text_csv(path: &Path, header: &[&str], rows: &[Vec<String>]) -> Result<()> {
+    let quote = |c: &str| if c.contains([',', '"', '\n']) { format!("\"{}\"", c.replace('"', "\"\"")) } else { c.to_string() };
+    let line = |cells: Vec<String>| cells.join(",") + "\n";
+    let mut s = line(header.iter().map(|c| quote(c)).collect());
+    for row in rows {
+        s += &line(row.iter().map(|c| quote(c)).collect());
     }
     write_report_file(path, s.as_bytes())
 }

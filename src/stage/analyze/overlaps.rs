@@ -6,8 +6,10 @@
 //! * Fig. 4: <|v^j . g^i|> against i for the selected j (needs GS vectors). V_n = G_n C_n with
 //!   upper-triangular C_n puts v^j into span{g^1..g^j}: the curve vanishes for i > j.
 //! * Fig. 13: <|v^j . v^i|> against i (i != j) for the selected j (CLVs only).
-//! * Fig. 14: the same for j in the mode region (here j = 2N-3 and 2N-5, the two positive
-//!   indices next to the null space), restricted to the central part of the spectrum.
+//! * Fig. 14: the same for j in the mode region, restricted to the central part of the
+//!   spectrum: the last index of each of the two positive degenerate steps nearest the null
+//!   space ([`super::mode_steps::detect_steps`]; 2N-3 of T(1,0) and 2N-5 of LP(1,0) in the
+//!   paper's box), or 2N-5 and 2N-3 where the frames carry no spectrum to find steps in.
 //!
 //! The absolute value is taken because only the direction of a tangent vector matters (the
 //! paper, Sec. 5.1). Averages run over the consumed frames (those of every m-th step, `--every`).
@@ -27,6 +29,9 @@ pub struct Overlaps {
     js: Vec<usize>,
     /// Mode indices j (0-based) of Fig. 14.
     mode_js: Vec<usize>,
+    /// `mode_js` end the steps [`super::mode_steps::detect_steps`] found (else the fixed
+    /// 2N-5, 2N-3).
+    mode_js_from_steps: bool,
     /// The conjugate partners 4N+1-j of `js` (0-based), Fig. 13's second plot.
     conjugate_js: Vec<usize>,
     /// <|v^j . g^i|> per selected j (Fig. 4), with GS vectors.
@@ -42,9 +47,13 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
         return None;
     }
     let js: Vec<usize> = ctx.options.j.iter().map(|j| j - 1).filter(|&j| j < ctx.k).collect();
-    // Fig. 14: the two positive indices nearest the null space, which carry the slowest
-    // modes (T(1,0) and LP(1,0) in the paper's box).
+    // Fig. 14: a vector of each of the two slowest modes, the positive steps nearest the
+    // null space (T(1,0) and LP(1,0) in the paper's box, T(1,0)+T(0,1) first in a square).
+    let mut step_ends: Vec<usize> = super::mode_steps::detect_steps(ctx).unwrap_or_default().iter().filter(|s| super::mode_steps::is_positive(s, ctx.d)).map(|s| s.start + s.len - 1).collect();
+    step_ends.sort_unstable();
+    let mode_js_from_steps = !step_ends.is_empty();
     let mode_js: Vec<usize> = match ctx.central_range() {
+        Some(_) if mode_js_from_steps => step_ends.into_iter().rev().take(2).rev().collect(),
         Some(_) if ctx.n >= 3 => vec![2 * ctx.n - 6, 2 * ctx.n - 4],
         _ => Vec::new(),
     };
@@ -61,6 +70,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
         vv: vv_js.iter().map(|_| Mean::new(ctx.k)).collect(),
         js,
         mode_js,
+        mode_js_from_steps,
         conjugate_js,
         vv_js,
     }))
@@ -228,8 +238,13 @@ impl Analysis for Overlaps {
                 produced.push(Produced {
                     title: "Scalar products of mode vectors (Fig. 14)".into(),
                     caption: format!(
-                        "Time average of |v^j · v^i| for j = {} (2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any: see the mode table) against i = {}..{} (i != j), {avg}. Mode vectors overlap with the vectors of the same degenerate exponent and, less, with the conjugate ones.",
+                        "Time average of |v^j · v^i| for j = {} ({}) against i = {}..{} (i != j), {avg}. Mode vectors overlap with the vectors of the same degenerate exponent and, less, with the conjugate ones.",
                         list(&self.mode_js),
+                        if self.mode_js_from_steps {
+                            "the last index of each of the two positive degenerate steps of the GS spectrum nearest the null space, where the slowest modes sit: the mode table says what they are"
+                        } else {
+                            "2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any; the GS spectrum shows no degenerate steps to choose by"
+                        },
                         a + 1,
                         b + 1
                     ),

@@ -2,7 +2,7 @@
 //!
 //! * Fig. 15: distributions over frames of the smallest principal angle Phi between every
 //!   mode subspace E^(X) (the 2- and 4-fold steps next to the null space found by
-//!   [`super::modes::detect_steps`] and [`super::modes::resolve_steps`] at the first frame,
+//!   [`super::mode_steps::detect_steps`] and [`super::mode_steps::resolve_steps`] at the first frame,
 //!   positive side) and its conjugate subspace E^(X)*, and of
 //!   the smallest principal angle Psi between E^u = v^1 + ... + v^(2N-3) and
 //!   E^s = v^(2N+4) + ... + v^(4N) (m = 2N-3 CLVs each). Psi > 0 in every frame is the
@@ -19,7 +19,7 @@
 use super::kernels::angles;
 use super::kernels::modes::Step;
 use super::kernels::vecset;
-use super::modes;
+use super::mode_steps;
 use super::{save_figure, write_csv, Analysis, Context, Produced};
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
@@ -40,7 +40,7 @@ const SMALL: f64 = 1e-3;
 pub fn f_size(d: usize, steps: &[Step]) -> usize {
     let m = (d / 2).saturating_sub(3);
     let scaled = (370.0 * d as f64 / 792.0).round() as usize;
-    let before_modes = steps.iter().filter(|s| modes::is_positive(s, d)).map(|s| s.start).min().unwrap_or(m);
+    let before_modes = steps.iter().filter(|s| mode_steps::is_positive(s, d)).map(|s| s.start).min().unwrap_or(m);
     scaled.min(m).min(before_modes)
 }
 
@@ -172,7 +172,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     Some(Box::new(Transversality {
         ctx: ctx.clone(),
         m: ctx.d / 2 - 3,
-        detected: modes::detect_steps(ctx).unwrap_or_default(),
+        detected: mode_steps::detect_steps(ctx).unwrap_or_default(),
         steps: Vec::new(),
         labels: Vec::new(),
         frame_steps: Vec::new(),
@@ -199,16 +199,16 @@ impl Analysis for Transversality {
         let d = frame.d;
         if self.theta.is_none() {
             let exponents = self.ctx.gs.as_ref().map(|g| g.exponents.as_slice()).unwrap_or_default();
-            let candidates = modes::candidates(&self.ctx);
-            self.steps = modes::resolve_steps(&self.detected, frame, &candidates, exponents).into_iter().map(|(s, _)| s).filter(|s| modes::is_positive(s, d)).collect();
+            let candidates = mode_steps::candidates(&self.ctx);
+            self.steps = mode_steps::resolve_steps(&self.detected, frame, &candidates, exponents).into_iter().map(|(s, _)| s).filter(|s| mode_steps::is_positive(s, d)).collect();
             self.phi = vec![Vec::new(); self.steps.len()];
             let j = f_size(d, &self.steps);
             self.theta = Some(ThetaStats::new(j, separations(d, j)));
             self.labels = self
                 .steps
                 .iter()
-                .map(|s| match modes::classify_clearly(frame, s, &candidates) {
-                    Some(m) if modes::matches_degeneracy(s, m.kind, &candidates.families[m.family]) => format!("{} ({})", candidates.families[m.family].name(m.kind), step_range(s)),
+                .map(|s| match mode_steps::classify_clearly(frame, s, &candidates) {
+                    Some(m) if mode_steps::matches_degeneracy(s, m.kind, &candidates.families[m.family]) => format!("{} ({})", candidates.families[m.family].name(m.kind), step_range(s)),
                     _ => format!("{}-fold step ({})", s.len, step_range(s)),
                 })
                 .collect();

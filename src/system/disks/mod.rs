@@ -45,15 +45,27 @@ impl HardDisks {
         let mut rng = Rng::new(seed);
         let pos = lattice(n, lx, ly, &mut rng)?;
         // Velocities in opposite pairs: the total momentum is exactly zero, summed in order.
+        // An odd N ends with a triple v, w, -(v + w), so that no disk starts at rest.
         let mut vel = vec![[0.0; 2]; n];
-        for p in 0..n / 2 {
+        let pairs = if n % 2 == 1 && n >= 3 { (n - 3) / 2 } else { n / 2 };
+        for p in 0..pairs {
             let g = [rng.normal(), rng.normal()];
             vel[2 * p] = g;
             vel[2 * p + 1] = [-g[0], -g[1]];
         }
+        if n % 2 == 1 && n >= 3 {
+            let (v, w) = ([rng.normal(), rng.normal()], [rng.normal(), rng.normal()]);
+            vel[n - 3] = v;
+            vel[n - 2] = w;
+            vel[n - 1] = [-(v[0] + w[0]), -(v[1] + w[1])];
+        }
         let k2: f64 = vel.iter().map(|v| v[0] * v[0] + v[1] * v[1]).sum();
         let scale = (2.0 * n as f64 / k2).sqrt();
         vel.iter_mut().for_each(|v| *v = [v[0] * scale, v[1] * scale]);
+        if n % 2 == 1 && n >= 3 {
+            // Scaled, -(v + w) is no longer exactly the negated sum: make it so again.
+            vel[n - 1] = [-(vel[n - 3][0] + vel[n - 2][0]), -(vel[n - 3][1] + vel[n - 2][1])];
+        }
         Ok(HardDisks { lx, ly, tau, pos, vel, collisions: 0, engine: Engine::default() })
     }
 

@@ -215,6 +215,24 @@ fn conserves_energy_and_momentum_without_overlap() {
     }
 }
 
+/// Every disk moves at the start, also for odd N (whose last three disks take v, w,
+/// -(v + w)); the total momentum is zero exactly and K = N.
+#[test]
+fn initial_velocities_are_random_for_every_disk_with_zero_momentum() {
+    for n in [2usize, 3, 5, 8, 9] {
+        let (lx, ly) = box_sides(n, 0.5, 1.0);
+        let s = HardDisks::new(n, lx, ly, 0.6, 11).unwrap();
+        let inv = s.invariants();
+        assert_eq!(inv.momentum, [0.0, 0.0], "N = {n}");
+        assert!((inv.energy / n as f64 - 1.0).abs() < 1e-14, "N = {n}: K/N = {}", inv.energy / n as f64);
+        let phase = s.snapshot().phase;
+        for i in 0..n {
+            let (px, py) = (phase[2 * n + 2 * i], phase[2 * n + 2 * i + 1]);
+            assert!(px.hypot(py) > 1e-6, "N = {n}: disk {i} starts at rest");
+        }
+    }
+}
+
 #[test]
 fn snapshot_restore_continues_bit_for_bit() {
     let mut a = relaxed(16, 4, 0.6);

@@ -5,9 +5,9 @@
 //! command line override the file. Supported TOML: `[section]` headers (for readability
 //! only), `key = value` with numbers, "strings" and booleans, and `#` comments.
 
-use crate::config::{RunConfig, SystemConfig};
-use crate::error::{Error, Result};
-use crate::store::run::StoreConfig;
+use clv::config::{RunConfig, SystemConfig};
+use clv::error::{Error, Result};
+use clv::store::run::StoreConfig;
 use std::fmt::Write;
 use std::path::Path;
 

@@ -1,0 +1,152 @@
+//! Which steps of the spectrum are Lyapunov modes, and what they are: shared by the mode
+//! table (paper Sec. 5.5, [`super::modes`]) and every analysis that names steps by their mode
+//! (the transversality of the mode subspaces, Figs. 15-17), so that both find the same steps
+//! and call them the same. The projections themselves are [`km`]'s; this adds the rules
+//! that turn them into decisions (which exponents form a step, when a step counts as
+//! classified, when a short step is half of an LP mode).
+
+use super::kernels::modes::{self as km, Candidates, Family, ModeKind, ModeMatch, Part, Step};
+use super::Context;
+use crate::stage::frame::Frame;
+
+/// Candidate wave vectors have |k| up to 2 pi MAX_N / max(L_x, L_y): (n_x, 0) up to
+/// n_x = 4 in the paper's box.
+pub const MAX_N: usize = 4;
+/// The least share of a step's vectors beyond chance ([`excess`]) in its majority
+/// candidate's span that counts as a classification. Modes have 0.56-0.97 (the paper's run,
+/// ours of N = 40 and 100, a square of N = 100); a step that is no mode 0.05 (our N = 40
+/// system in the paper's box turned by 90 degrees, before modes along y were candidates:
+/// "LP(3,0)" at a fraction of 0.10 against the chance 4/80 won 56 % of the frames; an
+/// 8-dimensional family of N = 8 disks: 0.53 against the chance 0.5).
+pub const MIN_FRACTION: f64 = 0.3;
+/// Neighbouring exponents within this many combined standard errors form a step.
+pub const STEP_TOL: f64 = 3.0;
+/// How many indices on either side of the null space are searched for mode steps: the
+/// paper's N = 198 system has 18 mode indices per side (T and LP for n_x = 1, 2, 3). At
+/// least the T and LP steps of the smallest |k| fit (12 in a square box).
+pub fn step_window(d: usize, candidates: &Candidates) -> usize {
+    let k_min = candidates.families.first().map_or(0.0, |f| f.k);
+    let first = candidates.families.iter().filter(|f| f.k == k_min).map(|f| f.dim(ModeKind::T) + f.dim(ModeKind::LP)).max().unwrap_or(0);
+    (d / 16).max(8).max(first)
+}
+
+/// The candidate modes of the run's box.
+pub fn candidates(ctx: &Context) -> Candidates {
+    Candidates::new(ctx.lx, ctx.ly, MAX_N)
+}
+
+/// The steps of the forward GS spectrum next to the null space (both sides) that the
+/// candidates' modes could make, or why there are none to look for.
+pub fn detect_steps(ctx: &Context) -> std::result::Result<Vec<Step>, String> {
+    if ctx.k != ctx.d || ctx.d < 8 {
+        return Err(format!("mode detection needs all D = {} vectors and exponents; the frames carry {}", ctx.d, ctx.k));
+    }
+    let Some(gs) = &ctx.gs else {
+        return Err("the frame stream carries no forward GS spectrum to find the degenerate steps in".into());
+    };
+    if gs.exponents.len() != ctx.d || gs.stderr.len() != ctx.d {
+        return Err(format!("the GS spectrum has {} exponents, expected D = {}", gs.exponents.len(), ctx.d));
+    }
+    Ok(km::mode_steps(&gs.exponents, &gs.stderr, STEP_TOL, step_window(ctx.d, &candidates(ctx)), &candidates(ctx).step_lengths()))
+}
+
+/// The steps to analyse, fixed at the first frame: `detected` (from [`detect_steps`]) with
+/// every step whose vectors classify clearly ([`classify_clearly`]) as L, P or LP and that is
+/// shorter than that LP mode (half of an LP quadruplet split by the statistical test) widened
+/// to the block of the LP mode's size containing it, on the same side of the null space and
+/// overlapping no other step, whose vectors have the largest fraction in the LP span, if
+/// that block stands apart from its neighbours (its spread below both gaps to them: the
+/// smooth part of a spectrum is no step). A step that mirrors a positive one (conjugate
+/// pairing) takes the mirror of its resolution. The flag marks widened steps. Exponent means
+/// are recomputed from `exponents` (the GS spectrum).
+pub fn resolve_steps(detected: &[Step], frame: &Frame, candidates: &Candidates, exponents: &[f64]) -> Vec<(Step, bool)> {
+    let d = frame.d;
+    let (null_lo, null_hi) = (d / 2 - 3, d / 2 + 3);
+    let set = frame.g.as_deref().unwrap_or(&frame.v);
+    let at = |start: usize, len: usize| Step { start, len, mean: exponents[start..start + len].iter().sum::<f64>() / len as f64 };
+    let mirror = |s: &Step| (d - s.start - s.len, s.len);
+    let stands_apart = |c: &Step| {
+        let spread = (exponents[c.start] - exponents[c.start + c.len - 1]).abs();
+        let gap = |i: usize, j: usize| (exponents[i] - exponents[j]).abs();
+        c.start > 0 && c.start + c.len < d && spread < gap(c.start - 1, c.start) && spread < gap(c.start + c.len - 1, c.start + c.len)
+    };
+    let mut out: Vec<(Step, bool)> = Vec::new();
+    for (i, step) in detected.iter().enumerate() {
+        let conjugate = detected.iter().position(|o| is_positive(o, d) && !is_positive(step, d) && mirror(o) == (step.start, step.len));
+        if let Some(j) = conjugate.filter(|&j| j < out.len()) {
+            let (start, len) = mirror(&out[j].0);
+            out.push((at(start, len), out[j].1));
+            continue;
+        }
+        let widened = match classify_clearly(frame, step, candidates) {
+            Some(m) if m.kind != ModeKind::T && step.len < candidates.families[m.family].dim(ModeKind::LP) => {
+                let len = candidates.families[m.family].dim(ModeKind::LP);
+                let free = |c: &Step| {
+                    let side = c.start + c.len <= null_lo || c.start >= null_hi;
+                    let clear = detected.iter().enumerate().all(|(j, o)| j == i || o.start >= c.start + c.len || c.start >= o.start + o.len);
+                    side && clear
+                };
+                let lp_family = Candidates { families: vec![candidates.families[m.family].clone()], ..*candidates };
+                ((step.start + step.len).saturating_sub(len)..=step.start)
+                    .filter(|&start| start + len <= exponents.len())
+                    .map(|start| at(start, len))
+                    .filter(|c| free(c) && stands_apart(c))
+                    .map(|c| {
+                        let lp = km::mode_fractions(group(set, d, &c), &frame.phase, &lp_family, Part::Position)
+                            .into_iter()
+                            .find(|f| f.kind == ModeKind::LP)
+                            .map_or(f64::NAN, |f| f.fraction);
+                        (c, lp)
+                    })
+                    .filter(|(_, lp)| lp.is_finite())
+                    .max_by(|a, b| a.1.total_cmp(&b.1))
+                    .map(|(c, _)| c)
+            }
+            _ => None,
+        };
+        out.push(match widened {
+            Some(c) => (c, true),
+            None => (*step, false),
+        });
+    }
+    out
+}
+
+/// True for a step on the positive side of the null space (an unstable mode).
+pub fn is_positive(step: &Step, d: usize) -> bool {
+    step.start + step.len <= d / 2 - 3
+}
+
+/// The step's vectors (column-major D x len) out of a full set.
+pub fn group<'a>(set: &'a [f64], d: usize, step: &Step) -> &'a [f64] {
+    &set[step.start * d..(step.start + step.len) * d]
+}
+
+/// Best Table IV match of a step in one frame, by its GS vectors if the frame has them, else
+/// by its CLVs (paper Sec. 5.5: GS-based classification of the position perturbations).
+pub fn classify_step(frame: &Frame, step: &Step, candidates: &Candidates) -> Option<ModeMatch> {
+    let set = frame.g.as_deref().unwrap_or(&frame.v);
+    km::classify_mode(group(set, frame.d, step), &frame.phase, candidates, Part::Position)
+}
+
+/// How much of a step's vectors a candidate of dimension `dim` explains beyond chance:
+/// (fraction - c) / (1 - c), with c = dim / 2N the fraction of a random vector (0 for
+/// chance, 1 for a pure mode); NaN where the span is the whole space of positions.
+pub fn excess(fraction: f64, dim: usize, d: usize) -> f64 {
+    let chance = dim as f64 / (d / 2) as f64;
+    if chance >= 1.0 { f64::NAN } else { (fraction - chance) / (1.0 - chance) }
+}
+
+/// [`classify_step`], if its match explains at least [`MIN_FRACTION`] of the vectors beyond
+/// chance ([`excess`]): what the mode table counts as classified, and what the other
+/// analyses name steps by.
+pub fn classify_clearly(frame: &Frame, step: &Step, candidates: &Candidates) -> Option<ModeMatch> {
+    classify_step(frame, step, candidates).filter(|m| excess(m.fraction, candidates.families[m.family].dim(m.kind), frame.d) >= MIN_FRACTION)
+}
+
+/// Whether a class is what the step's degeneracy suggests: the size of the T mode's step for
+/// T, of the LP mode's for L, P or LP (a pure L or P vector group is half of an LP step).
+pub fn matches_degeneracy(step: &Step, kind: ModeKind, family: &Family) -> bool {
+    let kind = if kind == ModeKind::T { kind } else { ModeKind::LP };
+    step.len == family.dim(kind)
+}
