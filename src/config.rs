@@ -107,6 +107,10 @@ pub struct RunConfig {
 
 /// The longest time between two QR steps that [`RunConfig::validate`] accepts.
 pub const MAX_TAU: f64 = 1e4;
+/// The shortest: a growth of lambda tau per step must stand well above round-off (1e-16).
+pub const MIN_TAU: f64 = 1e-9;
+/// More threads than any machine this runs on has cores.
+pub const MAX_THREADS: usize = 4096;
 
 impl RunConfig {
     /// The same run, perhaps on another number of threads (which the numbers do not depend
@@ -133,6 +137,12 @@ impl RunConfig {
         if !(self.tau > 0.0 && self.tau.is_finite()) {
             return Err(Error::param("tau", format!("must be a positive number, got {}", self.tau)));
         }
+        if self.tau < MIN_TAU {
+            return Err(Error::param("tau", format!(
+                "{:e} is so short that the tangent vectors change by round-off only between two QR steps (all exponents would come out 0); give at least {MIN_TAU:e}",
+                self.tau
+            )));
+        }
         // Between two QR steps the tangent vectors grow like e^(lambda_1 tau) and overflow
         // beyond e^709: no chaotic system gets through a much longer interval in one piece.
         if self.tau > MAX_TAU {
@@ -150,12 +160,13 @@ impl RunConfig {
         if self.relax_steps.checked_add(self.steps).is_none_or(|total| total > 1 << 53) {
             return Err(Error::param("steps", format!("--relax-steps {} plus --steps {} is beyond any run (2^53 steps at most)", self.relax_steps, self.steps)));
         }
-        if self.threads == 0 {
-            return Err(Error::param("threads", "must be at least 1"));
+        if self.threads == 0 || self.threads > MAX_THREADS {
+            return Err(Error::param("threads", format!("must be between 1 and {MAX_THREADS}, got {}", self.threads)));
         }
         if self.blocks < 2 {
             return Err(Error::param("blocks", "need at least 2 blocks for a standard error"));
         }
+
         Ok(())
     }
 

@@ -432,6 +432,8 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
         (vec!["forward", "--n", "4", "--vectors", "17", "--out", o], "--vectors"),
         (vec!["forward", "--n", "4", "--tau", "0", "--out", o], "--tau"),
         (vec!["forward", "--n", "4", "--tau=-1", "--out", o], "--tau"),
+        (vec!["forward", "--n", "4", "--tau", "1e-308", "--out", o], "--tau: 1e-308 is so short"),
+        (vec!["forward", "--n", "4", "--threads", "4294967297", "--out", o], "--threads: must be between 1 and 4096"),
         (vec!["forward", "--n", "4", "--steps", "100", "--relax-steps", "10", "--checkpoint-every", "500", "--out", o], "--checkpoint-every"),
         (vec!["forward", "--n", "4", "--steps", "100", "--clv-steps", "90", "--transient", "50", "--out", o], "--clv-steps"),
         // A sum that wraps around u64 is still too long.

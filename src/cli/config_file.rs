@@ -41,7 +41,8 @@ pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
         match value.as_str() {
             "true" => args.push(format!("--{key}")),
             "false" => {}
-            _ => args.extend([format!("--{key}"), value]),
+            // One argument `--key=value`: a negative number is a value, not a flag.
+            _ => args.push(format!("--{key}={value}")),
         }
     }
     Ok(args)
@@ -121,7 +122,7 @@ mod tests {
             .collect();
         let args = expand(&path, &known).unwrap();
         let joined = args.join(" ");
-        assert!(joined.contains("--n 198") && joined.contains("--steps 240000") && joined.contains("--system disks"), "{joined}");
+        assert!(joined.contains("--n=198") && joined.contains("--steps=240000") && joined.contains("--system=disks"), "{joined}");
         // Defaults are comments: k = D and the CLV window follow n and steps when edited.
         assert!(text.contains("# vectors = 792") && text.contains("# clv-steps = 25000") && text.contains("# transient = 12500"), "{text}");
         assert!(!joined.contains("--vectors") && !joined.contains("--clv-steps") && !joined.contains("--transient"), "{joined}");
@@ -131,12 +132,15 @@ mod tests {
             std::fs::write(&path, render("paper", &config, &store)).unwrap();
             expand(&path, &known).unwrap().join(" ")
         };
-        assert!(args.contains("--clv-steps 1000") && args.contains("--transient 12500"), "a window of its own is written: {args}");
+        assert!(args.contains("--clv-steps=1000") && args.contains("--transient=12500"), "a window of its own is written: {args}");
         std::fs::write(&path, "[run]\nsteps = 10 # comment\nbogus = 3\n").unwrap();
         let err = expand(&path, &known).unwrap_err().to_string();
         assert!(err.contains("paper.toml:3") && err.contains("bogus") && err.contains("steps"), "{err}");
         std::fs::write(&path, "name = \"a # b\"\n").unwrap();
-        assert!(expand(&path, &["name".to_string()]).unwrap() == ["--name", "a # b"]);
+        assert!(expand(&path, &["name".to_string()]).unwrap() == ["--name=a # b"]);
+        // A negative number is the value, not a flag of its own.
+        std::fs::write(&path, "n = -8\n").unwrap();
+        assert_eq!(expand(&path, &known).unwrap(), ["--n=-8"]);
         std::fs::write(&path, "steps = ten\n").unwrap();
         assert!(expand(&path, &known).unwrap_err().to_string().contains("must be a number"));
         // A setting given twice is refused (TOML forbids it; which one wins would be a guess).

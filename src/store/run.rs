@@ -93,7 +93,8 @@ impl StoreConfig {
         // In f64: a system too large for any disk must still get a number (saturated), not a
         // wrapped one.
         let (d, k) = (config.system.dim() as f64, config.vectors as f64);
-        let blocks = config.blocks as f64 + 1.0;
+        // A run of fewer steps than --blocks has one block per step.
+        let blocks = (config.blocks as u64).min(config.steps) as f64 + 1.0;
         (8.0 * (d * k + d + k * (3.0 + blocks)) + 4.0 * k * (k + 1.0) + 8.0 * 3.0 * k + 600.0) as u64
     }
 
