@@ -493,15 +493,14 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
     }
     // A run made by a build with other numerics cannot be continued bit for bit: refused.
     let original = std::fs::read_to_string(dir.join("run.json")).unwrap();
-    std::fs::write(dir.join("run.json"), original.replace("clv-numerics/", "clv-numerics-old/")).unwrap();
+    reseal(&dir.join("run.json"), &original.replace("clv-numerics/", "clv-numerics-old/"));
     for cmd in [vec!["forward", "--resume", dir.to_str().unwrap()], vec!["backward", dir.to_str().unwrap()]] {
         let out = clv(&cmd);
         let err = stderr(&out);
         assert!(!out.status.success() && err.contains("another build") && err.contains("bit for bit"), "{cmd:?}: {err}");
     }
     std::fs::write(dir.join("run.json"), &original).unwrap();
-    let json = std::fs::read_to_string(dir.join("run.json")).unwrap().replace("clv-run/1", "clv-run/99");
-    std::fs::write(dir.join("run.json"), json).unwrap();
+    reseal(&dir.join("run.json"), &original.replace("clv-run/1", "clv-run/99"));
     let out = clv(&["forward", "--resume", dir.to_str().unwrap()]);
     let err = stderr(&out);
     assert!(!out.status.success() && err.contains("run.json") && err.contains("clv-run/99"), "{err}");
@@ -728,7 +727,7 @@ fn damaged_or_edited_records_are_refused_not_continued_from() {
     std::fs::write(&record, text.replacen(&format!("\"at\": {at}"), &format!("\"at\": {}", at - 50), 1)).unwrap();
     let refused = clv(&["backward", d, "--quiet", "--out", o, "--resume"]);
     let err = stderr(&refused);
-    assert!(!refused.status.success() && err.contains("backward.json") && err.contains("damaged or edited") && err.contains("without --resume"), "{err}");
+    assert!(!refused.status.success() && err.contains("backward.json") && err.contains("edited or damaged") && err.contains("without --resume"), "{err}");
     let seen = String::from_utf8_lossy(&clv(&["inspect", d]).stdout).to_string();
     assert!(seen.contains("DAMAGE") && seen.contains("backward.json") && !seen.contains("all finished files intact"), "{seen}");
     // The way out it names: the sweep again from the start, to the same frames.
@@ -746,7 +745,7 @@ fn damaged_or_edited_records_are_refused_not_continued_from() {
     for cmd in [vec!["backward", d, "--quiet", "--save-every", "0"], vec!["combine", d, d]] {
         let refused = clv(&cmd);
         let err = stderr(&refused);
-        assert!(!refused.status.success() && err.contains("spectrum.json") && err.contains("damaged or edited") && err.contains("clv forward --resume"), "{cmd:?}: {err}");
+        assert!(!refused.status.success() && err.contains("spectrum.json") && err.contains("edited or damaged") && err.contains("clv forward --resume"), "{cmd:?}: {err}");
     }
     let seen = String::from_utf8_lossy(&clv(&["inspect", d]).stdout).to_string();
     assert!(seen.contains("DAMAGE") && seen.contains("spectrum.json"), "{seen}");

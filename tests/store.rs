@@ -242,6 +242,21 @@ fn an_edited_run_json_is_refused_and_restored_from_the_segments_copy() {
     }
     assert!(!dir.join("spectrum.json").exists(), "nothing computed with the wrong tau");
     std::fs::rename(dir.join("run.json.from-segments"), &meta).unwrap();
+    // Fields that leave the trajectory alone are covered by run.json's checksum: a changed
+    // build (which would be blamed on another build) or length (which would extend the run
+    // silently) is refused as an edit, with the same way out.
+    let restored = std::fs::read_to_string(&meta).unwrap();
+    for (from, to) in [("\"arch\": \"x86_64\"", "\"arch\": \"x87_64\""), ("\"steps\": 3000", "\"steps\": 3300")] {
+        assert!(restored.contains(from), "{from} in {restored}");
+        std::fs::write(&meta, restored.replace(from, to)).unwrap();
+        for args in [vec!["forward", "--resume", d, "--quiet"], vec!["backward", d, "--quiet"], vec!["inspect", d]] {
+            let out = clv(&args);
+            let text = String::from_utf8_lossy(&out.stderr).to_string();
+            assert!(!out.status.success() && text.contains("checksum") && text.contains("run.json.from-segments"), "{to}, {args:?}: {text}");
+        }
+        std::fs::rename(dir.join("run.json.from-segments"), &meta).unwrap();
+    }
+    assert!(!dir.join("spectrum.json").exists(), "nothing computed from an edited run.json");
     ok(clv(&["forward", "--resume", d, "--quiet"]));
     assert!(contents(&dir) == *want);
 }

@@ -164,8 +164,7 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
         )));
     }
     let kept = archive_results(&dir, &previous_results(path, old.config.steps), also)?;
-    let json = serde_json::to_string_pretty(&meta).map_err(|e| Error::Other(e.to_string()))?;
-    write_atomic(&dir.meta_path(), json.as_bytes())?;
+    write_atomic(&dir.meta_path(), &crate::store::checked_json::to_vec(&meta)?)?;
     let mut msg = format!(
         "extending {} from {} to {} steps (CLV window {} + transient {} at the new end)",
         path.display(),

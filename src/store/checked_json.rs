@@ -51,7 +51,7 @@ pub fn from_slice<T: DeserializeOwned>(path: &Path, bytes: &[u8]) -> Result<(T, 
         Some(stored) => {
             let crc = crc_of(&record)?;
             if stored.as_u64() != Some(crc as u64) {
-                return Err(Error::corrupt(path, format!("its checksum ({FIELD} = {stored}) does not match its content ({crc}): the file was damaged or edited")));
+                return Err(Error::corrupt(path, format!("its checksum ({FIELD} = {stored}) does not match its content ({crc}): the file was edited or damaged")));
             }
             Seal::Checked
         }
@@ -97,7 +97,7 @@ mod tests {
             let damaged = text.replacen(from, to, 1);
             assert_ne!(damaged, text);
             let err = from_slice::<Record>(Path::new("backward.json"), damaged.as_bytes()).unwrap_err().to_string();
-            assert!(err.contains("backward.json") && err.contains("damaged or edited"), "{err}");
+            assert!(err.contains("backward.json") && err.contains("edited or damaged"), "{err}");
         }
     }
 

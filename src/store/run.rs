@@ -294,8 +294,7 @@ impl RunDir {
         }
         fs::create_dir_all(path).map_err(|e| Error::io(path, e))?;
         let dir = RunDir { path: path.to_path_buf() };
-        let json = serde_json::to_string_pretty(meta).map_err(|e| Error::Other(e.to_string()))?;
-        write_atomic(&dir.meta_path(), json.as_bytes())?;
+        write_atomic(&dir.meta_path(), &super::checked_json::to_vec(meta)?)?;
         Ok(dir)
     }
 
@@ -309,8 +308,8 @@ impl RunDir {
         if meta_path.exists() || !tmp.exists() {
             return Ok(false);
         }
-        let text = fs::read_to_string(&tmp).map_err(|e| Error::io(&tmp, e))?;
-        if serde_json::from_str::<RunMeta>(&text).is_err() {
+        let bytes = fs::read(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        if super::checked_json::from_slice::<RunMeta>(&tmp, &bytes).is_err() {
             return Err(Error::Other(format!(
                 "the run in {} was interrupted while it was being created ({} is incomplete) and holds no results; start it again with `clv forward --out {} ...`",
                 path.display(),
@@ -370,11 +369,14 @@ impl RunDir {
         }
         let dir = RunDir { path: path.to_path_buf() };
         let meta_path = dir.meta_path();
-        let text = fs::read_to_string(&meta_path).map_err(|e| {
+        let bytes = fs::read(&meta_path).map_err(|e| {
             Error::Other(format!("{}: {e}; is {} a run directory written by `clv forward --out`?", meta_path.display(), path.display()))
         })?;
-        let meta: RunMeta = match serde_json::from_str(&text) {
-            Ok(meta) => meta,
+        // Damaged or edited (its checksum), a run.json can no longer be trusted with any
+        // field: the build it names as much as the trajectory.
+        let meta: RunMeta = match super::checked_json::from_slice(&meta_path, &bytes) {
+            Ok((meta, _)) => meta,
+            Err(Error::Corrupt { msg, .. }) => return Err(dir.unreadable_meta(msg)),
             Err(e) => return Err(dir.unreadable_meta(e.to_string())),
         };
         if meta.format != FORMAT {
@@ -389,8 +391,7 @@ impl RunDir {
         let copy = self.path.join("run.json.from-segments");
         let restored = self.segments().ok().and_then(|segs| {
             let theirs = segs.iter().rev().find_map(|s| serde_json::from_str::<RunMeta>(&segment::embedded_run_json(&s.path)?).ok())?;
-            let pretty = serde_json::to_string_pretty(&theirs).ok()?;
-            write_atomic(&copy, pretty.as_bytes()).ok()
+            write_atomic(&copy, &super::checked_json::to_vec(&theirs).ok()?).ok()
         });
         let way_out = match restored {
             Some(()) => format!("every segment holds a copy of it, and the newest one's is now in {}: move it over run.json to continue this run", copy.display()),
@@ -414,8 +415,7 @@ impl RunDir {
                 continue;
             }
             let copy = self.path.join("run.json.from-segments");
-            let pretty = serde_json::to_string_pretty(&theirs).map_err(|e| Error::Other(e.to_string()))?;
-            write_atomic(&copy, pretty.as_bytes())?;
+            write_atomic(&copy, &super::checked_json::to_vec(&theirs)?)?;
             let show = |m: &RunMeta| serde_json::to_string(&m.config).unwrap_or_default();
             return Err(Error::corrupt(
                 self.meta_path(),

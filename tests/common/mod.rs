@@ -149,6 +149,13 @@ pub fn kill_after(args: &[&str], delay_ms: u64) -> bool {
 
 /// Kill `args` after `delay_ms`; while the process ends before the kill (machines and their
 /// load vary), clear what it wrote with `reset` and try again with half the delay.
+/// Write `json` to `path` with a valid checksum: a record as another build or format
+/// version would have written it (an edit without one is refused as damage).
+pub fn reseal(path: &Path, json: &str) {
+    let value: serde_json::Value = serde_json::from_str(json).unwrap();
+    std::fs::write(path, clv::store::checked_json::to_vec(&value).unwrap()).unwrap();
+}
+
 /// How a person continues a killed `clv backward`, as its messages say: with --resume when
 /// the sweep recorded itself (RUN/backward.json), without when it was killed before that.
 pub fn resume_flag(run: &Path) -> Vec<&'static str> {
