@@ -29,13 +29,11 @@ use crate::store::checked_json;
 use crate::linalg::{pack_upper, par, unpack_upper, unpack_upper_into};
 use crate::rng::Rng;
 use crate::store::frames::{tmp_path, FrameFile, Flow, StreamInfo};
-use crate::store::records::{decode_r, Checkpoint};
-use crate::store::run::{write_atomic, RunDir, RunMeta, SegmentFile, StoreR};
-use crate::store::schema::{CHECKPOINT, R};
-use crate::store::segment::read_segment;
+use crate::store::checkpoints::Checkpoints;
+use crate::store::run::{write_atomic, RunDir, RunMeta, StoreR};
+use crate::store::scratch::Storage;
 use faer::{Mat, MatMut, MatRef};
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -281,168 +279,6 @@ impl Window {
     }
 }
 
-/// Reads checkpoints (and stored R) of a run by step. Only the last checkpoint read is kept
-/// (the older end of one segment is the newer end of the next): memory stays at one
-/// checkpoint whatever the layout of the files; re-reading a file costs far less than
-/// recomputing its steps.
-struct Checkpoints {
-    segments: Vec<SegmentFile>,
-    last: Option<Arc<ForwardState>>,
-}
-
-impl Checkpoints {
-    fn segment_of(&self, step: u64) -> Result<&SegmentFile> {
-        self.segments.iter().find(|s| s.first <= step && step <= s.last).ok_or_else(|| {
-            Error::Other(format!("no segment holds the checkpoint at step {step}; the run directory is incomplete (see clv inspect)"))
-        })
-    }
-
-    fn get(&mut self, step: u64) -> Result<Arc<ForwardState>> {
-        if let Some(cp) = self.last.as_ref().filter(|cp| cp.step == step) {
-            return Ok(cp.clone());
-        }
-        // The old one goes before the new one is read: one fewer G_n in memory at the peak.
-        self.last = None;
-        let seg = self.segment_of(step)?.path.clone();
-        let bytes = match indexed_checkpoint(&seg, step) {
-            Some(bytes) => bytes,
-            None => {
-                // No usable index: read the whole file, every CRC checked.
-                let mut found = None;
-                read_segment(&seg, crate::store::segment::ReadMode::Strict, |m| {
-                    if m.topic == CHECKPOINT.topic && m.step == step {
-                        found = Some(m.data.to_vec());
-                    }
-                    Ok(())
-                })
-                .map_err(damaged)?;
-                found.ok_or_else(|| damaged(Error::corrupt(&seg, format!("no checkpoint at step {step}"))))?
-            }
-        };
-        let cp = Checkpoint::decode(&bytes).map_err(|e| damaged(Error::corrupt(&seg, format!("step {step}: {e}"))))?.state;
-        let cp = Arc::new(cp);
-        self.last = Some(cp.clone());
-        Ok(cp)
-    }
-
-    /// Stored R_n (packed) for n in (from, to].
-    fn stored_r(&self, from: u64, to: u64) -> Result<BTreeMap<u64, Vec<f64>>> {
-        let mut out = BTreeMap::new();
-        for seg in self.segments.iter().filter(|s| s.last > from && s.first <= to) {
-            read_segment(&seg.path, crate::store::segment::ReadMode::Strict, |m| {
-                if m.topic == R.topic && m.step > from && m.step <= to {
-                    let (_, r) = decode_r(m.data).map_err(|e| Error::corrupt(&seg.path, e))?;
-                    out.insert(m.step, pack_upper(r.as_ref()));
-                }
-                Ok(())
-            })
-            .map_err(damaged)?;
-        }
-        Ok(out)
-    }
-}
-
-/// A run segment that does not read back, with the way to repair it.
-fn damaged(e: Error) -> Error {
-    match e {
-        Error::Corrupt { path, msg } => Error::Other(format!(
-            "{}: corrupt or unreadable: {msg}; the forward stage recomputes it and the segments after it, with bit-identical numbers: run `clv forward --resume {}`, then this again",
-            path.display(),
-            path.parent().map(|p| p.display().to_string()).unwrap_or_default()
-        )),
-        e => e,
-    }
-}
-
-/// The checkpoint message at `step`, found through the file's chunk index so that only its
-/// chunk is decompressed. None when the index is missing or unusable (the caller then reads
-/// the file whole, which then names the damage). A damaged chunk cannot pass unnoticed: it
-/// fails its CRC here, and a checkpoint altered with a valid CRC fails the recomputation's
-/// bitwise check against the next one.
-fn indexed_checkpoint(path: &Path, step: u64) -> Option<Vec<u8>> {
-    // The index and chunk headers are checked below before anything is decompressed; a
-    // panic of the mcap crate on damage they do not catch is the strict read's to report.
-    std::panic::catch_unwind(|| indexed_checkpoint_unguarded(path, step)).ok().flatten()
-}
-
-fn indexed_checkpoint_unguarded(path: &Path, step: u64) -> Option<Vec<u8>> {
-    let file = std::fs::File::open(path).ok()?;
-    // SAFETY: finished segments are never modified (written under a temporary name, renamed).
-    let map = unsafe { memmap2::Mmap::map(&file) }.ok()?;
-    let summary = mcap::Summary::read(&map).ok()??;
-    let channel = summary.channels.values().find(|c| c.topic == CHECKPOINT.topic)?.id;
-    let limit = crate::store::segment::record_limit(map.len() as u64);
-    for index in summary.chunk_indexes.iter().filter(|c| c.message_start_time <= step && step <= c.message_end_time) {
-        // The chunk is decompressed here, into at most its stated size, and its CRC checked
-        // before a record in it is parsed: the mcap crate's chunk reader trusts the lengths
-        // inside a chunk, and a damaged one would make it ask for impossible memory.
-        let start = usize::try_from(index.chunk_start_offset).ok()?;
-        let end = start.checked_add(usize::try_from(index.chunk_length).ok()?)?;
-        let record = map.get(start.checked_add(9)?..end)?;
-        let mcap::records::Record::Chunk { header, data } = mcap::parse_record(mcap::records::op::CHUNK, record).ok()? else { return None };
-        if header.compression != "zstd" || header.uncompressed_size > limit {
-            return None;
-        }
-        let raw = zstd::bulk::decompress(&data, usize::try_from(header.uncompressed_size).ok()?).ok()?;
-        if raw.len() as u64 != header.uncompressed_size || crc32fast::hash(&raw) != header.uncompressed_crc {
-            return None;
-        }
-        let mut rest = &raw[..];
-        while let Some((&opcode, after)) = rest.split_first() {
-            let len = usize::try_from(u64::from_le_bytes(after.get(..8)?.try_into().ok()?)).ok()?;
-            let body = after.get(8..8usize.checked_add(len)?)?;
-            rest = &after[8 + len..];
-            // a message: channel id (u16), sequence (u32), log time (u64), publish time (u64), data
-            if opcode == mcap::records::op::MESSAGE && body.len() >= 22 {
-                let channel_id = u16::from_le_bytes(body[..2].try_into().ok()?);
-                let log_time = u64::from_le_bytes(body[6..14].try_into().ok()?);
-                if channel_id == channel && log_time == step {
-                    return Some(body[22..].to_vec());
-                }
-            }
-        }
-    }
-    None
-}
-
-/// A contiguous buffer of f64, on the heap or in an unlinked scratch file.
-enum Storage {
-    Heap(Vec<f64>),
-    Mapped(memmap2::MmapMut),
-}
-
-impl Storage {
-    fn new(len: usize, out_of_core: Option<&Path>) -> Result<Self> {
-        let Some(dir) = out_of_core else { return Ok(Storage::Heap(vec![0.0; len])) };
-        static COUNTER: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-        let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let path = dir.join(format!(".scratch-{}-{n}", std::process::id()));
-        let file = std::fs::OpenOptions::new().read(true).write(true).create_new(true).open(&path).map_err(|e| Error::io(&path, e))?;
-        let result = file.set_len(8 * len as u64).map_err(|e| Error::io(&path, e)).and_then(|_| {
-            // SAFETY: the file was just created by us and is unlinked below; nobody else maps it.
-            unsafe { memmap2::MmapMut::map_mut(&file) }.map_err(|e| Error::io(&path, e))
-        });
-        let _ = std::fs::remove_file(&path);
-        Ok(Storage::Mapped(result?))
-    }
-
-    fn slice(&self) -> &[f64] {
-        match self {
-            Storage::Heap(v) => v,
-            // SAFETY: mappings are page-aligned (so aligned for f64) and hold 8 * len bytes.
-            Storage::Mapped(m) => unsafe { std::slice::from_raw_parts(m.as_ptr() as *const f64, m.len() / 8) },
-        }
-    }
-
-    fn slice_mut(&mut self) -> &mut [f64] {
-        match self {
-            Storage::Heap(v) => v,
-            // SAFETY: as above, and we hold the only reference.
-            Storage::Mapped(m) => unsafe { std::slice::from_raw_parts_mut(m.as_mut_ptr() as *mut f64, m.len() / 8) },
-        }
-    }
-}
-
 /// One recomputed segment [s0, s1]: Gamma_n for n = s0..=s1, packed R_n for n = s0+1..=s1,
 /// and G_n for the steps whose frames carry vectors, in flat buffers that are handed back
 /// and reused (two exist at most), so the memory of the sweep never depends on the window
@@ -606,48 +442,13 @@ pub fn frame_file_bytes(meta: &RunMeta, opts: &BackwardOptions) -> u64 {
     (window.first..=window.last).filter(|&n| on_stride(n, opts.save_every)).map(|n| 8 * (d + k) + if on_stride(n, opts.vectors_every) { vectors } else { 0 }).sum()
 }
 
-/// Progress hooks: called with (steps recomputed, frames emitted) as the sweep advances.
-pub type OnProgress<'a> = &'a mut dyn FnMut(u64, u64);
-
-/// Run the backward pass over the run in `path`, handing every frame to `consumer`
-/// (newest first). Frames are also saved to the frame file if the options ask for one.
-pub fn run(
-    path: &Path,
-    opts: &BackwardOptions,
-    resume: bool,
-    memory_bytes: u64,
-    threads: Option<usize>,
-    consumer: &mut dyn FnMut(Arc<Frame>) -> Result<Flow>,
-    on_progress: OnProgress,
-) -> Result<BackwardReport> {
-    let started = Instant::now();
-    let (dir, mut meta) = RunDir::open(path)?;
-    meta.config.set_threads(threads);
-    let _lock = dir.lock("backward pass")?;
-    meta.build.check_can_continue(path)?;
-    dir.check_meta(&meta)?;
-    let (config, store) = (&meta.config, &meta.store);
-    let total = config.relax_steps + config.steps;
-    let gs = crate::report::SpectrumSummary::read(&dir.spectrum_path()).map_err(|e| match dir.spectrum_path().exists() {
-        false => Error::Other(format!("the forward run in {} is not complete (no spectrum.json); finish it with `clv forward --resume {}`", path.display(), path.display())),
-        true => Error::Other(format!("{e}; `clv forward --resume {}` rewrites it from the run's last checkpoint", path.display())),
-    })?;
-    if opts.vectors_every == 0 {
-        return Err(Error::param("vectors-every", "must be at least 1 (1: every frame carries V_n)"));
-    }
-    let window = Window::of(&meta, opts)?;
-    let c_every = store.checkpoint_every;
-    let mut bounds: Vec<u64> = (window.first / c_every * c_every..total).step_by(c_every as usize).collect();
-    bounds.push(total);
-    let k = config.vectors;
-    let d = config.system.dim();
-    let tau = config.tau;
-
+/// The progress of the sweep `opts` describes when it is to be continued (`resume`), after
+/// the checks that a new or continued sweep strands, mixes or overwrites nothing: another
+/// interrupted sweep's frames, another sweep's record, an existing file.
+fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Option<Progress>> {
     let frames_path = opts.frames_file(&dir.path);
     let saving = opts.save_every > 0 && frames_path.is_some();
-    let metadata = stream_info(&dir, &meta, opts).metadata();
-    let progress_file = progress_path(&dir);
-    let mut notes = Vec::new();
+    let progress_file = progress_path(dir);
     let record = match std::fs::read_to_string(&progress_file) {
         Ok(text) if resume => Some(text),
         // A sweep writes its record before anything else: without one there is nothing of
@@ -719,6 +520,52 @@ pub fn run(
     {
         return Err(Error::param("out", format!("{} already exists; refusing to overwrite it: choose another --out (or delete it yourself, if it is a frame file you no longer need)", f.display())));
     }
+    Ok(prior)
+}
+
+/// Progress hooks: called with (steps recomputed, frames emitted) as the sweep advances.
+pub type OnProgress<'a> = &'a mut dyn FnMut(u64, u64);
+
+/// Run the backward pass over the run in `path`, handing every frame to `consumer`
+/// (newest first). Frames are also saved to the frame file if the options ask for one.
+pub fn run(
+    path: &Path,
+    opts: &BackwardOptions,
+    resume: bool,
+    memory_bytes: u64,
+    threads: Option<usize>,
+    consumer: &mut dyn FnMut(Arc<Frame>) -> Result<Flow>,
+    on_progress: OnProgress,
+) -> Result<BackwardReport> {
+    let started = Instant::now();
+    let (dir, mut meta) = RunDir::open(path)?;
+    meta.config.set_threads(threads);
+    let _lock = dir.lock("backward pass")?;
+    meta.build.check_can_continue(path)?;
+    dir.check_meta(&meta)?;
+    let (config, store) = (&meta.config, &meta.store);
+    let total = config.relax_steps + config.steps;
+    let gs = crate::report::SpectrumSummary::read(&dir.spectrum_path()).map_err(|e| match dir.spectrum_path().exists() {
+        false => Error::Other(format!("the forward run in {} is not complete (no spectrum.json); finish it with `clv forward --resume {}`", path.display(), path.display())),
+        true => Error::Other(format!("{e}; `clv forward --resume {}` rewrites it from the run's last checkpoint", path.display())),
+    })?;
+    if opts.vectors_every == 0 {
+        return Err(Error::param("vectors-every", "must be at least 1 (1: every frame carries V_n)"));
+    }
+    let window = Window::of(&meta, opts)?;
+    let c_every = store.checkpoint_every;
+    let mut bounds: Vec<u64> = (window.first / c_every * c_every..total).step_by(c_every as usize).collect();
+    bounds.push(total);
+    let k = config.vectors;
+    let d = config.system.dim();
+    let tau = config.tau;
+
+    let frames_path = opts.frames_file(&dir.path);
+    let saving = opts.save_every > 0 && frames_path.is_some();
+    let metadata = stream_info(&dir, &meta, opts).metadata();
+    let progress_file = progress_path(&dir);
+    let mut notes = Vec::new();
+    let prior = prior_sweep(&dir, opts, resume)?;
     if prior.as_ref().is_some_and(|p| p.done) {
         // The sweep finished earlier: its report is the answer.
         let path = report_path(&dir);
@@ -798,7 +645,7 @@ pub fn run(
     let producer = std::thread::Builder::new()
         .name("clv-recompute".into())
         .spawn(move || {
-            let mut cps = Checkpoints { segments, last: None };
+            let mut cps = Checkpoints::new(segments);
             let mut fwd = None;
             let mut allocated = 0;
             for (s0, s1) in producer_todo {
@@ -959,12 +806,20 @@ pub fn run(
     if let Some(file) = frame_file {
         file.finish()?;
     }
-    let json = checked_json::to_vec(&report)?;
-    // The CLV spectrum of an earlier sweep with other options (another C, transient, file)
-    // can be hours of work: kept beside the new one, not replaced.
-    let path = report_path(&dir);
+    write_report(&dir, &mut report)?;
+    let done = Progress { options: opts.clone(), at: window.first, c: Vec::new(), acc, acc_gs, stats, done: true };
+    write_atomic(&progress_file, &checked_json::to_vec(&done)?)?;
+    Ok(report)
+}
+
+/// RUN_DIR/clv_spectrum.json. The CLV spectrum of an earlier sweep with other options
+/// (another C, transient, file) can be hours of work: kept beside the new one
+/// (clv_spectrum-N.json), not replaced, and the report notes where.
+fn write_report(dir: &RunDir, report: &mut BackwardReport) -> Result<()> {
+    let json = checked_json::to_vec(&*report)?;
+    let path = report_path(dir);
     if let Some((earlier, _)) = std::fs::read(&path).ok().and_then(|bytes| checked_json::from_slice::<BackwardReport>(&path, &bytes).ok())
-        && earlier.options != *opts
+        && earlier.options != report.options
     {
         let mut i = 1;
         while dir.path.join(format!("clv_spectrum-{i}.json")).exists() {
@@ -974,10 +829,7 @@ pub fn run(
         std::fs::rename(&path, &kept).map_err(|e| Error::io(&path, e))?;
         report.notes.push(format!("the CLV spectrum of the earlier sweep, made with {}, is kept as {}", earlier.options.as_flags(), kept.display()));
     }
-    write_atomic(&path, &json)?;
-    let done = Progress { options: opts.clone(), at: window.first, c: Vec::new(), acc, acc_gs, stats, done: true };
-    write_atomic(&progress_file, &checked_json::to_vec(&done)?)?;
-    Ok(report)
+    write_atomic(&path, &json)
 }
 
 /// C at the end of the window: the identity, or a random upper-triangular matrix with

@@ -15,11 +15,13 @@
 
 pub mod cbor;
 pub mod checked_json;
+pub mod checkpoints;
 pub mod fault;
 pub mod frames;
 pub mod records;
 pub mod run;
 pub mod schema;
+pub mod scratch;
 pub mod segment;
 pub mod sink;
 
