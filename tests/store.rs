@@ -401,3 +401,41 @@ fn henon_runs_through_the_same_store() {
     assert_eq!((&v["convergence"]["blocks"], &v["convergence"]["block_steps"]), (&serde_json::json!(20), &serde_json::json!(250)));
     assert!(text.contains("convergence so far (20 blocks of 250 steps): ") && text.contains(" of 2 exponents have |z| > 2"), "{text}");
 }
+
+/// A segment missing between two others (moved out, deleted) is a gap the backward stage
+/// would stop at: `clv inspect` names the missing steps, and `clv forward --resume`
+/// recomputes them and what follows, bit for bit. A segment of another run copied in over
+/// one of this run's is named as the odd one out, not blamed on run.json.
+#[test]
+fn a_missing_or_foreign_segment_is_named_and_resume_restores_the_run() {
+    let (dir, want) = reference_copy("gap");
+    let d = dir.to_str().unwrap();
+    let segments = RunDir { path: dir.clone() }.segments().unwrap();
+    assert!(segments.len() >= 3, "{segments:?}");
+    let middle = segments[segments.len() / 2].clone();
+    let aside = dir.parent().unwrap().join("aside.mcap");
+    std::fs::rename(&middle.path, &aside).unwrap();
+    let out = clv(&["inspect", d]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(!out.status.success() && text.contains(&format!("steps {}..", middle.first)) && text.contains("are missing"), "{text}");
+    ok(clv(&["forward", "--resume", d, "--quiet"]));
+    assert!(contents(&dir) == *want, "the run recomputed across the gap differs");
+
+    // Another run's segment of the same steps in place of this one's.
+    let other = scratch("gap-other").join("run");
+    ok(clv(&[&RUN[..], &["--seed", "99", "--out", other.to_str().unwrap()]].concat()));
+    let theirs = RunDir { path: other.clone() }.segments().unwrap().into_iter().find(|s| s.first == middle.first && s.last == middle.last).expect("same layout");
+    std::fs::copy(&theirs.path, &middle.path).unwrap();
+    let seen = String::from_utf8_lossy(&clv(&["inspect", d]).stdout).to_string();
+    assert!(seen.contains(&format!("{} written for another run than run.json", middle.path.display())), "{seen}");
+    for args in [vec!["backward", d, "--quiet"], vec!["forward", "--resume", d, "--quiet"]] {
+        let out = clv(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        let name = middle.path.file_name().unwrap().to_string_lossy();
+        assert!(!out.status.success() && err.contains(&*name) && err.contains("another run") && err.contains("move it out"), "{args:?}: {err}");
+        assert!(!dir.join("run.json.from-segments").exists(), "run.json was blamed");
+    }
+    std::fs::remove_file(&middle.path).unwrap();
+    ok(clv(&["forward", "--resume", d, "--quiet"]));
+    assert!(contents(&dir) == *want);
+}

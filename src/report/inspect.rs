@@ -46,11 +46,14 @@ pub struct Inspection {
     pub intact: bool,
     /// The convergence tests of the exponents so far (from 4 completed blocks on).
     pub convergence: Option<Convergence>,
-    /// run.json disagrees with the copy a segment was written with.
+    /// run.json disagrees with the copy a segment was written with (or, where the other
+    /// segments agree with it, that segment is another run's).
     pub meta_mismatch: Option<String>,
     /// The checksummed records beside the segments (spectrum.json, backward.json,
     /// clv_spectrum.json) that fail their check, with what to do.
     pub damaged_records: Vec<String>,
+    /// Checkpoints missing between two segments (a segment moved out or deleted).
+    pub gaps: Vec<String>,
 }
 
 /// [`crate::stage::analyze::kernels::convergence`] over the blocks completed so far.
@@ -65,7 +68,8 @@ pub struct Convergence {
 pub fn inspect(path: &Path) -> Result<Inspection> {
     let (dir, meta) = RunDir::open(path)?;
     let mut segments = Vec::new();
-    let mut meta_mismatch = None;
+    // Segments whose embedded run.json agrees with run.json, and those that describe another.
+    let (mut agreeing, mut disagreeing) = (0, Vec::new());
     let mut newest: Option<(Stats, Option<crate::stage::forward::Accumulator>)> = None;
     for seg in dir.segments()? {
         let (mut checkpoints, mut rs) = (0, 0);
@@ -90,9 +94,12 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         }
         if let Ok(report) = &result
             && let Some(theirs) = report.run_json.as_deref().and_then(|j| serde_json::from_str::<RunMeta>(j).ok())
-            && !meta.same_trajectory(&theirs)
         {
-            meta_mismatch.get_or_insert_with(|| format!("run.json describes another run than {} was written for (tau, system, seed, ...): it was edited or damaged; `clv forward --resume` puts the segment's copy beside it to restore it from", seg.path.display()));
+            if meta.same_trajectory(&theirs) {
+                agreeing += 1;
+            } else {
+                disagreeing.push(seg.path.display().to_string());
+            }
         }
         let damage = result.err().map(|e| e.to_string());
         if damage.is_none()
@@ -110,6 +117,12 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             damage,
         });
     }
+    // Where other segments agree with run.json, the ones that disagree are the odd ones out.
+    let meta_mismatch = match (agreeing, disagreeing.as_slice()) {
+        (_, []) => None,
+        (0, [first, ..]) => Some(format!("run.json describes another run than {first} was written for (tau, system, seed, ...): it was edited or damaged; `clv forward --resume` puts the segment's copy beside it to restore it from")),
+        (n, foreign) => Some(format!("{} written for another run than run.json and the other {n} segments: move {} out of the run directory (`clv forward --resume` then recomputes what is missing)", foreign.join(", "), if foreign.len() == 1 { "it" } else { "them" })),
+    };
     let partial_segments: Vec<String> = dir.partial_segments()?.iter().map(|p| p.display().to_string()).collect();
     let mut disk_bytes = 0;
     let (mut set_aside, mut previous) = (Vec::new(), Vec::new());
@@ -125,6 +138,12 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     }
     set_aside.sort();
     let damaged_records = damaged_records(&dir);
+    let c = meta.store.checkpoint_every.max(1);
+    let gaps: Vec<String> = segments
+        .windows(2)
+        .filter(|w| w[1].first_step != (w[0].last_step / c + 1) * c)
+        .map(|w| format!("the checkpoints of steps {}..{} are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them", (w[0].last_step / c + 1) * c, w[1].first_step - 1, dir.path.display()))
+        .collect();
     previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));
     let total_steps = meta.config.relax_steps + meta.config.steps;
     let (exponents, stderr) = newest.as_ref().map(|(s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
@@ -141,9 +160,10 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         checkpoints: segments.iter().map(|s| s.checkpoints).sum(),
         // A segment left unfinished by a kill is the expected trace of an interrupted run,
         // not damage: --resume discards and recomputes it.
-        intact: segments.iter().all(|s| s.damage.is_none()) && meta_mismatch.is_none() && damaged_records.is_empty(),
+        intact: segments.iter().all(|s| s.damage.is_none()) && meta_mismatch.is_none() && damaged_records.is_empty() && gaps.is_empty(),
         meta_mismatch,
         damaged_records,
+        gaps,
         segments,
         partial_segments,
         set_aside,
@@ -230,7 +250,7 @@ impl Inspection {
         if let Some(m) = &self.meta_mismatch {
             let _ = writeln!(s, "DAMAGE: {m}");
         }
-        for m in &self.damaged_records {
+        for m in self.damaged_records.iter().chain(&self.gaps) {
             let _ = writeln!(s, "DAMAGE: {m}");
         }
         let verdict = if self.intact {

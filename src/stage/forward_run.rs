@@ -241,7 +241,7 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
         feedback.notice(format!("discarding the interrupted segment {} ({what}); they will be recomputed", partial.display()));
         std::fs::remove_file(&partial).map_err(|e| Error::io(&partial, e))?;
     }
-    let Triage { newest_intact, superseded } = triage(dir, feedback)?;
+    let Triage { newest_intact, superseded } = triage(dir, meta.store.checkpoint_every, feedback)?;
     let drop_superseded = || -> Result<()> {
         for aside in &superseded {
             std::fs::remove_file(aside).map_err(|e| Error::io(aside, e))?;
@@ -297,7 +297,10 @@ struct Triage {
 /// deterministic, so the new files hold the numbers of the old, bit for bit (only wall
 /// times differ). Damaged segments are moved aside as `.corrupt`, the intact ones after
 /// them as `.superseded`, together with any a repair that was itself interrupted left.
-fn triage(dir: &RunDir, feedback: &mut Feedback) -> Result<Triage> {
+///
+/// A segment missing between two others (moved out, deleted) is a gap in the checkpoints,
+/// which the backward stage would stop at: the segments after it are recomputed the same way.
+fn triage(dir: &RunDir, checkpoint_every: u64, feedback: &mut Feedback) -> Result<Triage> {
     let segments = dir.segments()?;
     let mut reads = Vec::with_capacity(segments.len());
     for seg in &segments {
@@ -310,7 +313,14 @@ fn triage(dir: &RunDir, feedback: &mut Feedback) -> Result<Triage> {
             read => reads.push(read.map(drop)),
         }
     }
-    let intact = reads.iter().position(Result::is_err).unwrap_or(segments.len());
+    let damaged = reads.iter().position(Result::is_err).unwrap_or(segments.len());
+    let c = checkpoint_every.max(1);
+    let gap = segments.windows(2).position(|w| w[1].first != (w[0].last / c + 1) * c).map(|i| i + 1);
+    if let Some(i) = gap.filter(|&i| i < damaged) {
+        feedback.notice(format!("the checkpoints of steps {}..{} are missing (no segment holds them): recomputing them and what follows", (segments[i - 1].last / c + 1) * c, segments[i].first - 1));
+    }
+    let intact = gap.map_or(damaged, |g| g.min(damaged));
+    let cause = if intact < damaged { "the missing checkpoints" } else { "a damaged segment" };
     let mut superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
         .map_err(|e| Error::io(&dir.path, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -325,7 +335,7 @@ fn triage(dir: &RunDir, feedback: &mut Feedback) -> Result<Triage> {
             }
             Ok(()) => {
                 let aside = seg.path.with_extension("mcap.superseded");
-                feedback.notice(format!("{} follows a damaged segment and is recomputed with it (kept as {} until then)", seg.path.display(), aside.display()));
+                feedback.notice(format!("{} follows {cause} and is recomputed with it (kept as {} until then)", seg.path.display(), aside.display()));
                 superseded.push(aside.clone());
                 aside
             }

@@ -407,13 +407,35 @@ impl RunDir {
     /// Refuse a run.json that no longer describes the run its segments hold (edited by
     /// hand, or damaged): every finished segment carries the run.json it was written with.
     /// The copy of the newest one that disagrees is put beside it, to restore it from.
+    ///
+    /// Where other segments agree with run.json, the ones that disagree are the odd ones
+    /// out (copied in from another run), and they are named instead.
     pub fn check_meta(&self, meta: &RunMeta) -> Result<()> {
+        let mut agreeing = 0;
+        let mut foreign = Vec::new();
         for seg in self.segments()?.iter().rev() {
             let Some(json) = segment::embedded_run_json(&seg.path) else { continue };
             let Ok(theirs) = serde_json::from_str::<RunMeta>(&json) else { continue };
             if meta.same_trajectory(&theirs) {
-                continue;
+                agreeing += 1;
+            } else {
+                foreign.push((seg.clone(), theirs));
             }
+        }
+        if agreeing > 0 && !foreign.is_empty() {
+            let names: Vec<String> = foreign.iter().map(|(s, _)| s.path.display().to_string()).collect();
+            return Err(Error::Other(format!(
+                "{} {} written for another run than run.json and the other {agreeing} segments describe ({}): {} not this run's; move {} out of {} (`clv forward --resume` then recomputes what is missing)",
+                if names.len() == 1 { "segment" } else { "segments" },
+                names.join(", "),
+                serde_json::to_string(&foreign[0].1.config).unwrap_or_default(),
+                if names.len() == 1 { "it is" } else { "they are" },
+                if names.len() == 1 { "it" } else { "them" },
+                self.path.display()
+            )));
+        }
+        if let Some((seg, theirs)) = foreign.into_iter().next() {
+            let seg = &seg;
             let copy = self.path.join("run.json.from-segments");
             write_atomic(&copy, &super::checked_json::to_vec(&theirs)?)?;
             let show = |m: &RunMeta| serde_json::to_string(&m.config).unwrap_or_default();
