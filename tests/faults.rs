@@ -760,6 +760,19 @@ fn damaged_or_edited_records_are_refused_not_continued_from() {
     };
     assert!(comparable(&std::fs::read(&spectrum).unwrap()) == comparable(&good), "the rewritten spectrum.json differs from the original");
     assert!(dir.join("spectrum.json.damaged").exists());
+    // Removing the checksum with the edit does not pass either: the run's records carry one.
+    let mut v: serde_json::Value = serde_json::from_slice(&std::fs::read(&spectrum).unwrap()).unwrap();
+    v.as_object_mut().unwrap().remove("crc32");
+    v["exponents"][0] = serde_json::json!(9.5);
+    std::fs::write(&spectrum, serde_json::to_vec_pretty(&v).unwrap()).unwrap();
+    let refused = clv(&["backward", d, "--quiet", "--save-every", "0"]);
+    assert!(!refused.status.success() && stderr(&refused).contains("carries no checksum"), "{}", stderr(&refused));
+    // --out may not name the run's own files (frames would replace them, or they the frames).
+    for name in ["clv_spectrum.json", "backward.tmp", "seg-000000000000-000000000050.mcap", "notes"] {
+        let out = dir.join(name);
+        let refused = clv(&["backward", d, "--quiet", "--out", out.to_str().unwrap()]);
+        assert!(!refused.status.success() && stderr(&refused).contains("a name the run's own files use"), "{name}: {}", stderr(&refused));
+    }
 }
 
 /// A sweep's frame file is found by the run, not by the directory the command runs in: a
@@ -790,7 +803,8 @@ fn a_resumed_sweep_continues_its_own_frames_only() {
     assert!(crashed(&run_in(&base, &["backward", "run", "--quiet", "--with-gs"], &[("CLV_FAULT_CRASH_AT", "frames-synced#3")]), "frames-synced#3"));
     let moved = base.join("moved");
     std::fs::rename(&dir, &moved).unwrap();
-    ok(run_in(Path::new("/"), &["backward", moved.to_str().unwrap(), "--quiet", "--resume"], &[]));
+    // On another number of threads, as on another node: the same sweep.
+    ok(run_in(Path::new("/"), &["backward", moved.to_str().unwrap(), "--quiet", "--resume", "--threads", "2"], &[]));
     assert!(frames(&moved.join("frames.mcap")) == want, "the moved run's resumed frames differ");
     // Another run's interrupted file in place of this run's: refused with the way out.
     let (other, _) = {
@@ -812,9 +826,11 @@ fn a_resumed_sweep_continues_its_own_frames_only() {
     assert!(!refused.status.success() && err.contains("another run") && err.contains("without --resume"), "{err}");
     // A refused --out leaves no record behind.
     std::fs::remove_file(moved.join("backward.json")).unwrap();
-    let run_json = moved.join("run.json");
-    let refused = clv(&["backward", m, "--quiet", "--out", run_json.to_str().unwrap()]);
+    let taken = base.join("taken.mcap");
+    std::fs::write(&taken, b"someone's file").unwrap();
+    let refused = clv(&["backward", m, "--quiet", "--out", taken.to_str().unwrap()]);
     assert!(!refused.status.success() && stderr(&refused).contains("already exists"), "{}", stderr(&refused));
+    assert_eq!(std::fs::read(&taken).unwrap(), b"someone's file");
     assert!(!moved.join("backward.json").exists(), "a refused sweep left a progress record");
 }
 
@@ -909,8 +925,14 @@ fn an_interrupted_overwrite_says_so_and_the_command_again_gives_a_clean_report()
     child.wait().unwrap();
     let html = std::fs::read_to_string(rep.join("index.html")).unwrap();
     assert!(html.contains("Incomplete report") && html.contains("--overwrite"), "{html}");
-    // The new analyses write at the end of the stream: nothing of either report is left.
-    assert_eq!(report_contents(&rep, &[]).into_keys().collect::<Vec<_>>(), ["index.html", "notes.txt"]);
+    // The new analyses write at the end of the stream: nothing of either report is left but
+    // the manifest of what the killed one wrote (its page).
+    assert_eq!(report_contents(&rep, &[]).into_keys().collect::<Vec<_>>(), [".clv-writing", "index.html", "notes.txt"]);
+    // Killed later, it would have written tables too, listed in its manifest before they
+    // were written: the next report removes them although no summary.json names them.
+    std::fs::write(rep.join("modes.csv"), "a table of the killed report").unwrap();
+    let mut manifest = std::fs::OpenOptions::new().append(true).open(rep.join(".clv-writing")).unwrap();
+    std::io::Write::write_all(&mut manifest, b"modes.csv\n").unwrap();
     // The same command again, and the same into a new directory.
     let out = analyze(r);
     assert!(out.status.success(), "{}", stderr(&out));
@@ -919,6 +941,7 @@ fn an_interrupted_overwrite_says_so_and_the_command_again_gives_a_clean_report()
     assert!(out.status.success(), "{}", stderr(&out));
     assert_eq!(std::fs::read_to_string(rep.join("notes.txt")).unwrap(), "mine");
     let (got, want) = (report_contents(&rep, &["notes.txt"]), report_contents(&clean, &[]));
+    assert!(!got.contains_key("modes.csv") && !got.contains_key(".clv-writing"), "{:?}", got.keys());
     assert_eq!(got.keys().collect::<Vec<_>>(), want.keys().collect::<Vec<_>>());
     assert!(got == want, "the regenerated report differs from an uninterrupted one");
 

@@ -93,7 +93,18 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
             (true, _) => None,
             (false, out) => {
                 let path = out.unwrap_or_else(|| clv::store::RunDir { path: args.dir.clone() }.frames_path());
-                Some(BackwardOptions::record_frames_path(&args.dir, &path)?)
+                let recorded = BackwardOptions::record_frames_path(&args.dir, &path)?;
+                // Directly in the run directory, only a frame file's name: the run's own files
+                // (run.json, the segments, the records and their temporary names) are not to be
+                // replaced by frames, nor frames by them.
+                let name = recorded.to_string_lossy().to_string();
+                if recorded.components().count() == 1 && (!name.ends_with(".mcap") || name.starts_with("seg-")) {
+                    return Err(Error::param("out", format!(
+                        "{} would be {name} in the run directory, a name the run's own files use; give a name ending in .mcap (frames.mcap is the default), or a path outside the run directory",
+                        path.display()
+                    )));
+                }
+                Some(recorded)
             }
         };
     }

@@ -37,7 +37,14 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
     }
     let found = inspect::inspect(&args.dir)?;
     print_inspection(&found, found.text(), args.json)?;
-    if found.intact { Ok(()) } else { Err(Error::Other(format!("{}: damaged files found (see above); repair them with `clv forward --resume {}`", args.dir.display(), args.dir.display()))) }
+    // Segments, gaps and run.json are repaired by a forward resume; each damaged record's
+    // line says what repairs it.
+    let only_records = found.segments.iter().all(|s| s.damage.is_none()) && found.gaps.is_empty() && found.meta_mismatch.is_none();
+    match (found.intact, only_records) {
+        (true, _) => Ok(()),
+        (false, true) => Err(Error::Other(format!("{}: damaged records found; each DAMAGE line above says how to repair it", args.dir.display()))),
+        (false, false) => Err(Error::Other(format!("{}: damaged files found (see above); repair them with `clv forward --resume {}`", args.dir.display(), args.dir.display()))),
+    }
 }
 
 /// An inspection as one JSON object, or as its text.

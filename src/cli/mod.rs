@@ -170,6 +170,10 @@ fn how_to_continue(command: &Command) -> String {
             Some(run) => format!("continue with `clv forward --resume {}`", run.display()),
             None => "give the command again".into(),
         },
+        // A stream's frames went to its reader: continued, it would carry only the rest.
+        Command::Backward(args) if args.out.as_deref() == Some(std::path::Path::new("-")) => {
+            format!("start the stream again (`clv backward {} --out - ...`, without --resume, for the whole window)", args.dir.display())
+        }
         Command::Backward(args) => format!(
             "continue with `clv backward {} --resume` (without --resume if it says no sweep was recorded)",
             args.dir.display()

@@ -78,8 +78,7 @@ impl BackwardOptions {
     /// when inside it, else absolute; never relative to the directory the command runs in,
     /// which a later --resume may not share.
     pub fn record_frames_path(run: &Path, file: &Path) -> Result<PathBuf> {
-        let absolute = |p: &Path| std::path::absolute(p).map_err(|e| Error::io(p, e));
-        let (run, file) = (absolute(run)?, absolute(file)?);
+        let (run, file) = (canonical(run)?, canonical(file)?);
         Ok(file.strip_prefix(&run).map_or(file.clone(), Path::to_path_buf))
     }
 
@@ -184,6 +183,20 @@ struct Progress {
 }
 
 impl Progress {
+    /// The progress record `file` (holding `bytes`) of the run in `run`. A record of a build
+    /// before records carried checksums named its frame file relative to the directory the
+    /// command ran in: it is read with that meaning (resolved against this one, the best
+    /// guess there is) and held as records name it now.
+    fn read(run: &Path, file: &Path, bytes: &[u8]) -> Result<Self> {
+        let (mut p, seal): (Progress, _) = checked_json::from_slice(file, bytes)?;
+        if seal == checked_json::Seal::Absent
+            && let Some(relative) = p.options.frames_path.clone().filter(|f| f.is_relative())
+        {
+            p.options.frames_path = Some(BackwardOptions::record_frames_path(run, &relative)?);
+        }
+        Ok(p)
+    }
+
     /// C_at as a matrix: packed, or column-major k x k as earlier builds wrote it.
     fn c_matrix(&self, k: usize) -> Option<Mat<f64>> {
         match self.c.len() {
@@ -238,7 +251,7 @@ fn progress_path(dir: &RunDir) -> PathBuf {
 /// The options of the sweep recorded in the run's progress record, if there is one.
 pub fn stored_options(run: &Path) -> Option<BackwardOptions> {
     let text = std::fs::read_to_string(progress_path(&RunDir { path: run.to_path_buf() })).ok()?;
-    checked_json::from_slice::<Progress>(Path::new("backward.json"), text.as_bytes()).ok().map(|(p, _)| p.options)
+    Progress::read(run, &progress_path(&RunDir { path: run.to_path_buf() }), text.as_bytes()).ok().map(|p| p.options)
 }
 
 pub fn report_path(dir: &RunDir) -> PathBuf {
@@ -466,7 +479,7 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
         // A new sweep replaces the progress record: refuse where that would strand the
         // frames an interrupted sweep with other options left in its file.
         Ok(text) => {
-            if let Ok((p, _)) = checked_json::from_slice::<Progress>(&progress_file, text.as_bytes())
+            if let Ok(p) = Progress::read(&dir.path, &progress_file, text.as_bytes())
                 && !p.done
                 && p.options != *opts
                 && let Some(stranded) = p.options.frames_file(&dir.path).map(|f| tmp_path(&f)).filter(|t| t.exists())
@@ -489,7 +502,7 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
     };
     let prior: Option<Progress> = match record {
         Some(text) => {
-            let (p, _): (Progress, _) = checked_json::from_slice(&progress_file, text.as_bytes()).map_err(|e| {
+            let p = Progress::read(&dir.path, &progress_file, text.as_bytes()).map_err(|e| {
                 Error::Other(format!("{e}; the sweep cannot be continued from it: give the command without --resume to start the sweep over (the forward run is not affected)"))
             })?;
             if p.options != *opts {
@@ -507,7 +520,8 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
             if let Some(f) = frames_path.as_ref().filter(|_| saving)
                 && tmp_path(f).exists() {
                     return Err(Error::Other(format!(
-                        "{} holds the frames of an interrupted backward sweep; continue it with --resume, or delete it to start over",
+                        "{} holds the frames of an interrupted backward sweep (of this run, or of another whose --out names the same file): \
+                         continue that sweep with `clv backward RUN --resume`, give this one another --out, or delete the file to give that sweep up",
                         tmp_path(f).display()
                     )));
                 }
@@ -521,6 +535,19 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
         return Err(Error::param("out", format!("{} already exists; refusing to overwrite it: choose another --out (or delete it yourself, if it is a frame file you no longer need)", f.display())));
     }
     Ok(prior)
+}
+
+/// `path` with `.`, `..` and symbolic links resolved, as far as it exists (a file still to
+/// be written keeps its name under its resolved directory).
+fn canonical(path: &Path) -> Result<PathBuf> {
+    let absolute = std::path::absolute(path).map_err(|e| Error::io(path, e))?;
+    if let Ok(resolved) = absolute.canonicalize() {
+        return Ok(resolved);
+    }
+    match (absolute.parent(), absolute.file_name()) {
+        (Some(parent), Some(name)) => Ok(canonical(parent)?.join(name)),
+        _ => Ok(absolute),
+    }
 }
 
 /// Progress hooks: called with (steps recomputed, frames emitted) as the sweep advances.
@@ -880,5 +907,28 @@ mod tests {
             let damaged = legacy.replace("\"c\":[1.0,0.0,0.0,2.0,3.0,0.0,4.0,5.0,6.0]", bad);
             assert!(serde_json::from_str::<Progress>(&damaged).is_err(), "{bad}");
         }
+    }
+
+    /// The frame file inside the run is recorded relative to it however both are spelled
+    /// (`..`, a symbolic link to the run, a file not yet written), outside it absolute.
+    #[test]
+    fn frame_files_inside_the_run_are_recorded_relative_to_it() {
+        let base = std::env::temp_dir().join(format!("clv-record-path-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&base);
+        let run = base.join("B");
+        std::fs::create_dir_all(run.join("sub")).unwrap();
+        std::os::unix::fs::symlink(&run, base.join("L")).unwrap();
+        let rel = |r: &Path, f: &Path| BackwardOptions::record_frames_path(r, f).unwrap();
+        for (r, f) in [
+            (run.clone(), run.join("frames.mcap")),
+            (base.join("L"), base.join("L/frames.mcap")),
+            (run.clone(), base.join("L/frames.mcap")),
+            (base.join("L"), run.join("sub/../frames.mcap")),
+            (run.join("sub/.."), run.join("frames.mcap")),
+        ] {
+            assert_eq!(rel(&r, &f), Path::new("frames.mcap"), "{} in {}", f.display(), r.display());
+        }
+        assert!(rel(&run, &base.join("elsewhere.mcap")).is_absolute());
+        std::fs::remove_dir_all(&base).unwrap();
     }
 }

@@ -7,7 +7,8 @@
 //!
 //! The checksum is over the compact serialization of the record without the field, so it
 //! does not depend on how the file is indented, and f64 values survive it exactly (shortest
-//! round-trip formatting). Records written before the field existed read as before.
+//! round-trip formatting). Records written before the field existed read as before, unless
+//! the run.json beside them has one: then the field was removed.
 
 use crate::error::{Error, Result};
 use serde::de::DeserializeOwned;
@@ -47,6 +48,9 @@ pub fn from_slice<T: DeserializeOwned>(path: &Path, bytes: &[u8]) -> Result<(T, 
         return Err(Error::corrupt(path, "not a JSON object"));
     };
     let seal = match record.remove(FIELD) {
+        None if beside_a_sealed_run(path) => {
+            return Err(Error::corrupt(path, format!("it carries no checksum ({FIELD}), while the run.json beside it does: the field was removed by an edit")));
+        }
         None => Seal::Absent,
         Some(stored) => {
             let crc = crc_of(&record)?;
@@ -58,6 +62,14 @@ pub fn from_slice<T: DeserializeOwned>(path: &Path, bytes: &[u8]) -> Result<(T, 
     };
     let value = serde_json::from_value(serde_json::Value::Object(record)).map_err(|e| Error::corrupt(path, e.to_string()))?;
     Ok((value, seal))
+}
+
+/// Whether `path` is a record beside a run.json that carries a checksum: a run written by a
+/// build that seals its records, so that a record of it without one was edited.
+fn beside_a_sealed_run(path: &Path) -> bool {
+    let run_json = path.with_file_name("run.json");
+    path.file_name().is_some_and(|n| n != "run.json")
+        && std::fs::read(&run_json).ok().and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok()).is_some_and(|v| v.get(FIELD).is_some())
 }
 
 /// [`from_slice`] of the file at `path`.

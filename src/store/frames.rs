@@ -85,6 +85,27 @@ pub fn tmp_path(path: &Path) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// Whether two frame streams' metadata describe the same run and backward sweep: their
+/// run.json and backward.json agree but for the number of threads, which changes no number
+/// (a sweep may be continued on a node with other cores), and for how the frame file was
+/// named (the file compared is that file).
+fn same_sweep(a: &BTreeMap<String, String>, b: &BTreeMap<String, String>) -> bool {
+    let parsed = |m: &BTreeMap<String, String>, key: &str| -> Option<serde_json::Value> {
+        let mut v: serde_json::Value = serde_json::from_str(m.get(key)?).ok()?;
+        if let Some(config) = v.get_mut("config").and_then(|c| c.as_object_mut()) {
+            config.remove("threads");
+        }
+        if let Some(options) = v.as_object_mut() {
+            options.remove("frames_path");
+        }
+        Some(v)
+    };
+    ["run.json", "backward.json"].iter().all(|key| {
+        let (x, y) = (parsed(a, key), parsed(b, key));
+        x.is_some() && x == y
+    })
+}
+
 impl FrameFile {
     /// Start FILE.tmp (replacing a stale one) in FILE's directory, made if missing (as a run
     /// directory or a report is); refuses if FILE exists.
@@ -121,7 +142,11 @@ impl FrameFile {
                 theirs = info;
                 Ok(())
             }, |_| Ok(Flow::Stop))?;
-            if theirs.run_json.as_ref() != metadata.get("run.json") || theirs.backward_json.as_ref() != metadata.get("backward.json") {
+            let theirs: BTreeMap<String, String> = [("run.json", &theirs.run_json), ("backward.json", &theirs.backward_json)]
+                .into_iter()
+                .filter_map(|(k, v)| Some((k.to_string(), v.clone()?)))
+                .collect();
+            if !same_sweep(&theirs, metadata) {
                 return Err(Error::Other(format!(
                     "{} exists but was written by another backward sweep, and the interrupted sweep's {} is missing; remove {} or choose another --out, and run without --resume to start over",
                     path.display(),
@@ -136,6 +161,13 @@ impl FrameFile {
                 std::fs::remove_file(&tmp).map_err(|e| Error::io(&tmp, e))?;
             }
         } else if !keep.is_empty() {
+            if !tmp.exists() {
+                return Err(Error::Other(format!(
+                    "{} is gone, and with it the {} frames the interrupted sweep wrote: that sweep cannot be continued; give the command without --resume to start it over",
+                    tmp.display(),
+                    keep.len()
+                )));
+            }
             std::fs::rename(&tmp, &old).map_err(|e| Error::io(&tmp, e))?;
         } else if tmp.exists() {
             std::fs::remove_file(&tmp).map_err(|e| Error::io(&tmp, e))?;
@@ -152,7 +184,7 @@ impl FrameFile {
             read_stream(&old, std::io::BufReader::new(File::open(&old).map_err(|e| Error::io(&old, e))?), ReadMode::Salvage, |m| {
                 if m.topic == RUN_METADATA {
                     let theirs: BTreeMap<String, String> = serde_json::from_slice(m.data).unwrap_or_default();
-                    ours = ["run.json", "backward.json"].iter().all(|key| theirs.get(*key) == metadata.get(*key));
+                    ours = same_sweep(&theirs, metadata);
                     if !ours {
                         return Err(Error::Other(format!(
                             "{} holds the frames of another run or backward sweep (its run.json or backward.json metadata differs from this sweep's): {give_up}",

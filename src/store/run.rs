@@ -146,7 +146,7 @@ pub fn space_warning(path: &Path, needed: u64) -> Option<String> {
     let free = free_bytes(path)?;
     (free < needed).then(|| {
         format!(
-            "warning: this needs about {} on disk, and the file system of {} has {} free; when it fills, the run stops cleanly and continues with --resume once there is space",
+            "warning: this needs about {} on disk, and the file system of {} has {} free; when it fills, the stage stops cleanly, and once there is space it continues where it stopped (the message then says how)",
             human(needed),
             path.display(),
             human(free)

@@ -554,11 +554,16 @@ fn write_index(ctx: &Context, out: &Path, produced: &[Produced], warnings: &[Str
     write_report_file(&out.join("index.html"), html.as_bytes())?;
     // Last: a report with a summary.json is finished.
     let summary = serde_json::json!({ "frames": frames, "first_step": first, "last_step": last, "options": ctx.options, "warnings": warnings, "produced": produced });
-    write_report_file(&out.join("summary.json"), &serde_json::to_vec_pretty(&summary).unwrap_or_default())
+    write_report_file(&out.join("summary.json"), &serde_json::to_vec_pretty(&summary).unwrap_or_default())?;
+    let manifest = out.join(WRITING);
+    std::fs::remove_file(&manifest).map_err(|e| Error::io(&manifest, e))
 }
 
 /// The suffix of the temporary names of [`write_report_file`] (after a leading dot).
 const TMP_SUFFIX: &str = ".clv-tmp";
+/// The names of the files a report being written has written so far, one a line; removed
+/// once its summary.json is written.
+const WRITING: &str = ".clv-writing";
 
 /// Write one file of a report whole: under a temporary name beside it, renamed over `path`.
 /// A killed process leaves the earlier file or the new one, never half of one, and a
@@ -566,6 +571,10 @@ const TMP_SUFFIX: &str = ".clv-tmp";
 pub fn write_report_file(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write as _;
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    // Named in the manifest before it exists: a report killed before its summary.json
+    // still tells the next one what to remove ([`begin_report`]).
+    let manifest = path.with_file_name(WRITING);
+    std::fs::OpenOptions::new().create(true).append(true).open(&manifest).and_then(|mut f| writeln!(f, "{name}")).map_err(|e| Error::io(&manifest, e))?;
     let tmp = path.with_file_name(format!(".{name}{TMP_SUFFIX}"));
     // A leftover of a killed run: removed (a link itself, never its target), then created
     // anew, so that nothing already there is written through.
@@ -618,7 +627,13 @@ fn unfinished_page(out: &Path, source: &str) -> String {
 /// (notes of the user's own) stay.
 pub fn begin_report(out: &Path, source: &str) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let earlier = report_files(out).unwrap_or_default();
+    let mut earlier = report_files(out).unwrap_or_default();
+    // The files of a report that was killed before its summary.json listed them.
+    let manifest = out.join(WRITING);
+    if let Ok(text) = std::fs::read_to_string(&manifest) {
+        earlier.extend(text.lines().filter(|n| is_report_name(n)).map(String::from));
+    }
+    let _ = std::fs::remove_file(&manifest);
     write_report_file(&out.join("index.html"), unfinished_page(out, source).as_bytes())?;
     remove_report_file(out, "summary.json")?;
     for name in earlier.iter().filter(|n| *n != "index.html") {
