@@ -13,7 +13,10 @@
 //! No data may be hidden, since a figure that looks empty or lacks a curve
 //! misleads. Hence the legend (an opaque box) goes into the first inside corner
 //! of the axis box that covers no data, or else outside the axis box (see
-//! `Figure::layout`), and series that coincide stay visible (see `pen`).
+//! `Figure::layout`), and series that coincide stay visible (see `pen`): the
+//! first three are drawn ever thinner, any later ones dashed, each with its
+//! own dash pattern, and with ring markers of their own radius; the legend
+//! draws every series' sample with its series' pen.
 //!
 //! ```ignore
 //! let mut fig = Figure::new("Lyapunov spectrum").x_label("i").y_label("λ_i");
@@ -88,37 +91,86 @@ impl Label {
     }
 }
 
+/// Dash pattern `[on, off]` in pixels, starting "on" at the start of each
+/// line part (as SVG's `stroke-dasharray` without offset); `None` is solid.
+type Dash = Option<[f64; 2]>;
+
 /// Backend-neutral drawing primitive in pixel coordinates (y down).
 enum Prim {
-    /// Data polylines (one per part) with colour and width, clipped to the frame.
-    Path(Vec<Vec<(f64, f64)>>, Rgb, f64),
-    /// Straight line from `a` to `b` with colour and width (ticks, legend).
-    Line((f64, f64), (f64, f64), Rgb, f64),
+    /// Data polylines (one per part) with colour, width and dash pattern,
+    /// clipped to the frame.
+    Path(Vec<Vec<(f64, f64)>>, Rgb, f64, Dash),
+    /// Straight line from `a` to `b` with colour, width and dash pattern
+    /// (ticks, legend samples).
+    Line((f64, f64), (f64, f64), Rgb, f64, Dash),
     /// Rectangle `[x0, y0, x1, y1]` with optional fill and stroke colours.
     Rect([f64; 4], Option<Rgb>, Option<Rgb>),
-    /// Filled dots with colour and radius; the flag clips them to the frame.
-    Dots(Vec<(f64, f64)>, Rgb, f64, bool),
+    /// Point markers with colour and radius: filled dots, or 1 px rings if
+    /// the first flag is set; the second flag clips them to the frame.
+    Dots(Vec<(f64, f64)>, Rgb, f64, bool, bool),
     Text(Label),
 }
 
 /// Radius of point markers in pixels (of the first series, see [`pen`]).
 const DOT_R: f64 = 3.0;
 
+/// Length in pixels of a dash pattern's unit (see [`pen`]).
+const DASH_UNIT: f64 = 4.0;
+
+/// How one series is drawn, see [`pen`].
+#[derive(Clone, Copy, Debug)]
+struct Pen {
+    /// Change of the line width from the base width of the series' kind
+    /// (lines are at least 1 px wide).
+    widen: f64,
+    /// Dash pattern of lines (arrows: of their shafts).
+    dash: Dash,
+    /// Radius of point markers.
+    dot_r: f64,
+    /// Point markers are 1 px rings instead of filled dots.
+    ring: bool,
+}
+
 /// How series number `k` (in order of addition) of a figure with `n` series
-/// is drawn: the change of its line width and its dot radius.
+/// is drawn.
 ///
-/// A later series drawn exactly over an earlier one must not hide it, so
-/// later series are drawn thinner: with two or more series the first draws
-/// lines 1 px wider than the base width of its kind, the second at the base
-/// width, all later ones 1 px narrower (at least 1 px), and dots shrink from
-/// radius 3 to 2 to 1.5 px. So up to three coinciding series all stay
-/// visible, also in the PNG, whose lines are whole pixels wide; coinciding
-/// series beyond the third share the thinnest pen. A lone series keeps the
-/// base width.
-fn pen(k: usize, n: usize) -> (f64, f64) {
+/// A later series drawn exactly over an earlier one must not hide it. So the
+/// first three series are drawn ever thinner: with two or more series the
+/// first draws solid lines 1 px wider than the base width of its kind, the
+/// second at the base width, the third 1 px narrower (at least 1 px), and
+/// filled dots shrink from radius 3 to 2 to 1.5 px.
+///
+/// Series from the fourth on (`k >= 3`) draw the thinnest lines, dashed:
+/// with `u` = 4 px, series `k` draws `(n - k) u` on and `(k - 2) u` off. All
+/// these patterns share the period `(n - 2) u` and start "on" at the start
+/// of a line, so where lines coincide from their start, series `k` shows in
+/// the unit of each period right after the dashes of series `k + 1`, and the
+/// third series in the last unit (lines that meet later meet out of step:
+/// there the gaps still let lower series show, but without this guarantee).
+/// The dashes get shorter series by series, so the legend tells them apart
+/// too. Their point markers are 1 px rings of radius `3 + 1.5 (k - 2)` px:
+/// around the dots and around each other, never on the same pixel. So any
+/// number of coinciding series all stay visible, also in the PNG, whose
+/// lines are whole pixels wide. A lone series keeps the base width.
+fn pen(k: usize, n: usize) -> Pen {
     let level = k.min(2);
     let widen = if n > 1 { 1.0 } else { 0.0 } - level as f64;
-    (widen, DOT_R - [0.0, 1.0, 1.5][level])
+    if k < 3 {
+        let dot_r = DOT_R - [0.0, 1.0, 1.5][level];
+        return Pen {
+            widen,
+            dash: None,
+            dot_r,
+            ring: false,
+        };
+    }
+    let on = DASH_UNIT * n.saturating_sub(k).max(1) as f64;
+    Pen {
+        widen,
+        dash: Some([on, DASH_UNIT * (k - 2) as f64]),
+        dot_r: DOT_R + 1.5 * (k - 2) as f64,
+        ring: true,
+    }
 }
 
 /// How an x-y series is drawn.
@@ -506,7 +558,7 @@ impl Figure {
         for &y in self.hlines.iter().filter(|y| y.is_finite()) {
             let py = lay.py(y);
             if py >= t && py <= b {
-                prims.push(Prim::Line((l, py), (r, py), GREY, 1.0));
+                prims.push(Prim::Line((l, py), (r, py), GREY, 1.0, None));
             }
         }
         for (k, s) in self.series.iter().enumerate() {
@@ -515,13 +567,13 @@ impl Figure {
         prims.push(Prim::Rect([l, t, r, b], None, Some(INK)));
         for (v, s) in &lay.xticks {
             let px = lay.px(*v).round();
-            prims.push(Prim::Line((px, b), (px, b + TICK_LEN), INK, 1.0));
+            prims.push(Prim::Line((px, b), (px, b + TICK_LEN), INK, 1.0, None));
             let y = b + TICK_LEN + 4.0 + ch / 2.0;
             prims.push(Prim::Text(text(px, y, s, Anchor::Middle)));
         }
         for (v, s) in &lay.yticks {
             let py = lay.py(*v).round();
-            prims.push(Prim::Line((l - TICK_LEN, py), (l, py), INK, 1.0));
+            prims.push(Prim::Line((l - TICK_LEN, py), (l, py), INK, 1.0, None));
             prims.push(Prim::Text(text(l - TICK_LEN - 4.0, py, s, Anchor::End)));
         }
         if !self.x_label.is_empty() {
@@ -554,7 +606,7 @@ impl Figure {
     }
 
     /// Legend entries in the box chosen by [`Figure::layout`], each with a
-    /// sample drawn with the series' pen.
+    /// sample drawn with the series' pen (width, dash pattern, marker).
     fn legend(&self, lay: &Layout, prims: &mut Vec<Prim>) {
         let Some([x0, y0, x1, y1]) = lay.legend else {
             return;
@@ -566,17 +618,18 @@ impl Figure {
         for (row, (k, s)) in self.legend_entries().into_iter().enumerate() {
             let cy = (y0 + 3.0 + line_h * (row as f64 + 0.5)).round();
             let (a, b) = ((x0 + 8.0, cy), (x0 + 8.0 + sample, cy));
-            let (widen, dot_r) = pen(k, self.series.len());
+            let pen = pen(k, self.series.len());
             let marker = match s.kind {
                 Kind::Xy(_, m) => m,
                 Kind::Arrows(_) => Marker::Line,
             };
             if marker != Marker::Points {
-                prims.push(Prim::Line(a, b, s.color, (2.0 + widen).max(1.0)));
+                let width = (2.0 + pen.widen).max(1.0);
+                prims.push(Prim::Line(a, b, s.color, width, pen.dash));
             }
             if matches!(marker, Marker::Points | Marker::LinePoints) {
                 let dot = vec![((a.0 + b.0) / 2.0, cy)];
-                prims.push(Prim::Dots(dot, s.color, dot_r, false));
+                prims.push(Prim::Dots(dot, s.color, pen.dot_r, pen.ring, false));
             }
             prims.push(Prim::Text(Label::new(
                 b.0 + 8.0,
@@ -595,7 +648,7 @@ impl Figure {
 fn covers(p: &Prim, bx: [f64; 4]) -> bool {
     let grow = |m: f64| [bx[0] - m, bx[1] - m, bx[2] + m, bx[3] + m];
     match p {
-        Prim::Path(parts, _, width) => {
+        Prim::Path(parts, _, width, _) => {
             let g = grow(width / 2.0 + 1.0);
             parts.iter().any(|part| match part.as_slice() {
                 [only] => raster::clip_segment(*only, *only, g).is_some(),
@@ -604,7 +657,7 @@ fn covers(p: &Prim, bx: [f64; 4]) -> bool {
                     .any(|w| raster::clip_segment(w[0], w[1], g).is_some()),
             })
         }
-        Prim::Dots(pts, _, r, _) => {
+        Prim::Dots(pts, _, r, _, _) => {
             let g = grow(r + 1.0);
             pts.iter()
                 .any(|&(x, y)| x >= g[0] && x <= g[2] && y >= g[1] && y <= g[3])
@@ -623,9 +676,9 @@ fn text_w(s: &str, scale: u32) -> f64 {
 }
 
 /// Primitives for one data series, drawn with `pen` (see [`pen`]).
-fn series_prims(lay: &Layout, s: &Series, pen: (f64, f64), prims: &mut Vec<Prim>) {
-    let (color, (widen, dot_r)) = (s.color, pen);
-    let width = |base: f64| (base + widen).max(1.0);
+fn series_prims(lay: &Layout, s: &Series, pen: Pen, prims: &mut Vec<Prim>) {
+    let color = s.color;
+    let width = |base: f64| (base + pen.widen).max(1.0);
     let finite = |p: &(f64, f64)| p.0.is_finite() && p.1.is_finite();
     match &s.kind {
         Kind::Xy(pts, marker) => {
@@ -648,7 +701,7 @@ fn series_prims(lay: &Layout, s: &Series, pen: (f64, f64), prims: &mut Vec<Prim>
                     2.0
                 };
                 if !parts.is_empty() {
-                    prims.push(Prim::Path(parts, color, width(base)));
+                    prims.push(Prim::Path(parts, color, width(base), pen.dash));
                 }
             }
             if matches!(marker, Marker::Points | Marker::LinePoints) {
@@ -658,14 +711,16 @@ fn series_prims(lay: &Layout, s: &Series, pen: (f64, f64), prims: &mut Vec<Prim>
                     .map(|&p| lay.map(p))
                     .collect();
                 if !pts.is_empty() {
-                    prims.push(Prim::Dots(pts, color, dot_r, true));
+                    prims.push(Prim::Dots(pts, color, pen.dot_r, pen.ring, true));
                 }
             }
         }
         Kind::Arrows(arrows) => {
-            // Shaft plus two barbs at +-25 degrees, at most 10 px long.
+            // Shaft plus two barbs at +-25 degrees, at most 10 px long. Heads
+            // go to a solid path of their own if the shafts are dashed (a
+            // dashed head could lose its tip).
             let (cos, sin) = (25f64.to_radians().cos(), 25f64.to_radians().sin());
-            let mut parts = Vec::new();
+            let (mut parts, mut heads) = (Vec::new(), Vec::new());
             for &(p, q) in arrows {
                 let (a, b) = (lay.map(p), lay.map(q));
                 parts.push(vec![a, b]);
@@ -677,11 +732,19 @@ fn series_prims(lay: &Layout, s: &Series, pen: (f64, f64), prims: &mut Vec<Prim>
                         let (rx, ry) = (cos * ux - sg * sin * uy, sg * sin * ux + cos * uy);
                         (b.0 - head * rx, b.1 - head * ry)
                     };
-                    parts.push(vec![barb(1.0), b, barb(-1.0)]);
+                    let head = vec![barb(1.0), b, barb(-1.0)];
+                    if pen.dash.is_some() {
+                        heads.push(head);
+                    } else {
+                        parts.push(head);
+                    }
                 }
             }
             if !parts.is_empty() {
-                prims.push(Prim::Path(parts, color, width(1.5)));
+                prims.push(Prim::Path(parts, color, width(1.5), pen.dash));
+            }
+            if !heads.is_empty() {
+                prims.push(Prim::Path(heads, color, width(1.5), None));
             }
         }
     }

@@ -6,7 +6,7 @@
 //! outside the axes never produce endless pixel loops.
 
 use super::font;
-use super::{Anchor, Label, Prim, Rgb};
+use super::{Anchor, Dash, Label, Prim, Rgb};
 
 /// An RGB8 image plus an optional clip box `[x0, y0, x1, y1]` (inclusive).
 pub(super) struct Canvas {
@@ -87,15 +87,56 @@ impl Canvas {
         }
     }
 
-    /// Filled disc of radius `r` centred at `(cx, cy)`.
-    fn dot(&mut self, cx: f64, cy: f64, r: f64, c: Rgb) {
+    /// Polyline through `part`: solid, or dashed with `[on, off]` pixels
+    /// measured along the polyline from its start (as SVG draws a subpath).
+    /// Dashes are split off after clipping each segment, so a segment far
+    /// outside the canvas costs no more than one inside it.
+    fn polyline(&mut self, part: &[(f64, f64)], width: f64, c: Rgb, dash: Dash) {
+        let Some([on, off]) = dash else {
+            for w in part.windows(2) {
+                self.line(w[0], w[1], width, c);
+            }
+            return;
+        };
+        let [x0, y0, x1, y1] = self.bounds().map(|v| v as f64);
+        let bx = [x0 - 2.0, y0 - 2.0, x1 + 2.0, y1 + 2.0];
+        let (period, mut done) = (on + off, 0.0); // `done`: length before segment
+        for w in part.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            if let Some((p, q)) = clip_segment(a, b, bx) {
+                let len = (q.0 - p.0).hypot(q.1 - p.1);
+                let at = |s: f64| (p.0 + (q.0 - p.0) * s / len, p.1 + (q.1 - p.1) * s / len);
+                // Start of the current period, relative to `p` (at most 0).
+                let phase = (done + (p.0 - a.0).hypot(p.1 - a.1)).rem_euclid(period);
+                let mut s = if phase.is_finite() { -phase } else { 0.0 };
+                while s < len {
+                    let (s0, s1) = (s.max(0.0), (s + on).min(len));
+                    if s1 > s0 {
+                        self.line(at(s0), at(s1), width, c);
+                    }
+                    s += period;
+                }
+            }
+            done += (b.0 - a.0).hypot(b.1 - a.1);
+        }
+    }
+
+    /// Filled disc of radius `r` centred at `(cx, cy)`, or with `ring` only
+    /// its 1 px wide rim (the pixels at distance `r` +- 0.5).
+    fn dot(&mut self, cx: f64, cy: f64, r: f64, ring: bool, c: Rgb) {
         if !(cx.is_finite() && cy.is_finite()) {
             return;
         }
         let (x, y, ri) = (cx.round() as i64, cy.round() as i64, r.ceil() as i64);
         for dy in -ri..=ri {
             for dx in -ri..=ri {
-                if ((dx * dx + dy * dy) as f64) <= r * r + 0.5 * r {
+                let d2 = (dx * dx + dy * dy) as f64;
+                let on = if ring {
+                    (d2.sqrt() - r).abs() <= 0.5
+                } else {
+                    d2 <= r * r + 0.5 * r
+                };
+                if on {
                     self.fill([x + dx, y + dy, x + dx, y + dy], c);
                 }
             }
@@ -150,18 +191,16 @@ impl Canvas {
         let frame = Some(frame.map(|v| v.round() as i64));
         self.clip = None;
         match p {
-            Prim::Path(parts, color, width) => {
+            Prim::Path(parts, color, width, dash) => {
                 self.clip = frame;
                 for part in parts {
-                    for w in part.windows(2) {
-                        self.line(w[0], w[1], *width, *color);
-                    }
+                    self.polyline(part, *width, *color, *dash);
                     if let [only] = part.as_slice() {
-                        self.dot(only.0, only.1, 1.0, *color);
+                        self.dot(only.0, only.1, 1.0, false, *color);
                     }
                 }
             }
-            Prim::Line(a, b, color, width) => self.line(*a, *b, *width, *color),
+            Prim::Line(a, b, color, width, dash) => self.polyline(&[*a, *b], *width, *color, *dash),
             Prim::Rect(r, fill, stroke) => {
                 let [l, t, r, b] = r.map(f64::round);
                 if let Some(f) = fill {
@@ -174,10 +213,10 @@ impl Canvas {
                     }
                 }
             }
-            Prim::Dots(pts, color, r, clip) => {
+            Prim::Dots(pts, color, r, ring, clip) => {
                 self.clip = if *clip { frame } else { None };
                 for &(x, y) in pts {
-                    self.dot(x, y, *r, *color);
+                    self.dot(x, y, *r, *ring, *color);
                 }
             }
             Prim::Text(t) => self.text(t),

@@ -5,7 +5,7 @@
 
 use std::fmt::Write;
 
-use super::{Anchor, Label, Prim, Rgb};
+use super::{Anchor, Dash, Label, Prim, Rgb};
 
 /// Escape the characters that are special in XML text and attributes.
 pub(super) fn escape(s: &str) -> String {
@@ -26,6 +26,14 @@ fn hex(c: Rgb) -> String {
     format!("#{:02x}{:02x}{:02x}", c.0, c.1, c.2)
 }
 
+/// ` stroke-dasharray` attribute for a dashed stroke, else nothing. SVG
+/// restarts the pattern at each subpath, as the raster backend does.
+fn dash_attr(dash: &Dash) -> String {
+    dash.map_or(String::new(), |[on, off]| {
+        format!(" stroke-dasharray=\"{on} {off}\"")
+    })
+}
+
 /// Render `prims` as an SVG document of size `w` x `h`; `frame` is the
 /// `[left, top, right, bottom]` box that data primitives are clipped to.
 pub(super) fn render(w: u32, h: u32, frame: [f64; 4], prims: &[Prim]) -> String {
@@ -43,7 +51,7 @@ pub(super) fn render(w: u32, h: u32, frame: [f64; 4], prims: &[Prim]) -> String 
     // `write!` into a String cannot fail, so its Result is ignored below.
     for p in prims {
         match p {
-            Prim::Path(parts, color, width) => {
+            Prim::Path(parts, color, width, dash) => {
                 let mut d = String::new();
                 for part in parts {
                     for (k, (x, y)) in part.iter().enumerate() {
@@ -52,22 +60,24 @@ pub(super) fn render(w: u32, h: u32, frame: [f64; 4], prims: &[Prim]) -> String 
                 }
                 let _ = writeln!(
                     s,
-                    "<path d=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"{width}\" \
+                    "<path d=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"{width}\"{} \
                      stroke-linejoin=\"round\"{CLIP}/>",
                     d.trim_end(),
-                    hex(*color)
+                    hex(*color),
+                    dash_attr(dash)
                 );
             }
-            Prim::Line(a, b, color, width) => {
+            Prim::Line(a, b, color, width, dash) => {
                 let _ = writeln!(
                     s,
                     "<line x1=\"{:.2}\" y1=\"{:.2}\" x2=\"{:.2}\" y2=\"{:.2}\" stroke=\"{}\" \
-                     stroke-width=\"{width}\" shape-rendering=\"crispEdges\"/>",
+                     stroke-width=\"{width}\"{} shape-rendering=\"crispEdges\"/>",
                     a.0,
                     a.1,
                     b.0,
                     b.1,
-                    hex(*color)
+                    hex(*color),
+                    dash_attr(dash)
                 );
             }
             Prim::Rect([x0, y0, x1, y1], fill, stroke) => {
@@ -81,9 +91,17 @@ pub(super) fn render(w: u32, h: u32, frame: [f64; 4], prims: &[Prim]) -> String 
                     y1 - y0
                 );
             }
-            Prim::Dots(pts, color, r, clip) => {
+            Prim::Dots(pts, color, r, ring, clip) => {
                 let clip = if *clip { CLIP } else { "" };
-                let _ = writeln!(s, "<g fill=\"{}\"{clip}>", hex(*color));
+                let paint = if *ring {
+                    format!(
+                        "fill=\"none\" stroke=\"{}\" stroke-width=\"1\"",
+                        hex(*color)
+                    )
+                } else {
+                    format!("fill=\"{}\"", hex(*color))
+                };
+                let _ = writeln!(s, "<g {paint}{clip}>");
                 for (x, y) in pts {
                     let _ = writeln!(s, "<circle cx=\"{x:.2}\" cy=\"{y:.2}\" r=\"{r}\"/>");
                 }

@@ -586,3 +586,116 @@ fn coinciding_series_both_stay_visible() {
         }
     }
 }
+
+/// Value of attribute `name` in the SVG element `el`, if present.
+fn attr<'a>(el: &'a str, name: &str) -> Option<&'a str> {
+    let start = el.find(&format!(" {name}=\""))? + name.len() + 3;
+    el[start..].split('"').next()
+}
+
+/// SVG elements (one a line) drawn in colour `col`, as stroke or fill.
+fn svg_elements<'a>(svg: &'a str, tag: &str, col: Rgb) -> Vec<&'a str> {
+    let hex = format!("#{:02x}{:02x}{:02x}", col.0, col.1, col.2);
+    svg.lines()
+        .filter(|l| l.starts_with(tag))
+        .filter(|l| attr(l, "stroke") == Some(&hex) || attr(l, "fill") == Some(&hex))
+        .collect()
+}
+
+/// Beyond three coinciding series (see `pen`): every series keeps pixels of
+/// its own colour in the PNG, its own SVG element, and a legend sample drawn
+/// like it (the same dash pattern, the same marker).
+#[test]
+fn five_or_six_coinciding_series_all_stay_visible() {
+    let xs: Vec<f64> = (0..50).map(f64::from).collect();
+    let ys: Vec<f64> = xs.iter().map(|x| (x / 8.0).sin()).collect();
+    for n in [5, 6] {
+        for marker in [
+            Marker::Line,
+            Marker::Points,
+            Marker::LinePoints,
+            Marker::Steps,
+        ] {
+            let mut fig = Figure::new("same");
+            for k in 0..n {
+                fig.series(&format!("series {k}"), &xs, &ys, marker);
+            }
+            let what = format!("{n} x {marker:?}");
+            // PNG: every series' exact colour is painted in the plot area.
+            let c = fig.raster();
+            let lay = fig.layout();
+            let [l, t, r, b] = lay.frame().map(|v| v as u32);
+            let legend = lay.legend.expect("legend");
+            for (k, col) in PALETTE[..n].iter().enumerate() {
+                let count = (t + 1..b)
+                    .flat_map(|y| (l + 1..r).map(move |x| (x, y)))
+                    .filter(|&(x, y)| !inside((f64::from(x), f64::from(y)), legend))
+                    .filter(|&(x, y)| c.get(x, y) == *col)
+                    .count();
+                assert!(count > 0, "{what}: series {k} hidden in the PNG");
+            }
+            // SVG: each series has its own element(s); lines from the fourth
+            // series on are dashed, each with its own pattern, and the legend
+            // sample of a series carries the same pattern (and marker).
+            let svg = fig.to_svg();
+            let mut patterns = Vec::new();
+            for (k, &col) in PALETTE[..n].iter().enumerate() {
+                if marker != Marker::Points {
+                    let paths = svg_elements(&svg, "<path", col);
+                    assert_eq!(paths.len(), 1, "{what}: series {k}: {paths:?}");
+                    let dash = attr(paths[0], "stroke-dasharray");
+                    assert_eq!(dash.is_some(), k >= 3, "{what}: series {k}: {}", paths[0]);
+                    let samples = svg_elements(&svg, "<line", col);
+                    assert_eq!(samples.len(), 1, "{what}: legend sample of {k}");
+                    assert_eq!(
+                        attr(samples[0], "stroke-dasharray"),
+                        dash,
+                        "{what}: legend {k}"
+                    );
+                    assert_eq!(
+                        attr(samples[0], "stroke-dashoffset"),
+                        attr(paths[0], "stroke-dashoffset"),
+                        "{what}: legend {k}"
+                    );
+                    patterns.extend(dash);
+                    // The PNG legend sample shows gaps exactly when dashed.
+                    let runs = (legend[1] as u32..legend[3] as u32)
+                        .map(|y| {
+                            let on: Vec<bool> = (legend[0] as u32..legend[2] as u32)
+                                .map(|x| c.get(x, y) == col)
+                                .collect();
+                            on.windows(2).filter(|w| w[1] && !w[0]).count() + usize::from(on[0])
+                        })
+                        .max()
+                        .unwrap_or(0);
+                    if marker == Marker::LinePoints && k < 3 {
+                        // The dot may split the sample's visible line; fine.
+                        assert!(runs >= 1, "{what}: legend sample {k} missing");
+                    } else {
+                        assert_eq!(runs > 1, k >= 3, "{what}: legend sample {k}: {runs} runs");
+                    }
+                }
+                if matches!(marker, Marker::Points | Marker::LinePoints) {
+                    // Data markers (clipped) and the legend marker (not clipped)
+                    // are drawn alike: same group style, same circle radius.
+                    let groups = svg_elements(&svg, "<g", col);
+                    assert_eq!(groups.len(), 2, "{what}: series {k}: {groups:?}");
+                    let style = |g: &str| g.replace(" clip-path=\"url(#plotarea)\"", "");
+                    assert_eq!(style(groups[0]), style(groups[1]), "{what}: {k}");
+                }
+            }
+            let mut distinct = patterns.clone();
+            distinct.sort_unstable();
+            distinct.dedup();
+            assert_eq!(distinct.len(), patterns.len(), "{what}: {patterns:?}");
+        }
+    }
+    // Dashes are cut after clipping: wild values cost no endless dash loop.
+    let mut fig = Figure::new("wild").y_range(-1.0, 1.0);
+    for k in 0..4 {
+        let y = [-1e300, 1e300, f64::MAX];
+        fig.series(&format!("{k}"), &[0.0, 1.0, 2.0], &y, Marker::Line);
+    }
+    let (w, _, _) = parse_png(&fig.to_png()).expect("valid PNG");
+    assert_eq!(w, 900);
+}
