@@ -768,11 +768,14 @@ fn damaged_or_edited_records_are_refused_not_continued_from() {
     let refused = clv(&["backward", d, "--quiet", "--save-every", "0"]);
     assert!(!refused.status.success() && stderr(&refused).contains("carries no checksum"), "{}", stderr(&refused));
     // --out may not name the run's own files (frames would replace them, or they the frames).
-    for name in ["clv_spectrum.json", "backward.tmp", "seg-000000000000-000000000050.mcap", "notes"] {
+    for name in ["clv_spectrum.json", "backward.tmp", "seg-000000000000-000000000050.mcap", "notes", "previous-3000-steps/frames.mcap"] {
         let out = dir.join(name);
         let refused = clv(&["backward", d, "--quiet", "--out", out.to_str().unwrap()]);
         assert!(!refused.status.success() && stderr(&refused).contains("a name the run's own files use"), "{name}: {}", stderr(&refused));
     }
+    // Nor is a report written into the run directory.
+    let refused = clv(&["analyze", want.to_str().unwrap(), "--out", d, "--overwrite", "--quiet"]);
+    assert!(!refused.status.success() && stderr(&refused).contains("is a run directory"), "{}", stderr(&refused));
 }
 
 /// A sweep's frame file is found by the run, not by the directory the command runs in: a
@@ -824,6 +827,8 @@ fn a_resumed_sweep_continues_its_own_frames_only() {
     let refused = clv(&["backward", m, "--quiet", "--resume"]);
     let err = stderr(&refused);
     assert!(!refused.status.success() && err.contains("another run") && err.contains("without --resume"), "{err}");
+    // ...and left where it is, for the sweep it belongs to.
+    assert!(moved.join("frames.mcap.tmp").exists() && !moved.join("frames.mcap.tmp.old").exists());
     // A refused --out leaves no record behind.
     std::fs::remove_file(moved.join("backward.json")).unwrap();
     let taken = base.join("taken.mcap");

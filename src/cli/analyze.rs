@@ -49,6 +49,9 @@ pub fn analyze(args: &AnalyzeArgs) -> Result<()> {
         return Err(Error::param("out", format!("{} is a file; the report needs a directory", args.out.display())));
     }
     // A report can be all that is left of a long run: never replace one by accident.
+    if args.out.join("run.json").exists() {
+        return Err(Error::param("out", format!("{} is a run directory; a report goes into a directory of its own (e.g. {})", args.out.display(), args.out.join("report").display())));
+    }
     let holds_files = std::fs::read_dir(&args.out).is_ok_and(|mut entries| entries.next().is_some());
     if holds_files && !args.overwrite {
         return Err(Error::param(

@@ -98,7 +98,8 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
                 // (run.json, the segments, the records and their temporary names) are not to be
                 // replaced by frames, nor frames by them.
                 let name = recorded.to_string_lossy().to_string();
-                if recorded.components().count() == 1 && (!name.ends_with(".mcap") || name.starts_with("seg-")) {
+                let in_previous = recorded.is_relative() && recorded.components().next().is_some_and(|c| c.as_os_str().to_string_lossy().starts_with("previous-"));
+                if in_previous || (recorded.components().count() == 1 && (!name.ends_with(".mcap") || name.starts_with("seg-"))) {
                     return Err(Error::param("out", format!(
                         "{} would be {name} in the run directory, a name the run's own files use; give a name ending in .mcap (frames.mcap is the default), or a path outside the run directory",
                         path.display()

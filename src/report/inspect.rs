@@ -181,7 +181,7 @@ fn damaged_records(dir: &RunDir) -> Vec<String> {
     let run = dir.path.display();
     let records = [
         ("spectrum.json", format!("`clv forward --resume {run}` rewrites it from the run's last checkpoint")),
-        ("backward.json", format!("the backward sweep it records cannot be resumed: delete it (and the sweep's FRAMES.mcap.tmp, if one is left), then `clv backward {run}` without --resume starts the sweep over")),
+        ("backward.json", format!("the backward sweep it records cannot be resumed: delete it (and the sweep's FRAMES.mcap.tmp, if one is left; move a finished FRAMES.mcap aside), then `clv backward {run}` without --resume starts the sweep over")),
         ("clv_spectrum.json", format!("`clv backward {run} --save-every 0` computes it again (without writing frames)")),
     ];
     records

@@ -106,6 +106,26 @@ fn same_sweep(a: &BTreeMap<String, String>, b: &BTreeMap<String, String>) -> boo
     })
 }
 
+/// Whether the frame stream in `path` begins with the metadata of another sweep than
+/// `metadata` describes ([`same_sweep`]); read only up to its metadata.
+fn begins_with_other_metadata(path: &Path, metadata: &BTreeMap<String, String>) -> Result<bool> {
+    const ENOUGH: &str = "clv: read up to the metadata";
+    let mut other = false;
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let read = read_stream(path, std::io::BufReader::new(file), ReadMode::Salvage, |m| {
+        if m.topic == RUN_METADATA {
+            let theirs: BTreeMap<String, String> = serde_json::from_slice(m.data).unwrap_or_default();
+            other = !same_sweep(&theirs, metadata);
+        }
+        Err(Error::Other(ENOUGH.into()))
+    });
+    match read {
+        Err(Error::Other(msg)) if msg == ENOUGH => Ok(other),
+        Err(e) => Err(e),
+        Ok(_) => Ok(other),
+    }
+}
+
 impl FrameFile {
     /// Start FILE.tmp (replacing a stale one) in FILE's directory, made if missing (as a run
     /// directory or a report is); refuses if FILE exists.
@@ -163,9 +183,19 @@ impl FrameFile {
         } else if !keep.is_empty() {
             if !tmp.exists() {
                 return Err(Error::Other(format!(
-                    "{} is gone, and with it the {} frames the interrupted sweep wrote: that sweep cannot be continued; give the command without --resume to start it over",
+                    "{} is gone, and with it the {} frames the interrupted sweep wrote: that sweep cannot be continued; give the command without --resume to start it over \
+                     (a sweep started by a build before 2026-11-25 is continued from the directory it was started in: its record names the file relative to it)",
                     tmp.display(),
                     keep.len()
+                )));
+            }
+            // Another sweep's file at this path (another run whose --out names it) is left
+            // where it is, for that sweep to continue.
+            if begins_with_other_metadata(&tmp, metadata)? {
+                return Err(Error::Other(format!(
+                    "{} holds the frames of another run or backward sweep (one whose --out names the same file), not this sweep's, which are gone: \
+                     leave it for that sweep, and give this command without --resume and with another --out to start this sweep over",
+                    tmp.display()
                 )));
             }
             std::fs::rename(&tmp, &old).map_err(|e| Error::io(&tmp, e))?;

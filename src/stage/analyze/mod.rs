@@ -573,8 +573,14 @@ pub fn write_report_file(path: &Path, bytes: &[u8]) -> Result<()> {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     // Named in the manifest before it exists: a report killed before its summary.json
     // still tells the next one what to remove ([`begin_report`]).
+    // One write of the whole line, under a lock: the analyses write their files from
+    // threads of their own, and their names must not interleave.
+    static MANIFEST: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let manifest = path.with_file_name(WRITING);
-    std::fs::OpenOptions::new().create(true).append(true).open(&manifest).and_then(|mut f| writeln!(f, "{name}")).map_err(|e| Error::io(&manifest, e))?;
+    {
+        let _one_at_a_time = MANIFEST.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        std::fs::OpenOptions::new().create(true).append(true).open(&manifest).and_then(|mut f| f.write_all(format!("{name}\n").as_bytes())).map_err(|e| Error::io(&manifest, e))?;
+    }
     let tmp = path.with_file_name(format!(".{name}{TMP_SUFFIX}"));
     // A leftover of a killed run: removed (a link itself, never its target), then created
     // anew, so that nothing already there is written through.
@@ -633,7 +639,9 @@ pub fn begin_report(out: &Path, source: &str) -> Result<()> {
     if let Ok(text) = std::fs::read_to_string(&manifest) {
         earlier.extend(text.lines().filter(|n| is_report_name(n)).map(String::from));
     }
-    let _ = std::fs::remove_file(&manifest);
+    // Still listed while they go: a kill in the middle of the removal leaves them named.
+    let listed: String = earlier.iter().map(|n| format!("{n}\n")).collect();
+    crate::store::run::write_atomic(&manifest, listed.as_bytes())?;
     write_report_file(&out.join("index.html"), unfinished_page(out, source).as_bytes())?;
     remove_report_file(out, "summary.json")?;
     for name in earlier.iter().filter(|n| *n != "index.html") {
@@ -872,5 +880,28 @@ mod tests {
         assert!(std::fs::symlink_metadata(out.join("b.csv")).is_err() && out.join("c.csv").is_dir());
         assert_eq!(std::fs::read_to_string(dir.join("target.txt")).unwrap(), "theirs");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Report files written from many threads at once are each named whole on their own
+    /// line of the manifest, and a report begun over an earlier one keeps the earlier
+    /// files named there until they are gone (a kill midway leaves them listed).
+    #[test]
+    fn the_manifest_names_every_file_whole() {
+        let out = std::env::temp_dir().join(format!("clv-manifest-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        std::fs::create_dir_all(&out).unwrap();
+        let names: Vec<String> = (0..64).map(|i| format!("table_with_a_long_name_{i:03}.csv")).collect();
+        std::thread::scope(|s| {
+            for chunk in names.chunks(8) {
+                let out = &out;
+                s.spawn(move || chunk.iter().for_each(|n| write_report_file(&out.join(n), b"x").unwrap()));
+            }
+        });
+        let listed: std::collections::BTreeSet<String> = std::fs::read_to_string(out.join(WRITING)).unwrap().lines().map(String::from).collect();
+        assert_eq!(listed, names.iter().cloned().collect());
+        begin_report(&out, "test").unwrap();
+        let listed = std::fs::read_to_string(out.join(WRITING)).unwrap();
+        assert!(names.iter().all(|n| listed.lines().any(|l| l == n) && !out.join(n).exists()), "{listed}");
+        std::fs::remove_dir_all(&out).unwrap();
     }
 }

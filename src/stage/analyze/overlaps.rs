@@ -359,7 +359,7 @@ mod tests {
         let ctx = context("disks", 4, d, false, vec![2]);
         let mut a = new(&ctx).unwrap();
         a.consume(&frame(0, d, identity(d), None)).unwrap();
-        let out = scratch("nogs");
+        let out = scratch("overlaps-nogs");
         let produced = a.finish(&out, 1).unwrap();
         let stems: Vec<&String> = produced.iter().flat_map(|p| &p.figures).collect();
         assert_eq!(stems, ["fig13_clv_overlap", "fig13_clv_overlap_conjugate", "fig14_mode_overlap"]);

@@ -283,7 +283,7 @@ mod tests {
         let d = 8;
         let v: Vec<f64> = (0..d * d).map(|x| if x % (d + 1) == 0 { 1.0 } else { 0.0 }).collect();
         a.consume(&Frame { step: 0, time: 0.0, d, k: d, phase: vec![0.0; d], v, local: vec![0.0; d], gs_local: Vec::new(), g: None }).unwrap();
-        let out = scratch("nogs");
+        let out = scratch("projections-nogs");
         let produced = a.finish(&out, 1).unwrap();
         assert_eq!(produced.len(), 2, "Figs. 7 and 9 only");
         let t = read_csv(&out.join("projections.csv"));
