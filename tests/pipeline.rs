@@ -132,7 +132,16 @@ fn analyze_refuses_bad_sources_clearly() {
 fn clv_run_on_the_default_preset_writes_the_report() {
     let out = scratch("run");
     let o = out.to_str().unwrap();
-    let first = ok(clv(&["run", "--out", o, "--quiet"]));
+    // A file system with (faked) no free space: the warning's estimate is what the run,
+    // its records and its report then take.
+    let first = ok(common::clv_env(&["run", "--out", o, "--quiet"], &[("CLV_FAULT_DISK_FREE", "1")]));
+    let warning = String::from_utf8_lossy(&first.stderr).to_string();
+    let estimate: f64 = warning.split("needs about ").nth(1).and_then(|r| r.split(" MB").next()?.parse().ok()).unwrap_or_else(|| panic!("no estimate in MB in {warning:?}"));
+    fn bytes(dir: &Path) -> u64 {
+        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).map(|p| if p.is_dir() { bytes(&p) } else { std::fs::metadata(&p).unwrap().len() }).sum()
+    }
+    let used = bytes(&out) as f64 / 1e6;
+    assert!(estimate >= used && estimate < 1.5 * used, "estimated {estimate} MB, used {used} MB");
     let html = read(&out.join("report/index.html"));
     let summary: serde_json::Value = serde_json::from_str(&read(&out.join("report/summary.json"))).unwrap();
     let produced = summary["produced"].as_array().unwrap();
@@ -577,3 +586,4 @@ fn clv_error_bars_do_not_depend_on_how_the_frames_are_read() {
     assert!(!titles.iter().any(|t| t.contains("Domination") || t.contains("Finite-time")), "{titles:?}");
     assert!(read(&sparse_report.join("index.html")).contains("are not computed"));
 }
+

@@ -814,7 +814,7 @@ pub fn analyze_source(
         }
         return Err(Error::Other(match damage {
             Some(d) => format!("{name}: no frames in the stream ({d})"),
-            None => format!("{name}: no frames in the stream: its writer sent none (`clv backward --resume` of a sweep that had finished sends none; start it without --resume)"),
+            None => format!("{name}: no frames in the stream: its writer sent none. It failed before its first frame (its own error says why: a full disk, a signal), or it was `clv backward --resume` of a sweep that had finished, which sends none (start it without --resume)"),
         }));
     };
     let analysed = analyzer.finish(damage.as_deref())?;
