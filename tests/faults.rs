@@ -734,6 +734,10 @@ fn damaged_or_edited_records_are_refused_not_continued_from() {
     std::fs::remove_file(dir.parent().unwrap().join("part.mcap.tmp")).unwrap();
     ok(clv(&["backward", d, "--quiet", "--out", o]));
     assert!(frames(&out) == frames(&want));
+    // `clv analyze RUN` reads the frame file the run's last sweep wrote.
+    let rep = dir.parent().unwrap().join("report");
+    ok(clv(&["analyze", d, "--out", rep.to_str().unwrap(), "--only", "spectrum", "--quiet"]));
+    assert!(std::fs::read_to_string(rep.join("index.html")).unwrap().contains("part.mcap"));
 
     let spectrum = dir.join("spectrum.json");
     let good = std::fs::read(&spectrum).unwrap();

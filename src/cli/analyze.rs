@@ -7,7 +7,7 @@ use std::path::PathBuf;
 #[derive(Args)]
 pub struct AnalyzeArgs {
     /// Frames: a file written by `clv backward --out FILE`, - for standard input, or a run
-    /// directory (the frames.mcap that `clv backward RUN_DIR` wrote into it).
+    /// directory (the frame file its last `clv backward` sweep wrote: frames.mcap in it by default).
     pub source: PathBuf,
     /// Directory for index.html, figures (PNG, SVG) and tables (CSV, JSON).
     #[arg(long)]

@@ -744,12 +744,17 @@ impl Mean {
     }
 }
 
-/// A run directory stands for the frame file `clv backward` writes into it by default.
+/// A run directory stands for the frame file its last backward sweep recorded (`--out`),
+/// else the one `clv backward` writes into it by default.
 fn frame_source(source: &Path) -> Result<PathBuf> {
     if !source.is_dir() {
         return Ok(source.to_path_buf());
     }
+    let recorded = crate::stage::backward::stored_options(source).and_then(|o| o.frames_file(source)).filter(|f| f.exists());
     let frames = crate::store::RunDir { path: source.to_path_buf() }.frames_path();
+    if let Some(recorded) = recorded {
+        return Ok(recorded);
+    }
     if frames.exists() {
         return Ok(frames);
     }
