@@ -257,6 +257,12 @@ fn an_edited_run_json_is_refused_and_restored_from_the_segments_copy() {
         std::fs::rename(dir.join("run.json.from-segments"), &meta).unwrap();
     }
     assert!(!dir.join("spectrum.json").exists(), "nothing computed from an edited run.json");
+    // Deleted, it is restored the same way.
+    std::fs::remove_file(&meta).unwrap();
+    let out = clv(&["forward", "--resume", d, "--quiet"]);
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(!out.status.success() && err.contains("missing") && err.contains("run.json.from-segments"), "{err}");
+    std::fs::rename(dir.join("run.json.from-segments"), &meta).unwrap();
     ok(clv(&["forward", "--resume", d, "--quiet"]));
     assert!(contents(&dir) == *want);
 }

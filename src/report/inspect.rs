@@ -184,8 +184,19 @@ fn damaged_records(dir: &RunDir) -> Vec<String> {
         ("backward.json", format!("the backward sweep it records cannot be resumed: delete it (and the sweep's FRAMES.mcap.tmp, if one is left; move a finished FRAMES.mcap aside), then `clv backward {run}` without --resume starts the sweep over")),
         ("clv_spectrum.json", format!("`clv backward {run} --save-every 0` computes it again (without writing frames)")),
     ];
+    // The CLV spectra of earlier sweeps kept beside it: a damaged one is reported only.
+    let kept: Vec<(String, String)> = std::fs::read_dir(&dir.path)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with("clv_spectrum-") && n.ends_with(".json"))
+        .map(|n| (n, "the CLV spectrum of an earlier sweep, kept for reference: nothing recomputes it but that sweep again".to_string()))
+        .collect();
     records
         .into_iter()
+        .map(|(name, what)| (name.to_string(), what))
+        .chain(kept)
         .filter_map(|(name, what_to_do)| {
             let path = dir.path.join(name);
             let e = crate::store::checked_json::read::<serde_json::Value>(&path).err().filter(|_| path.exists())?;
@@ -277,6 +288,8 @@ pub struct FrameFileInspection {
     /// Frames that carry V_n (all but those `--vectors-every` skipped), and G_n.
     pub with_vectors: u64,
     pub with_gs: u64,
+    /// Frames that carry their local GS exponents (none in files before 2026-11-25).
+    pub with_gs_local: u64,
     /// The backward stage's options, as the stream records them (`backward.json`).
     pub backward: Option<serde_json::Value>,
     /// None if the file reads back whole, else where it ends or what is wrong.
@@ -285,7 +298,7 @@ pub struct FrameFileInspection {
 
 /// Read a frame file whole (every CRC checked) and summarise it.
 pub fn inspect_frames(path: &Path) -> Result<FrameFileInspection> {
-    let mut found = FrameFileInspection { frames: 0, steps: None, d: 0, k: 0, with_vectors: 0, with_gs: 0, backward: None, damage: None };
+    let mut found = FrameFileInspection { frames: 0, steps: None, d: 0, k: 0, with_vectors: 0, with_gs: 0, with_gs_local: 0, backward: None, damage: None };
     let mut backward_json = None;
     let damage = crate::store::frames::read_frames_with(
         path,
@@ -299,6 +312,7 @@ pub fn inspect_frames(path: &Path) -> Result<FrameFileInspection> {
             (found.d, found.k) = (f.d, f.k);
             found.with_vectors += u64::from(!f.v.is_empty());
             found.with_gs += u64::from(f.g.is_some());
+            found.with_gs_local += u64::from(!f.gs_local.is_empty());
             Ok(crate::store::frames::Flow::Continue)
         },
     )?;
@@ -319,7 +333,7 @@ impl FrameFileInspection {
         let mut s = String::new();
         let steps = self.steps.map_or("none".into(), |(lo, hi)| format!("{lo}..{hi}"));
         let _ = writeln!(s, "frame file: {} frames, steps {steps}, D = {}, k = {}", self.frames, self.d, self.k);
-        let _ = writeln!(s, "covariant vectors V_n in {} frames, Gram-Schmidt vectors G_n in {}", self.with_vectors, self.with_gs);
+        let _ = writeln!(s, "covariant vectors V_n in {} frames, Gram-Schmidt vectors G_n in {}, local GS exponents in {}", self.with_vectors, self.with_gs, self.with_gs_local);
         if let Some(b) = &self.backward {
             let _ = writeln!(s, "backward options: {b}");
         }

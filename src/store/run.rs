@@ -369,9 +369,14 @@ impl RunDir {
         }
         let dir = RunDir { path: path.to_path_buf() };
         let meta_path = dir.meta_path();
-        let bytes = fs::read(&meta_path).map_err(|e| {
-            Error::Other(format!("{}: {e}; is {} a run directory written by `clv forward --out`?", meta_path.display(), path.display()))
-        })?;
+        let bytes = match fs::read(&meta_path) {
+            Ok(bytes) => bytes,
+            // Deleted by hand: the segments still hold copies of it.
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound && dir.segments().is_ok_and(|s| !s.is_empty()) => {
+                return Err(dir.unreadable_meta(format!("it is missing ({e}), though the directory holds run segments")));
+            }
+            Err(e) => return Err(Error::Other(format!("{}: {e}; is {} a run directory written by `clv forward --out`?", meta_path.display(), path.display()))),
+        };
         // Damaged or edited (its checksum), a run.json can no longer be trusted with any
         // field: the build it names as much as the trajectory.
         let meta: RunMeta = match super::checked_json::from_slice(&meta_path, &bytes) {
