@@ -9,7 +9,7 @@
 //! * Fig. 14: the same for j in the mode region, restricted to the central part of the
 //!   spectrum: the last index of each of the two positive degenerate steps nearest the null
 //!   space ([`super::mode_steps::detect_steps`]; 2N-3 of T(1,0) and 2N-5 of LP(1,0) in the
-//!   paper's box), or 2N-5 and 2N-3 where the frames carry no spectrum to find steps in.
+//!   paper's box), or 2N-5 and 2N-3 where the spectrum shows fewer than two such steps.
 //!
 //! The absolute value is taken because only the direction of a tangent vector matters (the
 //! paper, Sec. 5.1). Averages run over the consumed frames (those of every m-th step, `--every`).
@@ -29,8 +29,8 @@ pub struct Overlaps {
     js: Vec<usize>,
     /// Mode indices j (0-based) of Fig. 14.
     mode_js: Vec<usize>,
-    /// `mode_js` end the steps [`super::mode_steps::detect_steps`] found (else the fixed
-    /// 2N-5, 2N-3).
+    /// `mode_js` end the two steps [`super::mode_steps::detect_steps`] found nearest the
+    /// null space (else, with fewer, they are the fixed 2N-5, 2N-3).
     mode_js_from_steps: bool,
     /// The conjugate partners 4N+1-j of `js` (0-based), Fig. 13's second plot.
     conjugate_js: Vec<usize>,
@@ -51,7 +51,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     // null space (T(1,0) and LP(1,0) in the paper's box, T(1,0)+T(0,1) first in a square).
     let mut step_ends: Vec<usize> = super::mode_steps::detect_steps(ctx).unwrap_or_default().iter().filter(|s| super::mode_steps::is_positive(s, ctx.d)).map(|s| s.start + s.len - 1).collect();
     step_ends.sort_unstable();
-    let mode_js_from_steps = !step_ends.is_empty();
+    let mode_js_from_steps = step_ends.len() >= 2;
     let mode_js: Vec<usize> = match ctx.central_range() {
         Some(_) if mode_js_from_steps => step_ends.into_iter().rev().take(2).rev().collect(),
         Some(_) if ctx.n >= 3 => vec![2 * ctx.n - 6, 2 * ctx.n - 4],
@@ -243,7 +243,7 @@ impl Analysis for Overlaps {
                         if self.mode_js_from_steps {
                             "the last index of each of the two positive degenerate steps of the GS spectrum nearest the null space, where the slowest modes sit: the mode table says what they are"
                         } else {
-                            "2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any; the GS spectrum shows no degenerate steps to choose by"
+                            "2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any; the GS spectrum shows fewer than two degenerate steps to choose by"
                         },
                         a + 1,
                         b + 1
@@ -365,5 +365,35 @@ mod tests {
         assert_eq!(stems, ["fig13_clv_overlap", "fig13_clv_overlap_conjugate", "fig14_mode_overlap"]);
         assert!(!out.join("overlap_gs_clv.csv").exists());
         let _ = std::fs::remove_dir_all(&out);
+    }
+
+    /// Fig. 14 takes the last index of each of the two positive degenerate steps nearest the
+    /// null space when the GS spectrum shows two, wherever they are; with fewer it keeps the
+    /// paper's 2N-5 and 2N-3.
+    #[test]
+    fn the_mode_figure_follows_the_detected_steps() {
+        let (n, d) = (10, 40);
+        let caption = |gs: crate::report::SpectrumSummary| {
+            let mut ctx = context("disks", n, d, false, vec![1]);
+            ctx.gs = Some(gs);
+            let mut a = new(&ctx).unwrap();
+            a.consume(&frame(0, d, identity(d), None)).unwrap();
+            let out = scratch(&format!("overlaps-steps-{}", ctx.gs.as_ref().unwrap().exponents[9]));
+            let produced = a.finish(&out, 1).unwrap();
+            let _ = std::fs::remove_dir_all(&out);
+            produced.into_iter().find(|p| p.figures.iter().any(|f| f == "fig14_mode_overlap")).expect("Fig. 14").caption
+        };
+        // A T step at 16..17 (paper indices) only: the paper's pair.
+        let one = testing::spectrum(n, 2);
+        assert!(caption(one.clone()).contains("j = 15, 17 (2N-5 and 2N-3"), "{}", caption(one.clone()));
+        // and a four-fold step at 10..13 besides: its end, 13, and 17.
+        let mut two = one;
+        let m = 2 * n - 3;
+        for i in 9..13 {
+            two.exponents[i] = 0.6;
+            two.exponents[d - 1 - i] = -0.6;
+        }
+        let text = caption(two);
+        assert!(text.contains("j = 13, 17 (the last index of each of the two positive degenerate steps"), "{text} (m = {m})");
     }
 }
