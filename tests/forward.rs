@@ -2,7 +2,7 @@
 //! hard-disk spectra, determinism and exact continuation, and the command line.
 
 use clv::config::{RunConfig, SystemConfig};
-use clv::stage::forward::{kaplan_yorke_dimension, Forward};
+use clv::stage::forward::{block_len, kaplan_yorke_dimension, Forward};
 use std::process::Command;
 
 fn config(system: SystemConfig, tau: f64, relax: u64, steps: u64, seed: u64) -> RunConfig {
@@ -132,6 +132,14 @@ fn cli_json_reports_spectrum_configuration_and_statistics() {
     let out = clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "200", "--relax-steps", "10"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("convergence (20 blocks of 10 steps): ") && text.contains(" exponents have |z| > 2"), "{text}");
+    // A run that is not a multiple of its blocks gets at least as many complete blocks as it
+    // asks for (here 21 of 10 steps; the 9 left over count in the exponents only), by the
+    // rule the backward stage and the analyses use for their frames.
+    let out = clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "219", "--relax-steps", "10", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let blocks: Vec<Vec<f64>> = serde_json::from_value(v["blocks"]["exponents"].clone()).unwrap();
+    assert_eq!((blocks.len(), &v["blocks"]["block_steps"]), (21, &serde_json::json!(block_len(219, 20))));
+    assert_eq!(block_len(219, 20), 10);
 }
 
 /// With standard error in a file (a batch job), progress comes as timestamped log lines,

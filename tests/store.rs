@@ -4,7 +4,7 @@
 mod common;
 use clv::config::{RunConfig, SystemConfig};
 use clv::rng::Rng;
-use clv::stage::forward::Forward;
+use clv::stage::forward::{block_len, Forward};
 use clv::store::records::Checkpoint;
 use clv::store::RunDir;
 use common::{clv, contents, copy_dir, kill_after, kill_landing, ok, Contents};
@@ -177,7 +177,7 @@ fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
     // 530 + 100 steps end between two checkpoints: the extension continues from the run's
     // extra last checkpoint, which the longer run does not have. The longer window (800 +
     // 400 steps, from step 400) takes the backward stage across that step, and across step
-    // 1164, where the 8 blocks of 133 steps become 4 of 266.
+    // 1156, where the 8 blocks of 132 steps become 4 of 264.
     run(&short, "530", "200");
     backward(&short);
     // A second sweep with other options: the first one's CLV spectrum is kept beside it, and
@@ -206,7 +206,7 @@ fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
         assert!(x.system == y.system && x.g == y.g && x.acc.sum == y.acc.sum, "checkpoint at step {s}");
     }
     let acc = &a.checkpoints[&1600].acc;
-    assert!((4..8).contains(&acc.blocks.len()) && acc.block_len == 2 * 530_u64.div_ceil(4), "{} blocks of {}", acc.blocks.len(), acc.block_len);
+    assert!((4..8).contains(&acc.blocks.len()) && acc.block_len == 2 * block_len(530, 4), "{} blocks of {}", acc.blocks.len(), acc.block_len);
     backward(&extended);
     assert!(common::frames(&extended.join("frames.mcap")) == common::frames(&long.join("frames.mcap")), "covariant vectors");
     // Killed while it extends: repeating the command gives the same run.

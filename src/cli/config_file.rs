@@ -147,5 +147,6 @@ mod tests {
         std::fs::write(&path, "steps = 10\n[store]\nsteps = 20\n").unwrap();
         let err = expand(&path, &known).unwrap_err().to_string();
         assert!(err.contains("paper.toml:3") && err.contains("first on line 1"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

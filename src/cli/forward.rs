@@ -69,7 +69,7 @@ pub struct ForwardArgs {
     /// numbers do not depend on it).
     #[arg(long, default_value_t = 1)]
     pub threads: usize,
-    /// Blocks for the standard error.
+    /// Blocks for the standard error (batch means): each block is steps / blocks steps long (rounded down), so a run has at least this many complete blocks and fewer than twice as many.
     #[arg(long, default_value_t = 20)]
     pub blocks: usize,
     /// Write a run directory (checkpoints, R matrices, running spectrum) for the backward stage.

@@ -21,7 +21,7 @@
 //!   older end, the accumulated exponents, frames written) is saved: `--resume` continues
 //!   bit for bit from there.
 
-use super::forward::{Accumulator, Estimate, Forward, ForwardState};
+use super::forward::{block_len, Accumulator, Estimate, Forward, ForwardState};
 use super::frame::{on_stride, Frame};
 use crate::config::RunConfig;
 use crate::error::{Error, Result};
@@ -627,19 +627,22 @@ pub fn run(
         ));
     }
 
-    let mut c = match &prior {
+    let c = match &prior {
         Some(p) => p.c_matrix(k).ok_or_else(|| {
             Error::corrupt(&progress_file, format!("C holds {} numbers, not those of a {k} x {k} upper-triangular matrix; run without --resume to start over", p.c.len()))
         })?,
         None => initial_c(k, opts.c_init, config.seed),
     };
     let n_frames = window.last - window.first + 1;
-    let mut acc = prior.as_ref().map(|p| p.acc.clone()).unwrap_or_else(|| Accumulator::new(k, (n_frames / config.blocks as u64).max(1)));
-    let mut acc_gs = match &prior {
+    let acc = prior.as_ref().map(|p| p.acc.clone()).unwrap_or_else(|| Accumulator::new(k, block_len(n_frames, config.blocks as u64)));
+    let acc_gs = match &prior {
         Some(p) => p.acc_gs.clone(),
         None => Some(Accumulator::new(k, acc.block_len)),
     };
-    let mut stats = prior.as_ref().map(|p| p.stats.clone()).unwrap_or_default();
+    let stats = prior.as_ref().map(|p| p.stats.clone()).unwrap_or_default();
+    let cores = Arc::new(Cores::new(config.threads));
+    let par = par(cores.sweep_threads());
+    let mut sweep = Sweep { opts, window, d, k, tau, par, c, acc, acc_gs, stats, r: Mat::zeros(k, k), norms: vec![0.0; k], spare: None };
     let resume_at = prior.as_ref().map(|p| p.at).unwrap_or(total);
     let todo: Vec<(u64, u64)> = bounds.windows(2).rev().map(|w| (w[0], w[1])).filter(|&(_, s1)| s1 <= resume_at).collect();
     if prior.is_none() {
@@ -647,8 +650,7 @@ pub fn run(
         // interrupted before its first segment, it is the one --resume continues (an earlier
         // record left in place would point --resume at another sweep, and strand this one's
         // frames).
-        let fresh = Progress { options: opts.clone(), at: resume_at, c: pack_upper(c.as_ref()), acc: acc.clone(), acc_gs: acc_gs.clone(), stats: stats.clone(), done: false };
-        write_atomic(&progress_file, &checked_json::to_vec(&fresh)?)?;
+        write_atomic(&progress_file, &checked_json::to_vec(&sweep.record(resume_at, false))?)?;
     }
     let mut frame_file = match (&frames_path, saving, &prior) {
         // The frames saved before the record: those of the steps that are multiples of
@@ -664,15 +666,13 @@ pub fn run(
     let segment_bytes = 8 * (Segment::g_slots(c_every as usize, opts.vectors_every) * d * k) as u64;
     let out_of_core = (3 * segment_bytes > memory_bytes).then(|| dir.path.clone());
     let store_r_all = store.store_r == StoreR::All;
-    let cores = Arc::new(Cores::new(config.threads));
-    let par = par(cores.sweep_threads());
 
     let (tx, rx) = crossbeam_channel::bounded::<Result<Segment>>(0);
     let (free_tx, free_rx) = crossbeam_channel::bounded::<Segment>(2);
     let producer_config = config.clone();
     let segments = dir.segments()?;
     let producer_todo = todo.clone();
-    let (planned, swept_before) = (todo.len() as u64, stats.segments);
+    let (planned, swept_before) = (todo.len() as u64, sweep.stats.segments);
     let producer_cores = cores.clone();
     let vectors_every = opts.vectors_every;
     let reads_g = move |n: u64| n >= window.first && n <= window.last && on_stride(n, vectors_every);
@@ -700,11 +700,6 @@ pub fn run(
         })
         .map_err(|e| Error::Other(format!("cannot start the recomputation thread: {e}")))?;
 
-    let mut r = Mat::<f64>::zeros(k, k);
-    let mut norms = vec![0.0; k];
-    // The last frame handed out with V: once every consumer has dropped it, its buffers take
-    // the next such frame's V and G (no allocation per frame).
-    let mut spare: Option<Arc<Frame>> = None;
     let mut stopped = false;
     let mut failure = None;
     for segment in rx.iter() {
@@ -716,98 +711,39 @@ pub fn run(
             }
         };
         cores.set_sweeping(true);
-        stats.segments += 1;
-        stats.recomputed_steps += seg.s1 - seg.s0;
-        for n in (seg.s0 + 1..=seg.s1).rev() {
-            let kk = k * (k + 1) / 2;
-            let i = (n - seg.s0) as usize;
-            unpack_upper_into(&seg.r[(i - 1) * kk..i * kk], &mut r);
-            crate::linalg::ginelli_step(r.as_ref(), c.as_mut(), &mut norms, par);
-            let m = n - 1;
-            if m < window.first || m > window.last {
-                continue;
-            }
-            let vectors = on_stride(m, opts.vectors_every);
-            let (v, g) = if vectors {
-                let Some(g) = seg.g(m, d * k) else {
-                    failure = Some(Error::Other(format!("the recomputed segment {}..{} lacks G_n of step {m} (a bug: please report it)", seg.s0, seg.s1)));
-                    break;
-                };
-                let (mut v, recycled_g) = match spare.take().map(Arc::try_unwrap) {
-                    Some(Ok(old)) => (old.v, old.g),
-                    _ => (vec![0.0; d * k], None),
-                };
-                crate::linalg::mul_upper(MatMut::from_column_major_slice_mut(&mut v, d, k), MatRef::from_column_major_slice(g, d, k), c.as_ref(), par);
-                let g = opts.with_gs.then(|| {
-                    let mut buffer = recycled_g.unwrap_or_default();
-                    buffer.clear();
-                    buffer.extend_from_slice(g);
-                    buffer
-                });
-                (v, g)
-            } else {
-                (Vec::new(), None)
-            };
-            // local CLV exponents, -ln |R_n^-1 c_j| / tau
-            let local: Vec<f64> = norms.iter().map(|n| -n.ln() / tau).collect();
-            // The CLV spectrum is the mean of the frames' local exponents (accumulated with
-            // tau = 1), exactly as an analysis of the frame stream computes it.
-            acc.add_logs(local.iter().copied());
-            let ln_r: Vec<f64> = (0..k).map(|i| r[(i, i)].abs().ln()).collect();
-            if let Some(acc_gs) = acc_gs.as_mut() {
-                acc_gs.add_logs(ln_r.iter().copied());
-            }
-            let frame = Arc::new(Frame {
-                step: m,
-                time: m as f64 * tau,
-                d,
-                k,
-                phase: seg.phase[(m - seg.s0) as usize * d..(m - seg.s0 + 1) as usize * d].to_vec(),
-                v,
-                local,
-                gs_local: ln_r.iter().map(|l| l / tau).collect(),
-                g,
-            });
-            if stats.frames == 0 {
-                stats.last_frame_step = m;
-            }
-            stats.first_frame_step = m;
-            if let Some(file) = frame_file.as_mut()
-                && on_stride(m, opts.save_every) {
-                    file.write(&frame)?;
-                }
-            stats.frames += 1;
-            if vectors {
-                spare = Some(frame.clone());
-            }
-            if consumer(frame)? == Flow::Stop {
+        match sweep.segment(&seg, frame_file.as_mut(), consumer) {
+            Ok(Flow::Continue) => {}
+            Ok(Flow::Stop) => {
                 stopped = true;
                 break;
             }
+            Err(e) => {
+                failure = Some(e);
+                break;
+            }
         }
-        if stopped || failure.is_some() {
-            break;
-        }
-        on_progress(stats.recomputed_steps, stats.frames);
+        on_progress(sweep.stats.recomputed_steps, sweep.stats.frames);
         if let Some(file) = frame_file.as_mut() {
             file.sync()?;
         }
-        stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();
+        sweep.stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();
         let at = seg.s0;
         let _ = free_tx.try_send(seg);
-        let p = Progress { options: opts.clone(), at, c: pack_upper(c.as_ref()), acc: acc.clone(), acc_gs: acc_gs.clone(), stats: stats.clone(), done: false };
-        write_atomic(&progress_file, &checked_json::to_vec(&p)?)?;
+        write_atomic(&progress_file, &checked_json::to_vec(&sweep.record(at, false))?)?;
         // The recomputation gets every thread only now: the record above is written on this
         // thread, and a spinning QR worker must not share its core.
         cores.set_sweeping(false);
     }
-    drop(rx);
+    // Both channels closed, so that a recomputation waiting to send a segment, or for a
+    // buffer to recompute into, ends.
+    drop((rx, free_tx));
     let joined = producer.join();
     if let Some(e) = failure {
         return Err(e);
     }
     // The recomputation ends early only with an error it sends, or by a bug: never take
     // its silence for the end of the window.
+    let Sweep { acc, acc_gs, mut stats, .. } = sweep;
     if !stopped && (joined.is_err() || stats.segments - swept_before < planned) {
         let why = match joined {
             Err(panic) => panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default(),
@@ -864,6 +800,108 @@ fn write_report(dir: &RunDir, report: &mut BackwardReport) -> Result<()> {
         report.notes.push(format!("the CLV spectrum of the earlier sweep, made with {}, is kept as {}", earlier.options.as_flags(), kept.display()));
     }
     write_atomic(&path, &json)
+}
+
+/// The sweep between segments: C, the accumulated local exponents and the statistics (what
+/// the progress record keeps), and the buffers every step reuses.
+struct Sweep<'a> {
+    opts: &'a BackwardOptions,
+    window: Window,
+    d: usize,
+    k: usize,
+    tau: f64,
+    par: faer::Par,
+    c: Mat<f64>,
+    acc: Accumulator,
+    acc_gs: Option<Accumulator>,
+    stats: BackwardStats,
+    r: Mat<f64>,
+    norms: Vec<f64>,
+    /// The last frame handed out with V: once every consumer has dropped it, its buffers take
+    /// the next such frame's V and G (no allocation per frame).
+    spare: Option<Arc<Frame>>,
+}
+
+impl Sweep<'_> {
+    /// Sweep down one recomputed segment, newest step first: C_{n-1} = R_n^{-1} C_n at every
+    /// step, and for each step in the window a frame (V_n = G_n C_n where it carries vectors),
+    /// saved to `file` and handed to `consumer`. Stop when the consumer stops the stream.
+    fn segment(&mut self, seg: &Segment, mut file: Option<&mut FrameFile>, consumer: &mut dyn FnMut(Arc<Frame>) -> Result<Flow>) -> Result<Flow> {
+        let (d, k, tau) = (self.d, self.k, self.tau);
+        let kk = k * (k + 1) / 2;
+        self.stats.segments += 1;
+        self.stats.recomputed_steps += seg.s1 - seg.s0;
+        for n in (seg.s0 + 1..=seg.s1).rev() {
+            let i = (n - seg.s0) as usize;
+            unpack_upper_into(&seg.r[(i - 1) * kk..i * kk], &mut self.r);
+            crate::linalg::ginelli_step(self.r.as_ref(), self.c.as_mut(), &mut self.norms, self.par);
+            let m = n - 1;
+            if m < self.window.first || m > self.window.last {
+                continue;
+            }
+            let vectors = on_stride(m, self.opts.vectors_every);
+            let (v, g) = if vectors {
+                let g = seg
+                    .g(m, d * k)
+                    .ok_or_else(|| Error::Other(format!("the recomputed segment {}..{} lacks G_n of step {m} (a bug: please report it)", seg.s0, seg.s1)))?;
+                let (mut v, recycled_g) = match self.spare.take().map(Arc::try_unwrap) {
+                    Some(Ok(old)) => (old.v, old.g),
+                    _ => (vec![0.0; d * k], None),
+                };
+                crate::linalg::mul_upper(MatMut::from_column_major_slice_mut(&mut v, d, k), MatRef::from_column_major_slice(g, d, k), self.c.as_ref(), self.par);
+                let g = self.opts.with_gs.then(|| {
+                    let mut buffer = recycled_g.unwrap_or_default();
+                    buffer.clear();
+                    buffer.extend_from_slice(g);
+                    buffer
+                });
+                (v, g)
+            } else {
+                (Vec::new(), None)
+            };
+            // local CLV exponents, -ln |R_n^-1 c_j| / tau
+            let local: Vec<f64> = self.norms.iter().map(|n| -n.ln() / tau).collect();
+            // The CLV spectrum is the mean of the frames' local exponents (accumulated with
+            // tau = 1), exactly as an analysis of the frame stream computes it.
+            self.acc.add_logs(local.iter().copied());
+            let ln_r: Vec<f64> = (0..k).map(|i| self.r[(i, i)].abs().ln()).collect();
+            if let Some(acc_gs) = self.acc_gs.as_mut() {
+                acc_gs.add_logs(ln_r.iter().copied());
+            }
+            let frame = Arc::new(Frame {
+                step: m,
+                time: m as f64 * tau,
+                d,
+                k,
+                phase: seg.phase[(m - seg.s0) as usize * d..(m - seg.s0 + 1) as usize * d].to_vec(),
+                v,
+                local,
+                gs_local: ln_r.iter().map(|l| l / tau).collect(),
+                g,
+            });
+            if self.stats.frames == 0 {
+                self.stats.last_frame_step = m;
+            }
+            self.stats.first_frame_step = m;
+            if let Some(file) = file.as_mut()
+                && on_stride(m, self.opts.save_every) {
+                    file.write(&frame)?;
+                }
+            self.stats.frames += 1;
+            if vectors {
+                self.spare = Some(frame.clone());
+            }
+            if consumer(frame)? == Flow::Stop {
+                return Ok(Flow::Stop);
+            }
+        }
+        Ok(Flow::Continue)
+    }
+
+    /// The progress record of the sweep with C at step `at` (older end of the last segment).
+    fn record(&self, at: u64, done: bool) -> Progress {
+        Progress { options: self.opts.clone(), at, c: pack_upper(self.c.as_ref()), acc: self.acc.clone(), acc_gs: self.acc_gs.clone(), stats: self.stats.clone(), done }
+    }
 }
 
 /// C at the end of the window: the identity, or a random upper-triangular matrix with

@@ -25,6 +25,15 @@ pub struct Accumulator {
     pub current: Vec<f64>,
 }
 
+/// Steps (or frames) per block when `samples` of them are to make `blocks` blocks for batch
+/// means: at least `blocks` complete blocks (fewer than 2 `blocks`), so a run never gets
+/// fewer than it asks for; the samples left over, fewer than a block, count in the averages,
+/// not in the errors. One rule for the forward spectrum, the backward stage's CLV spectrum
+/// and the analyses.
+pub fn block_len(samples: u64, blocks: u64) -> u64 {
+    (samples / blocks.max(1)).max(1)
+}
+
 impl Accumulator {
     pub fn new(k: usize, block_len: u64) -> Self {
         Accumulator { sum: vec![0.0; k], steps: 0, block_len: block_len.max(1), blocks: Vec::new(), current: vec![0.0; k] }
@@ -101,7 +110,8 @@ impl Accumulator {
 /// may measure slightly positive); None when all are positive (the spectrum does not reach
 /// the non-positive part).
 pub fn ks_entropy(lambda: &[f64], neutral: std::ops::Range<usize>) -> Option<f64> {
-    lambda.iter().any(|&l| l <= 0.0).then(|| lambda.iter().enumerate().filter(|&(i, &l)| l > 0.0 && !neutral.contains(&i)).map(|(_, l)| l).sum())
+    // + 0.0: an empty sum is -0.0, which would print as "-0.000000" for a system without chaos.
+    lambda.iter().any(|&l| l <= 0.0).then(|| lambda.iter().enumerate().filter(|&(i, &l)| l > 0.0 && !neutral.contains(&i)).map(|(_, l)| l).sum::<f64>() + 0.0)
 }
 
 /// The exponents averaged over consecutive blocks of a run: the batch means its standard
@@ -205,7 +215,7 @@ impl Forward {
         let (d, k) = (system.dim(), config.vectors);
         let g = Tangent::identity(system.as_ref(), k);
         let paper_rows = (0..d).map(|i| system.internal_row(i)).collect();
-        let block_len = config.steps.div_ceil(config.blocks as u64);
+        let block_len = block_len(config.steps, config.blocks as u64);
         Ok(Forward {
             system,
             g,
@@ -348,6 +358,9 @@ mod tests {
         let mut all_positive = Accumulator::new(2, 2);
         all_positive.add_logs([1.0, 0.5].into_iter());
         assert_eq!(all_positive.ks_entropy(1.0, 0..0), None);
+        // Without a positive exponent (disks that never collide) h_KS is zero, not -0.
+        let h = ks_entropy(&[-0.0, -1.0], 0..0).unwrap();
+        assert_eq!(format!("{h:.6}"), "0.000000");
         // A flow's direction has exponent zero, measured slightly positive in a finite run
         // (Lorenz: lambda_2 = +3e-4): not counted.
         let mut flow = Accumulator::new(3, 2);

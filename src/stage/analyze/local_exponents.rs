@@ -443,7 +443,6 @@ mod tests {
         let mean1 = l1.iter().sum::<f64>() / len as f64;
         assert!((row[3] - mean1).abs() < 1e-12);
         assert!(row[5] > 11.5 && row[6] < 12.5);
-        let _ = std::fs::remove_dir_all(&out);
     }
 
     /// A smallest positive exponent that fluctuates through zero swaps with the null space
@@ -469,7 +468,6 @@ mod tests {
             let border = column(&read_csv(&out.join("domination.csv")), "border_unstable_null");
             assert!(border[0] > 0.2, "{border:?}");
             assert!(produced[2].caption.contains(said), "{}", produced[2].caption);
-            let _ = std::fs::remove_dir_all(&out);
         }
     }
 
@@ -490,6 +488,5 @@ mod tests {
         let dom = read_csv(&out.join("domination.csv"));
         assert_eq!(column(&dom, "overall"), [0.5, 0.0]);
         assert_eq!(column(&dom, "pair_1_2"), [0.5, 0.0]);
-        let _ = std::fs::remove_dir_all(&out);
     }
 }

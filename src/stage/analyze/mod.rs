@@ -239,8 +239,7 @@ impl Context {
             Some((oldest, newest)) => multiples_in(oldest, newest, stride),
             None => self.run.as_ref().map_or(1000, |m| m.store.clv_steps) / stride.max(1),
         };
-        let blocks = self.run.as_ref().map_or(20, |m| m.config.blocks as u64);
-        (frames / blocks.max(1)).max(1)
+        crate::stage::forward::block_len(frames, self.run.as_ref().map_or(20, |m| m.config.blocks as u64))
     }
 
     /// Which frames the vector statistics use, for captions.

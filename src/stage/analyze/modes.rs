@@ -731,7 +731,7 @@ mod tests {
         (unit(v), 1.0 / norm)
     }
 
-    fn run(ctx: &Context, frames: &[Frame], name: &str) -> (std::path::PathBuf, Vec<Produced>) {
+    fn run(ctx: &Context, frames: &[Frame], name: &str) -> (OutDir, Vec<Produced>) {
         let out = out_dir(name);
         let mut a = new(ctx).expect("disks");
         for f in frames {

@@ -284,7 +284,6 @@ mod tests {
         assert!(beta_csv.starts_with("i,e1,e2,e3,e4,e5,e6,row_norm\n8,"), "{beta_csv}");
         let first: Vec<f64> = beta_csv.lines().nth(1).unwrap().split(',').map(|x| x.parse().unwrap()).collect();
         assert!((first[1] - 1.0).abs() < 1e-14 && (first[7] - 1.0).abs() < 1e-14, "{first:?}");
-        let _ = std::fs::remove_dir_all(&out);
     }
 
     #[test]
@@ -316,7 +315,6 @@ mod tests {
         assert!(row[3].is_nan(), "no GS vectors");
         assert!((row[5 + 3] - a.cos()).abs() < 1e-12, "row norm of the tilted vector {}", row[8]);
         assert!(!out.join("nullspace_alpha.csv").exists());
-        let _ = std::fs::remove_dir_all(&out);
     }
 
     #[test]

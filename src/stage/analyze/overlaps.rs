@@ -324,7 +324,6 @@ mod tests {
             assert_eq!(c.iter().sum::<f64>(), 1.0);
             assert_eq!(c[j - 1], 1.0);
         }
-        let _ = std::fs::remove_dir_all(&out);
     }
 
     #[test]
@@ -350,7 +349,6 @@ mod tests {
         let g = column(&t3, "abs_g_dot_v_mean");
         assert_eq!(g[0], 1.0);
         assert!((g[1] - mean(f64::sin)).abs() < 1e-15);
-        let _ = std::fs::remove_dir_all(&out);
     }
 
     #[test]
@@ -364,7 +362,6 @@ mod tests {
         let stems: Vec<&String> = produced.iter().flat_map(|p| &p.figures).collect();
         assert_eq!(stems, ["fig13_clv_overlap", "fig13_clv_overlap_conjugate", "fig14_mode_overlap"]);
         assert!(!out.join("overlap_gs_clv.csv").exists());
-        let _ = std::fs::remove_dir_all(&out);
     }
 
     /// Fig. 14 takes the last index of each of the two positive degenerate steps nearest the
@@ -380,7 +377,6 @@ mod tests {
             a.consume(&frame(0, d, identity(d), None)).unwrap();
             let out = scratch(&format!("overlaps-steps-{}", ctx.gs.as_ref().unwrap().exponents[9]));
             let produced = a.finish(&out, 1).unwrap();
-            let _ = std::fs::remove_dir_all(&out);
             produced.into_iter().find(|p| p.figures.iter().any(|f| f == "fig14_mode_overlap")).expect("Fig. 14").caption
         };
         // A T step at 16..17 (paper indices) only: the paper's pair.

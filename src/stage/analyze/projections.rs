@@ -270,7 +270,6 @@ mod tests {
         }
         // swapping dq and dp keeps the signed cosine
         assert!((column(&t, "cos_theta_gs")[3] - theta.cos()).abs() < 1e-15);
-        let _ = std::fs::remove_dir_all(&out);
     }
 
     #[test]
@@ -291,7 +290,6 @@ mod tests {
         // unit vectors: the first 2N are pure dq
         let q = column(&t, "eta_q_clv");
         assert!(q[..4].iter().all(|&x| x == 1.0) && q[4..].iter().all(|&x| x == 0.0));
-        let _ = std::fs::remove_dir_all(&out);
     }
 
     #[test]

@@ -63,12 +63,28 @@ pub fn frame(step: u64, phase: Vec<f64>, v: Vec<f64>, g: Option<Vec<f64>>) -> Fr
     Frame { step, time: step as f64, d, k: v.len() / d, phase, local: vec![0.0; v.len() / d], gs_local: Vec::new(), v, g }
 }
 
-/// A fresh output directory for one test.
-pub fn out_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("clv-analyses-b-{}-{name}", std::process::id()));
+/// A fresh output directory for one test, removed with everything in it when dropped.
+pub fn out_dir(name: &str) -> OutDir {
+    let dir = std::env::temp_dir().join(format!("clv-analyses-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    dir
+    OutDir(dir)
+}
+
+/// See [`out_dir`].
+pub struct OutDir(PathBuf);
+
+impl std::ops::Deref for OutDir {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl Drop for OutDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
 }
 
 use super::csv_cells as split_csv;

@@ -398,7 +398,7 @@ mod tests {
         assert!((th.min[1] - a).abs() < 1e-20, "{}", th.min[1]);
     }
 
-    fn run(n: usize, frames: &[Frame], name: &str) -> (std::path::PathBuf, Vec<Produced>) {
+    fn run(n: usize, frames: &[Frame], name: &str) -> (OutDir, Vec<Produced>) {
         let d = 4 * n;
         let ctx = context("disks", n, d, 10.0, 2.0, Some(spectrum(n, 2)), false);
         let out = out_dir(name);
@@ -406,7 +406,8 @@ mod tests {
         for f in frames {
             a.consume(f).unwrap();
         }
-        (out.clone(), a.finish(&out, frames.len() as u64).unwrap())
+        let produced = a.finish(&out, frames.len() as u64).unwrap();
+        (out, produced)
     }
 
     /// Orthogonal conjugate subspaces give pi/2, identical ones 0, for the mode pair and for
