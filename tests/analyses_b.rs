@@ -48,7 +48,7 @@ fn check_figure(report: &Path, stem: &str) {
 }
 
 /// N = 40 disks in the paper's thin box (density 0.7, aspect 2/11): the T(1,0) pair sits
-/// next to the null space; E^u and E^s are transversal in every frame.
+/// next to the null space, LP(1,0) next to it; E^u and E^s are transversal in every frame.
 #[test]
 fn disk_modes_and_transversality() {
     let n = 40;
@@ -67,6 +67,13 @@ fn disk_modes_and_transversality() {
     let t1 = adjacent.iter().find(|m| m["kind"] == "T" && m["n_x"] == "1").unwrap_or_else(|| panic!("no T(1,0) next to the null space: {modes:?}"));
     assert!(num(t1, "fraction_gs") > 0.5, "{t1:?}");
     assert!(num(t1, "agreement") > 0.5, "{t1:?}");
+    // Next to it, LP(1,0) at 2N-8..2N-5 and its conjugate: exponents spread like the smooth
+    // spectrum's (no exponent test sees them), found by their vectors.
+    for (first, last) in [(2 * n - 8, 2 * n - 5), (2 * n + 6, 2 * n + 9)] {
+        let lp = modes.iter().find(|m| m["first"] == first.to_string() && m["last"] == last.to_string()).unwrap_or_else(|| panic!("no step at {first}..{last}: {modes:?}"));
+        assert_eq!((lp["name"].as_str(), lp["detection"].as_str()), ("LP(1,0)", "vectors"), "{lp:?}");
+        assert!(num(lp, "beyond_chance") > 0.3 && num(lp, "agreement") > 0.5, "{lp:?}");
+    }
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(report.join("modes.json")).unwrap()).unwrap();
     assert_eq!(json["modes"].as_array().unwrap().len(), modes.len());
 

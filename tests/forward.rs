@@ -111,6 +111,10 @@ fn cli_json_reports_spectrum_configuration_and_statistics() {
     let st = &v["statistics"];
     assert_eq!(st["steps"], 200);
     assert!(st["collisions"].as_u64().unwrap() > 100);
+    // A map has iterations, not collisions: its statistics leave the field out.
+    let henon = clv(&["forward", "--system", "henon", "--steps", "100", "--json"]);
+    let h: serde_json::Value = serde_json::from_slice(&henon.stdout).unwrap();
+    assert!(h["statistics"]["steps"] == 100 && h["statistics"].get("collisions").is_none(), "{}", h["statistics"]);
     assert!(st["energy_drift"].as_f64().unwrap() < 1e-12);
     assert!(st["wall_seconds"].as_f64().is_some());
     assert!((st["simulated_time"].as_f64().unwrap() - 120.0).abs() < 1e-9);

@@ -50,16 +50,36 @@ pub fn detect_steps(ctx: &Context) -> std::result::Result<Vec<Step>, String> {
     Ok(km::mode_steps(&gs.exponents, &gs.stderr, STEP_TOL, step_window(ctx.d, &candidates(ctx)), &candidates(ctx).step_lengths()))
 }
 
-/// The steps to analyse, fixed at the first frame: `detected` (from [`detect_steps`]) with
-/// every step whose vectors classify clearly ([`classify_clearly`]) as L, P or LP and that is
-/// shorter than that LP mode (half of an LP quadruplet split by the statistical test) widened
-/// to the block of the LP mode's size containing it, on the same side of the null space and
-/// overlapping no other step, whose vectors have the largest fraction in the LP span, if
-/// that block stands apart from its neighbours (its spread below both gaps to them: the
-/// smooth part of a spectrum is no step). A step that mirrors a positive one (conjugate
-/// pairing) takes the mirror of its resolution. The flag marks widened steps. Exponent means
-/// are recomputed from `exponents` (the GS spectrum).
-pub fn resolve_steps(detected: &[Step], frame: &Frame, candidates: &Candidates, exponents: &[f64]) -> Vec<(Step, bool)> {
+/// How a step of [`resolve_steps`] was found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Found {
+    /// By the exponents alone ([`detect_steps`]).
+    Exponents,
+    /// A shorter step of the exponents, widened to its LP mode's size.
+    Widened,
+    /// By its vectors: a block next to the mode region that stands apart from its neighbours
+    /// but is split too widely for the exponents' tests (a small system's LP modes).
+    Vectors,
+}
+
+/// The steps to analyse, fixed at the first frame, in index order:
+/// - `detected` (from [`detect_steps`]), with every step whose vectors classify clearly
+///   ([`classify_clearly`]) as L, P or LP and that is shorter than that LP mode (half of an
+///   LP quadruplet split by the statistical test) widened to the block of the LP mode's size
+///   containing it, on the same side of the null space and overlapping no other step, whose
+///   vectors have the largest fraction in the LP span, if that block stands apart from its
+///   neighbours (its spread below both gaps to them: the smooth part of a spectrum is no
+///   step);
+/// - walking outwards from the null space on the positive side, past the steps found so
+///   far, each next block of a candidate step length that stands apart and whose vectors
+///   classify clearly as the mode of that size (the exponents of a small system's LP mode
+///   spread like the smooth spectrum's, yet the block sits between gaps several times
+///   wider: N = 40 in the paper's box);
+/// - a step that mirrors a positive one (conjugate pairing) takes the mirror of its
+///   resolution, and a positive step found by its vectors brings its mirror along.
+///
+/// Exponent means are recomputed from `exponents` (the GS spectrum).
+pub fn resolve_steps(detected: &[Step], frame: &Frame, candidates: &Candidates, exponents: &[f64]) -> Vec<(Step, Found)> {
     let d = frame.d;
     let (null_lo, null_hi) = (d / 2 - 3, d / 2 + 3);
     let set = frame.g.as_deref().unwrap_or(&frame.v);
@@ -70,7 +90,7 @@ pub fn resolve_steps(detected: &[Step], frame: &Frame, candidates: &Candidates, 
         let gap = |i: usize, j: usize| (exponents[i] - exponents[j]).abs();
         c.start > 0 && c.start + c.len < d && spread < gap(c.start - 1, c.start) && spread < gap(c.start + c.len - 1, c.start + c.len)
     };
-    let mut out: Vec<(Step, bool)> = Vec::new();
+    let mut out: Vec<(Step, Found)> = Vec::new();
     for (i, step) in detected.iter().enumerate() {
         let conjugate = detected.iter().position(|o| is_positive(o, d) && !is_positive(step, d) && mirror(o) == (step.start, step.len));
         if let Some(j) = conjugate.filter(|&j| j < out.len()) {
@@ -105,10 +125,30 @@ pub fn resolve_steps(detected: &[Step], frame: &Frame, candidates: &Candidates, 
             _ => None,
         };
         out.push(match widened {
-            Some(c) => (c, true),
-            None => (*step, false),
+            Some(c) => (c, Found::Widened),
+            None => (*step, Found::Exponents),
         });
     }
+    // Outwards from the null space: the edge is the first index of the mode region so far.
+    let mut edge = null_lo;
+    loop {
+        if let Some((s, _)) = out.iter().find(|(s, _)| s.start + s.len == edge && is_positive(s, d)) {
+            edge = s.start;
+            continue;
+        }
+        let next = candidates.step_lengths().into_iter().filter(|&len| len >= 2 && len < edge).map(|len| at(edge - len, len)).find(|c| {
+            let clear = out.iter().all(|(o, _)| o.start >= c.start + c.len || c.start >= o.start + o.len);
+            clear && stands_apart(c) && classify_clearly(frame, c, candidates).is_some_and(|m| matches_degeneracy(c, m.kind, &candidates.families[m.family]))
+        });
+        let Some(c) = next else { break };
+        out.push((c, Found::Vectors));
+        let (start, len) = mirror(&c);
+        if out.iter().all(|(o, _)| o.start >= start + len || start >= o.start + o.len) {
+            out.push((at(start, len), Found::Vectors));
+        }
+        edge = c.start;
+    }
+    out.sort_by_key(|(s, _)| s.start);
     out
 }
 

@@ -10,8 +10,11 @@
 //!    mode of a finite system are not exactly equal: in the paper's run they differ by ten
 //!    standard errors, which the separation finds. Where neither test sees the whole group,
 //!    a step whose vectors classify as L, P or LP at the first frame is widened to the block
-//!    of the LP mode's size around it that its LP basis explains best ([`resolve_steps`](super::mode_steps::resolve_steps)).
-//!    The table says which of the three found each step.
+//!    of the LP mode's size around it that its LP basis explains best. Next to the mode
+//!    region found so far, a block of a mode's size that stands apart from its neighbours
+//!    (its range below both gaps) is a step if its vectors are that mode at the first frame:
+//!    a small system's LP exponents spread like the smooth spectrum's (N = 40). Both in
+//!    [`resolve_steps`](super::mode_steps::resolve_steps). The table says which rule found each step.
 //! 2. Every step is classified in every (sampled) frame by projecting the position part of
 //!    its GS vectors (the paper classifies with GS vectors; CLVs when the frames carry no GS
 //!    vectors) onto the orthonormalised Table IV bases T, L, P, LP of every candidate wave
@@ -32,7 +35,7 @@
 
 use super::kernels::modes::{self as km, Candidates, Family, ModeKind, Part, SineFit, Step, Wave};
 use super::kernels::vecset;
-use super::mode_steps::{candidates, classify_step, detect_steps, excess, group, is_positive, matches_degeneracy, resolve_steps, step_window, MAX_N, MIN_FRACTION, STEP_TOL};
+use super::mode_steps::{candidates, classify_step, detect_steps, excess, group, is_positive, matches_degeneracy, resolve_steps, step_window, Found, MAX_N, MIN_FRACTION, STEP_TOL};
 use super::{save_figure, write_csv, write_text_csv, Analysis, Context, Mean, Produced};
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
@@ -56,8 +59,8 @@ fn candidate_of(c: usize) -> (ModeKind, usize) {
 
 struct StepAcc {
     step: Step,
-    /// Widened from a two-fold step by [`resolve_steps`].
-    widened: bool,
+    /// How [`resolve_steps`] found it.
+    found: Found,
     /// Mean fractions of every candidate (order of `candidate`) for the GS and CLV groups.
     gs: Mean,
     clv: Mean,
@@ -97,8 +100,9 @@ pub struct ModeRow {
     /// The number of exponents: 2 or 4 for a mode of one wave vector.
     pub degeneracy: usize,
     /// "degenerate" (equal exponents within the tolerance), "separated" (set apart from
-    /// its neighbours, [`km::SEPARATION`]) or "widened" (a shorter step classified L/P/LP,
-    /// widened to its LP mode's size by [`resolve_steps`]).
+    /// its neighbours, [`km::SEPARATION`]), "widened" (a shorter step classified L/P/LP,
+    /// widened to its LP mode's size by [`resolve_steps`]) or "vectors" (a block next to the
+    /// mode region that stands apart and whose vectors are that mode, [`resolve_steps`]).
     pub detection: String,
     /// Mean forward GS exponent of the step.
     pub lambda: f64,
@@ -155,9 +159,9 @@ impl Analysis for Modes {
             let candidates = families * KINDS.len();
             self.steps = resolve_steps(detected, frame, cands, exponents)
                 .into_iter()
-                .map(|(step, widened)| StepAcc {
+                .map(|(step, found)| StepAcc {
                     step,
-                    widened,
+                    found,
                     gs: Mean::new(candidates),
                     clv: Mean::new(candidates),
                     votes: vec![0; candidates],
@@ -226,9 +230,10 @@ impl Analysis for Modes {
                 first: acc.step.start + 1,
                 last: acc.step.start + acc.step.len,
                 degeneracy: acc.step.len,
-                detection: match (acc.widened, ctx.gs.as_ref()) {
-                    (true, _) => "widened".into(),
-                    (false, Some(g)) if !km::within_errors(&g.exponents, &g.stderr, STEP_TOL, &acc.step) => "separated".into(),
+                detection: match (acc.found, ctx.gs.as_ref()) {
+                    (Found::Widened, _) => "widened".into(),
+                    (Found::Vectors, _) => "vectors".into(),
+                    (Found::Exponents, Some(g)) if !km::within_errors(&g.exponents, &g.stderr, STEP_TOL, &acc.step) => "separated".into(),
                     _ => "degenerate".into(),
                 },
                 lambda,
@@ -373,7 +378,7 @@ impl Analysis for Modes {
                 step_window(d, cands)
             ),
             (None, false) => format!(
-                "Degenerate steps of the forward GS spectrum within {} indices of the null space (neighbours equal within {STEP_TOL} combined standard errors, or, next to the null space, set apart by gaps {:.0} times their spread; a shorter step classified L/P/LP is widened to the block of its LP mode's size that the LP basis explains best), classified in each of {frames} frames by projecting the position perturbations of their {source} onto the orthonormalised Table IV bases T, L, P, LP of {}; majority class, mean fraction of the group in its span. Found: {}.",
+                "Degenerate steps of the forward GS spectrum within {} indices of the null space (neighbours equal within {STEP_TOL} combined standard errors, or, next to the null space, set apart by gaps {:.0} times their spread; a shorter step classified L/P/LP is widened to the block of its LP mode's size that the LP basis explains best; next to the mode region, a block of a mode's size set apart from its neighbours is a step where its vectors are that mode at the first frame: the table's detection column says which rule found each), classified in each of {frames} frames by projecting the position perturbations of their {source} onto the orthonormalised Table IV bases T, L, P, LP of {}; majority class, mean fraction of the group in its span. Found: {}.",
                 step_window(d, cands),
                 1.0 / km::SEPARATION,
                 candidates_text(cands),
@@ -1002,6 +1007,61 @@ mod tests {
             assert!(r["best"] != "-" && r["fraction_gs"].parse::<f64>().unwrap() < MIN_FRACTION, "{r:?}");
         }
         assert!(produced[0].caption.contains("of the best candidate") && !out.join("modes_dispersion.csv").exists(), "{}", produced[0].caption);
+    }
+
+    /// A small system's LP mode (N = 40 in the paper's box): its four exponents spread like
+    /// the smooth spectrum's, so neither exponent test sees a step, but the block stands
+    /// apart between gaps several times wider, next to the T pair. Its vectors find it, with
+    /// its mirror, for the mode table, the transversality analysis (F^(J) ends before it)
+    /// and Fig. 14; random vectors in the same place find nothing.
+    #[test]
+    fn an_lp_block_split_like_the_smooth_spectrum_is_found_by_its_vectors() {
+        let d = 4 * N;
+        let mut rng = Rng::new(9);
+        let mut spec = spectrum(N, 2);
+        let at = 2 * N - 9; // 0-based first index of the block, just above the T pair
+        for (j, x) in [0.6, 0.55, 0.5, 0.45].into_iter().enumerate() {
+            spec.exponents[at + j] = x;
+            spec.exponents[d - 1 - at - j] = -x;
+        }
+        let detected = km::mode_steps(&spec.exponents, &spec.stderr, STEP_TOL, step_window(d, &Candidates::new(LX, LY, MAX_N)), &[4, 2]);
+        assert_eq!(detected.iter().map(|s| (s.start, s.len)).collect::<Vec<_>>(), [(at + 4, 2), (d - at - 6, 2)], "the exponents alone see the T pair only");
+        let ctx = context("disks", N, d, LX, LY, Some(spec), true);
+        let phase = phase(N, LX, LY, &mut rng);
+        let pat = km::mode_patterns(ModeKind::LP, &single(1, 0), &phase, LX, LY);
+        let h = 2 * N;
+        let cols: Vec<Vec<f64>> = (0..4).map(|j| tangent(&pat[j * h..(j + 1) * h], 0.5).0).collect();
+        let random = random_set(d, &mut rng);
+        let mut g = random.clone();
+        plant(&mut g, d, at, &cols);
+        plant(&mut g, d, d - at - 4, &cols);
+        let f = frame(3, phase.clone(), g.clone(), Some(g));
+        let (out, _) = run(&ctx, std::slice::from_ref(&f), "lp-by-vectors");
+        let rows = read_csv(&out.join("modes.csv"));
+        let found: Vec<(&str, &str, &str, &str)> = rows.iter().map(|r| (r["first"].as_str(), r["last"].as_str(), r["detection"].as_str(), r["name"].as_str())).collect();
+        let (a, b) = ((at + 1).to_string(), (at + 4).to_string());
+        let (ma, mb) = ((d - at - 3).to_string(), (d - at).to_string());
+        assert!(found.contains(&(a.as_str(), b.as_str(), "vectors", "LP(1,0)")), "{found:?}");
+        assert!(found.contains(&(ma.as_str(), mb.as_str(), "vectors", "LP(1,0)")), "{found:?}");
+        assert_eq!(found.len(), 4, "{found:?}");
+        let mut t = super::super::transversality::new(&ctx).unwrap();
+        t.consume(&f).unwrap();
+        let tout = out_dir("lp-by-vectors-transversality");
+        let produced = t.finish(&tout, 1).unwrap();
+        assert!(produced.iter().any(|p| p.caption.contains(&format!("F^({at}) = v^1..v^{at}"))), "{:?}", produced.iter().map(|p| &p.caption).collect::<Vec<_>>());
+        let mut o = super::super::overlaps::new(&ctx).unwrap();
+        o.consume(&f).unwrap();
+        let oout = out_dir("lp-by-vectors-overlaps");
+        let produced = o.finish(&oout, 1).unwrap();
+        let fig14 = produced.iter().find(|p| p.title.contains("Fig. 14")).expect("Fig. 14");
+        assert!(fig14.caption.contains("found as the mode table finds them"), "{}", fig14.caption);
+        let header = std::fs::read_to_string(oout.join("overlap_clv_clv.csv")).unwrap();
+        assert!(header.lines().next().unwrap().contains(&format!("abs_v{}_mean", at + 4)), "Fig. 14 takes the LP block's last index: {header:.200}");
+        // The same exponents with random vectors: no block is added.
+        let f = frame(3, phase, random.clone(), Some(random));
+        let (out, _) = run(&ctx, std::slice::from_ref(&f), "lp-by-vectors-random");
+        let rows = read_csv(&out.join("modes.csv"));
+        assert!(rows.iter().all(|r| r["detection"] != "vectors") && rows.len() == 2, "{rows:?}");
     }
 
     /// A pair of LP-like vectors next to the smooth part of the spectrum is not widened: the

@@ -7,9 +7,10 @@
 //!   upper-triangular C_n puts v^j into span{g^1..g^j}: the curve vanishes for i > j.
 //! * Fig. 13: <|v^j . v^i|> against i (i != j) for the selected j (CLVs only).
 //! * Fig. 14: the same for j in the mode region, restricted to the central part of the
-//!   spectrum: the last index of each of the two positive degenerate steps nearest the null
-//!   space ([`super::mode_steps::detect_steps`]; 2N-3 of T(1,0) and 2N-5 of LP(1,0) in the
-//!   paper's box), or 2N-5 and 2N-3 where the spectrum shows fewer than two such steps.
+//!   spectrum: the last index of each of the two positive mode steps nearest the null space
+//!   ([`super::mode_steps::resolve_steps`] at the first frame, as the mode table finds them;
+//!   2N-3 of T(1,0) and 2N-5 of LP(1,0) in the paper's box), or 2N-5 and 2N-3 where fewer
+//!   than two are found.
 //!
 //! The absolute value is taken because only the direction of a tangent vector matters (the
 //! paper, Sec. 5.1). Averages run over the consumed frames (those of every m-th step, `--every`).
@@ -27,11 +28,13 @@ pub struct Overlaps {
     gv: Option<Mean>,
     /// Selected indices j (0-based) of Figs. 4 and 13.
     js: Vec<usize>,
-    /// Mode indices j (0-based) of Fig. 14.
+    /// Mode indices j (0-based) of Fig. 14, from the first frame on.
     mode_js: Vec<usize>,
-    /// `mode_js` end the two steps [`super::mode_steps::detect_steps`] found nearest the
-    /// null space (else, with fewer, they are the fixed 2N-5, 2N-3).
+    /// `mode_js` end the two mode steps found nearest the null space (else, with fewer, they
+    /// are the fixed 2N-5, 2N-3).
     mode_js_from_steps: bool,
+    /// The mode steps are resolved at the first frame ([`Overlaps::settle`]).
+    settled: bool,
     /// The conjugate partners 4N+1-j of `js` (0-based), Fig. 13's second plot.
     conjugate_js: Vec<usize>,
     /// <|v^j . g^i|> per selected j (Fig. 4), with GS vectors.
@@ -47,33 +50,50 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
         return None;
     }
     let js: Vec<usize> = ctx.options.j.iter().map(|j| j - 1).filter(|&j| j < ctx.k).collect();
-    // Fig. 14: a vector of each of the two slowest modes, the positive steps nearest the
-    // null space (T(1,0) and LP(1,0) in the paper's box, T(1,0)+T(0,1) first in a square).
-    let mut step_ends: Vec<usize> = super::mode_steps::detect_steps(ctx).unwrap_or_default().iter().filter(|s| super::mode_steps::is_positive(s, ctx.d)).map(|s| s.start + s.len - 1).collect();
-    step_ends.sort_unstable();
-    let mode_js_from_steps = step_ends.len() >= 2;
-    let mode_js: Vec<usize> = match ctx.central_range() {
-        Some(_) if mode_js_from_steps => step_ends.into_iter().rev().take(2).rev().collect(),
-        Some(_) if ctx.n >= 3 => vec![2 * ctx.n - 6, 2 * ctx.n - 4],
-        _ => Vec::new(),
-    };
     // The paper's Fig. 13 has a second panel, the conjugate partners j* = 4N+1-j in the
     // stable subspace.
     let conjugate_js: Vec<usize> = if ctx.is_disks() && ctx.k == ctx.d { js.iter().map(|&j| ctx.d - 1 - j).filter(|j| !js.contains(j)).collect() } else { Vec::new() };
-    let mut vv_js: Vec<usize> = js.iter().chain(&mode_js).chain(&conjugate_js).copied().collect();
-    vv_js.sort_unstable();
-    vv_js.dedup();
     Some(Box::new(Overlaps {
         ctx: ctx.clone(),
         gv: ctx.with_gs.then(|| Mean::new(ctx.k)),
         vg: ctx.with_gs.then(|| js.iter().map(|_| Mean::new(ctx.k)).collect()),
-        vv: vv_js.iter().map(|_| Mean::new(ctx.k)).collect(),
+        vv: Vec::new(),
         js,
-        mode_js,
-        mode_js_from_steps,
+        mode_js: Vec::new(),
+        mode_js_from_steps: false,
+        settled: false,
         conjugate_js,
-        vv_js,
+        vv_js: Vec::new(),
     }))
+}
+
+impl Overlaps {
+    /// Fig. 14's j at the first frame: a vector of each of the two slowest modes, the
+    /// positive steps nearest the null space (T(1,0) and LP(1,0) in the paper's box,
+    /// T(1,0)+T(0,1) first in a square), found as the mode table finds them.
+    fn settle(&mut self, frame: &Frame) {
+        let ctx = &self.ctx;
+        let mut step_ends: Vec<usize> = match (super::mode_steps::detect_steps(ctx), &ctx.gs) {
+            (Ok(detected), Some(gs)) => super::mode_steps::resolve_steps(&detected, frame, &super::mode_steps::candidates(ctx), &gs.exponents)
+                .into_iter()
+                .filter(|(s, _)| super::mode_steps::is_positive(s, ctx.d))
+                .map(|(s, _)| s.start + s.len - 1)
+                .collect(),
+            _ => Vec::new(),
+        };
+        step_ends.sort_unstable();
+        self.mode_js_from_steps = step_ends.len() >= 2;
+        self.mode_js = match ctx.central_range() {
+            Some(_) if self.mode_js_from_steps => step_ends.into_iter().rev().take(2).rev().collect(),
+            Some(_) if ctx.n >= 3 => vec![2 * ctx.n - 6, 2 * ctx.n - 4],
+            _ => Vec::new(),
+        };
+        self.vv_js = self.js.iter().chain(&self.mode_js).chain(&self.conjugate_js).copied().collect();
+        self.vv_js.sort_unstable();
+        self.vv_js.dedup();
+        self.vv = self.vv_js.iter().map(|_| Mean::new(ctx.k)).collect();
+        self.settled = true;
+    }
 }
 
 /// Header names and rows of a table with one (mean, std) column pair per j.
@@ -114,6 +134,9 @@ impl Analysis for Overlaps {
 
     fn consume(&mut self, frame: &Frame) -> Result<()> {
         let d = frame.d;
+        if !self.settled {
+            self.settle(frame);
+        }
         if let (Some(gv), Some(g)) = (self.gv.as_mut(), frame.g.as_ref()) {
             gv.add(abs_dots_pairwise(g, &frame.v, d));
         }
@@ -241,9 +264,9 @@ impl Analysis for Overlaps {
                         "Time average of |v^j · v^i| for j = {} ({}) against i = {}..{} (i != j), {avg}. Mode vectors overlap with the vectors of the same degenerate exponent and, less, with the conjugate ones.",
                         list(&self.mode_js),
                         if self.mode_js_from_steps {
-                            "the last index of each of the two positive degenerate steps of the GS spectrum nearest the null space, where the slowest modes sit: the mode table says what they are"
+                            "the last index of each of the two positive mode steps nearest the null space, found as the mode table finds them, which says what they are"
                         } else {
-                            "2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any; the GS spectrum shows fewer than two degenerate steps to choose by"
+                            "2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any; fewer than two mode steps were found to choose by"
                         },
                         a + 1,
                         b + 1
@@ -364,9 +387,9 @@ mod tests {
         assert!(!out.join("overlap_gs_clv.csv").exists());
     }
 
-    /// Fig. 14 takes the last index of each of the two positive degenerate steps nearest the
-    /// null space when the GS spectrum shows two, wherever they are; with fewer it keeps the
-    /// paper's 2N-5 and 2N-3.
+    /// Fig. 14 takes the last index of each of the two positive mode steps nearest the null
+    /// space when two are found, wherever they are; with fewer it keeps the paper's 2N-5 and
+    /// 2N-3.
     #[test]
     fn the_mode_figure_follows_the_detected_steps() {
         let (n, d) = (10, 40);
@@ -390,6 +413,6 @@ mod tests {
             two.exponents[d - 1 - i] = -0.6;
         }
         let text = caption(two);
-        assert!(text.contains("j = 13, 17 (the last index of each of the two positive degenerate steps"), "{text} (m = {m})");
+        assert!(text.contains("j = 13, 17 (the last index of each of the two positive mode steps"), "{text} (m = {m})");
     }
 }
