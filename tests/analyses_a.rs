@@ -350,6 +350,23 @@ fn ks_entropy_is_the_sum_of_the_positive_exponents() {
     }
 }
 
+/// spectrum.csv marks the null space, and gives the finite window's shear exponent of its
+/// last three CLVs, which the measured ones follow (the caption's numbers).
+#[test]
+fn the_null_space_is_marked_with_its_predicted_clv_exponents() {
+    let spectrum = Table::read("spectrum.csv");
+    let (zero, shear, clv) = (spectrum.col("zero_by_symmetry"), spectrum.col("lambda_clv_null_shear"), spectrum.col("lambda_clv"));
+    let null: Vec<usize> = (0..4 * N).filter(|&i| zero[i] == 1.0).collect();
+    assert_eq!(null, (2 * N - 3..2 * N + 3).collect::<Vec<_>>(), "the paper's 2N-2..2N+3");
+    for i in 0..4 * N {
+        if (2 * N..2 * N + 3).contains(&i) {
+            assert!(shear[i] < 0.0 && (clv[i] / shear[i] - 1.0).abs() < 1e-2, "lambda_{}: {} measured, {} predicted", i + 1, clv[i], shear[i]);
+        } else {
+            assert!(shear[i].is_nan(), "lambda_{}", i + 1);
+        }
+    }
+}
+
 #[test]
 fn local_exponents_agree_with_the_spectrum_and_domination_improves() {
     let ts = Table::read("local_exponents.csv");

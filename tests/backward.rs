@@ -363,7 +363,11 @@ fn killed_between_the_finished_file_and_its_record_resumes() {
         let _ = std::fs::remove_file(&out);
     }
     let interim = interim.expect("no kill landed after a finished segment");
+    let shown = String::from_utf8(clv(&["inspect", &d]).stdout).unwrap();
+    assert!(shown.contains("backward sweep: interrupted after ") && shown.contains("(frames to part.mcap)") && shown.contains("--resume` continues it"), "{shown}");
     ok(clv(&["backward", &d, "--quiet", "--out", o, "--resume"]));
+    let shown = String::from_utf8(clv(&["inspect", &d]).stdout).unwrap();
+    assert!(shown.contains(&format!("backward sweep: finished, {} frames (frames to part.mcap)", want.len())), "{shown}");
     assert!(frames(&out) == want);
     // Finished file in place, record not yet done.
     std::fs::write(&record, &interim).unwrap();
@@ -395,7 +399,9 @@ fn frames_flow_through_real_pipes_and_a_closed_pipe_ends_cleanly() {
     assert!(producer.wait().unwrap().success());
     got.sort_by_key(|f| f.step);
     assert!(got == want, "the piped stream carries the same frames as the file");
-    // A reader that stops after a few bytes: the producer ends cleanly (exit 0).
+    let clv_spectrum = std::fs::read(dir.join("clv_spectrum.json")).unwrap();
+    // A reader that stops after a few bytes: the producer stops, says so and how to go on,
+    // and exits as a writer killed by SIGPIPE would (141): the sweep is not done.
     let mut producer = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", d, "--out", "-"]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
     let mut head = producer.stdout.take().unwrap();
     let mut buf = [0u8; 5000];
@@ -403,8 +409,12 @@ fn frames_flow_through_real_pipes_and_a_closed_pipe_ends_cleanly() {
     drop(head);
     let out = producer.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    assert!(err.contains("closed the stream"), "{err}");
+    assert_eq!(out.status.code(), Some(141), "{err}");
+    assert!(err.contains("closed the stream") && err.contains("without --resume for the whole window"), "{err}");
+    assert!(std::fs::read(dir.join("clv_spectrum.json")).unwrap() == clv_spectrum, "an unfinished sweep writes no CLV spectrum");
+    // --json would put the spectrum into the frame stream: refused.
+    let both = clv(&["backward", d, "--out", "-", "--json"]);
+    assert!(!both.status.success() && String::from_utf8_lossy(&both.stderr).contains("--json"), "{}", String::from_utf8_lossy(&both.stderr));
     // Standard output on a terminal (script(1), from util-linux, gives it one): refused.
     let tty = Command::new("script").args(["-qec", &format!("{} backward {d} --out -", env!("CARGO_BIN_EXE_clv")), "/dev/null"]).output().expect("script(1) from util-linux");
     let text = String::from_utf8_lossy(&tty.stdout);
@@ -417,8 +427,8 @@ fn frames_flow_through_real_pipes_and_a_closed_pipe_ends_cleanly() {
     drop(producer.stdout.take());
     let out = producer.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    assert!(err.contains("closed the stream") && !err.contains("error"), "{err}");
+    assert_eq!(out.status.code(), Some(141), "{err}");
+    assert!(err.contains("closed the stream") && err.matches("error").count() == 1, "one error, no other failure: {err}");
 }
 
 fn read_frames_from(input: impl std::io::Read, into: &mut Vec<Frame>) {

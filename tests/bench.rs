@@ -39,6 +39,10 @@ fn bench_on_two_threads_bounds_the_backward_step() {
     let (bound, forward) = (v["backward_work_bound_ms"].as_f64().unwrap(), v["forward_step_ms"]["median"].as_f64().unwrap());
     assert!(bound > 0.0 && bound.is_finite());
     assert!((v["backward_work_bound_over_forward"].as_f64().unwrap() - bound / forward).abs() < 1e-12);
+    // The table projects the paper's run only from steps of the paper's system.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_clv")).args(["bench", "--n", "6", "--reps", "1", "--collision-sizes", "8", "--no-rss"]).output().unwrap();
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(table.contains("paper run projection: none (it needs N = 198 with all 792 vectors; this bench ran N = 6, k = 24)"), "{table}");
 }
 
 /// Options that would measure nothing (or never end) are refused, naming the flag.

@@ -564,6 +564,18 @@ fn damaged_frame_files_and_cut_streams_are_reported() {
     std::fs::write(&tmp, cut).unwrap();
     let seen = clv(&["inspect", tmp.to_str().unwrap()]);
     assert!(!seen.status.success() && stderr(&seen).contains("an unfinished frame file"), "{}", stderr(&seen));
+    let text = String::from_utf8_lossy(&seen.stdout);
+    assert!(text.contains("unfinished, as a sweep writing it now") && !text.contains("DAMAGED"), "{text}");
+    // Its hint names the file to continue, and the run where the file's record places it
+    // (outside a run the recorded path is absolute: the run stays a placeholder).
+    assert!(stderr(&seen).contains(&format!("`clv backward RUN_DIR --out {} --resume`", tmp.with_extension("").display())), "{}", stderr(&seen));
+    let inside = dir.join("frames.mcap");
+    ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--out", inside.to_str().unwrap()]));
+    let inside_tmp = dir.join("frames.mcap.tmp");
+    std::fs::write(&inside_tmp, &std::fs::read(&inside).unwrap()[..cut.len()]).unwrap();
+    let seen = clv(&["inspect", inside_tmp.to_str().unwrap()]);
+    assert!(stderr(&seen).contains(&format!("`clv backward {} --out {} --resume`", dir.display(), inside.display())), "{}", stderr(&seen));
+    std::fs::remove_file(&inside_tmp).unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_clv"))
         .args(["analyze", "-", "--out", dir.parent().unwrap().join("cut").to_str().unwrap()])
         .stdin(Stdio::piped())

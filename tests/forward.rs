@@ -135,6 +135,7 @@ fn cli_json_reports_spectrum_configuration_and_statistics() {
     // The table says what the convergence tests of those blocks find.
     let out = clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "200", "--relax-steps", "10"]);
     let text = String::from_utf8_lossy(&out.stdout);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("clv: configuration: {\"system\":{\"kind\":\"disks\",\"n\":4"), "the effective configuration comes first, also without --out: {}", String::from_utf8_lossy(&out.stderr));
     assert!(text.contains("convergence (20 blocks of 10 steps): ") && text.contains(" exponents have |z| > 2"), "{text}");
     // A run that is not a multiple of its blocks gets at least as many complete blocks as it
     // asks for (here 21 of 10 steps; the 9 left over count in the exponents only), by the
@@ -240,12 +241,17 @@ fn combine_gives_the_spectrum_of_independent_runs() {
     assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
     let combined = clv(&["combine", paths[0], sides.to_str().unwrap()]);
     assert!(combined.status.success(), "{}", String::from_utf8_lossy(&combined.stderr));
-    let unfinished = dir.join("unfinished");
+    let (unfinished, empty) = (dir.join("unfinished"), dir.join("empty"));
     std::fs::create_dir_all(&unfinished).unwrap();
+    std::fs::create_dir_all(&empty).unwrap();
+    std::fs::copy(runs[0].join("run.json"), unfinished.join("run.json")).unwrap();
+    let segment = std::fs::read_dir(&runs[0]).unwrap().map(|e| e.unwrap().path()).find(|p| p.extension().is_some_and(|x| x == "mcap")).unwrap();
     for (args, named) in [
         (vec!["combine", paths[0], paths[0]], "have the same seed"),
         (vec!["combine", paths[0], other.to_str().unwrap()], "another system or setting"),
-        (vec!["combine", paths[0], unfinished.to_str().unwrap()], "has no spectrum.json"),
+        (vec!["combine", paths[0], unfinished.to_str().unwrap()], "has no spectrum.json: the run is not finished"),
+        (vec!["combine", paths[0], empty.to_str().unwrap()], "is not a run directory"),
+        (vec!["combine", paths[0], segment.to_str().unwrap()], "is an MCAP file"),
         (vec!["combine", paths[0]], "at least two runs"),
     ] {
         let out = clv(&args);

@@ -85,6 +85,9 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         (Some(s), false) => s.frames_path.is_none(),
         _ => args.out.as_deref() == Some(std::path::Path::new("-")),
     };
+    if to_stdout && args.json {
+        return Err(Error::param("json", "prints the CLV spectrum on standard output, which --out - gives to the frame stream; leave out --json (the spectrum is written to clv_spectrum.json in the run directory), or write the frames to a file"));
+    }
     if to_stdout && std::io::IsTerminal::is_terminal(&std::io::stdout()) {
         return Err(Error::param("out", "- writes a binary MCAP stream, and standard output is a terminal; pipe it into `clv analyze -` (or another reader), or give a file"));
     }
@@ -152,7 +155,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         }
     };
     let explain = if to_stdout {
-        "the frames streamed so far went to the reader: the same command with --resume streams the frames after them, and without it the sweep starts over".to_string()
+        "the frames streamed so far went to the reader: give the same command again for the whole window (the sweep starts over), or with --resume for only the frames after those, if the reader kept them".to_string()
     } else {
         format!("its progress up to its last finished segment is recorded in {}: give the same command with --resume to continue", args.dir.display())
     };
@@ -171,7 +174,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     }
     // Not a notice: the CLV spectrum of an unfinished sweep is not written.
     if report.statistics.stopped_early {
-        eprintln!("clv: the reader closed the stream after {} frames; stopped (continue later with --resume)", report.statistics.frames);
+        return Err(Error::ReaderClosed { frames: report.statistics.frames });
     }
     if args.json {
         print_json(&report)?;

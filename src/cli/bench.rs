@@ -7,7 +7,7 @@ use clv::Result;
 #[derive(Args)]
 pub struct BenchArgs {
     /// Disks N of the benchmark system (D = 4N).
-    #[arg(long, default_value_t = 198)]
+    #[arg(long, default_value_t = clv::bench::PAPER_N)]
     pub n: usize,
     /// Tangent vectors (default D).
     #[arg(long)]

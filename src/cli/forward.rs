@@ -316,7 +316,11 @@ fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
         }
         return print_report(&outcome.report, args.json);
     }
-    spectrum(args.config()?, args.json, args.quiet)
+    let config = args.config()?;
+    if !args.quiet {
+        eprintln!("clv: configuration: {}", serde_json::to_string(&config).unwrap_or_default());
+    }
+    spectrum(config, args.json, args.quiet)
 }
 
 fn print_report(report: &SpectrumReport, json: bool) -> Result<()> {

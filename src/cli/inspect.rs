@@ -20,19 +20,20 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
         let found = inspect::inspect_frames(&args.dir)?;
         print_inspection(&found, found.text(), args.json)?;
         // A sweep writes its frame file as FILE.tmp and renames it when done.
-        let unfinished = args.dir.extension().is_some_and(|e| e == "tmp");
+        let file = if found.unfinished { args.dir.with_extension("") } else { args.dir.clone() };
+        let resume = format!(
+            "`clv backward {} --out {} --resume` continues a sweep that was interrupted",
+            found.run_dir.as_ref().map_or("RUN_DIR".to_string(), |d| d.display().to_string()),
+            file.display()
+        );
         return match &found.damage {
             None => Ok(()),
-            Some(_) if unfinished => Err(Error::Other(format!(
-                "{}: an unfinished frame file, of a backward sweep writing it now or of one interrupted; its {} complete frames can be analysed already, and `clv backward RUN_DIR --out FILE --resume` continues an interrupted sweep",
+            Some(_) if found.unfinished => Err(Error::Other(format!(
+                "{}: an unfinished frame file, of a backward sweep writing it now or of one interrupted; its {} complete frames can be analysed already, and {resume}",
                 args.dir.display(),
                 found.frames
             ))),
-            Some(_) => Err(Error::Other(format!(
-                "{}: damaged or cut short; its {} complete frames can still be analysed, and `clv backward RUN_DIR --out FILE --resume` continues a sweep that was interrupted",
-                args.dir.display(),
-                found.frames
-            ))),
+            Some(_) => Err(Error::Other(format!("{}: damaged or cut short; its {} complete frames can still be analysed, and {resume}", args.dir.display(), found.frames))),
         };
     }
     let found = inspect::inspect(&args.dir)?;

@@ -108,13 +108,22 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
 
 fn read(path: &Path) -> Result<RunSpectrum> {
     let file = if path.is_dir() { path.join("spectrum.json") } else { path.to_path_buf() };
-    let bytes = std::fs::read(&file).map_err(|e| {
-        if path.is_dir() && e.kind() == std::io::ErrorKind::NotFound {
-            Error::Other(format!("{} has no spectrum.json: the run is not finished (`clv forward --resume {}`) or not a run directory", path.display(), path.display()))
-        } else {
-            Error::io(&file, e)
+    let bytes = std::fs::read(&file).map_err(|e| match (path.is_dir(), e.kind()) {
+        (true, std::io::ErrorKind::NotFound) if path.join("run.json").exists() => {
+            Error::Other(format!("{} has no spectrum.json: the run is not finished; finish it with `clv forward --resume {}`", path.display(), path.display()))
         }
+        (true, std::io::ErrorKind::NotFound) => Error::Other(format!(
+            "{} is not a run directory (it has neither spectrum.json nor run.json); give the directories `clv forward --out` wrote (for `clv run`, OUT/run)",
+            path.display()
+        )),
+        _ => Error::io(&file, e),
     })?;
+    if bytes.starts_with(b"\x89MCAP") {
+        return Err(Error::Other(format!(
+            "{} is an MCAP file (frames or a run's segment), not a spectrum; give the run directory, or its spectrum.json",
+            file.display()
+        )));
+    }
     let (run, _): (RunSpectrum, _) = crate::store::checked_json::from_slice(&file, &bytes).map_err(|e| {
         Error::Other(format!("{e}; a spectrum.json written by `clv forward --out` is expected (a damaged one is rewritten by `clv forward --resume RUN_DIR`)"))
     })?;

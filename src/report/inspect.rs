@@ -54,6 +54,8 @@ pub struct Inspection {
     pub damaged_records: Vec<String>,
     /// Checkpoints missing between two segments (a segment moved out or deleted).
     pub gaps: Vec<String>,
+    /// The backward sweep its progress record (backward.json) describes, if any.
+    pub backward_sweep: Option<String>,
 }
 
 /// [`crate::stage::analyze::kernels::convergence`] over the blocks completed so far.
@@ -138,6 +140,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     }
     set_aside.sort();
     let damaged_records = damaged_records(&dir);
+    let backward_sweep = backward_sweep(&dir);
     let c = meta.store.checkpoint_every.max(1);
     let gaps: Vec<String> = segments
         .windows(2)
@@ -164,6 +167,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         meta_mismatch,
         damaged_records,
         gaps,
+        backward_sweep,
         segments,
         partial_segments,
         set_aside,
@@ -173,6 +177,27 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         stderr,
         convergence,
         run: meta,
+    })
+}
+
+/// The last backward sweep as its progress record tells it: finished, or interrupted (which
+/// blocks a sweep with other options until it is resumed or given up).
+fn backward_sweep(dir: &RunDir) -> Option<String> {
+    let (v, _): (serde_json::Value, _) = crate::store::checked_json::read(&dir.path.join("backward.json")).ok()?;
+    let frames = v["stats"]["frames"].as_u64().unwrap_or(0);
+    let out = match v["options"]["frames_path"].as_str() {
+        Some(p) if v["options"]["save_every"].as_u64().unwrap_or(1) > 0 => format!("frames to {p}"),
+        Some(_) => "no frame file".to_string(),
+        None => "frames to a stream".to_string(),
+    };
+    Some(if v["done"].as_bool().unwrap_or(false) {
+        format!("finished, {frames} frames ({out})")
+    } else {
+        format!(
+            "interrupted after {frames} frames ({out}), C recorded at step {}: `clv backward {} --resume` continues it; a sweep with other options is refused until then",
+            v["at"].as_u64().unwrap_or(0),
+            dir.path.display()
+        )
     })
 }
 
@@ -258,6 +283,9 @@ impl Inspection {
                 let _ = writeln!(s, "convergence so far ({} blocks of {} steps): {}; {}", c.blocks, c.block_steps, c.tests, c.verdict);
             }
         }
+        if let Some(b) = &self.backward_sweep {
+            let _ = writeln!(s, "backward sweep: {b}");
+        }
         if let Some(m) = &self.meta_mismatch {
             let _ = writeln!(s, "DAMAGE: {m}");
         }
@@ -294,11 +322,18 @@ pub struct FrameFileInspection {
     pub backward: Option<serde_json::Value>,
     /// None if the file reads back whole, else where it ends or what is wrong.
     pub damage: Option<String>,
+    /// The file is a sweep's FILE.tmp: written now, or left by an interrupted sweep, so an
+    /// end inside a chunk is its expected state, not damage.
+    pub unfinished: bool,
+    /// The run directory the sweep belongs to, where the file's own record places it (a
+    /// frame file inside the run records its path relative to it).
+    pub run_dir: Option<std::path::PathBuf>,
 }
 
 /// Read a frame file whole (every CRC checked) and summarise it.
 pub fn inspect_frames(path: &Path) -> Result<FrameFileInspection> {
-    let mut found = FrameFileInspection { frames: 0, steps: None, d: 0, k: 0, with_vectors: 0, with_gs: 0, with_gs_local: 0, backward: None, damage: None };
+    let unfinished = path.extension().is_some_and(|e| e == "tmp");
+    let mut found = FrameFileInspection { frames: 0, steps: None, d: 0, k: 0, with_vectors: 0, with_gs: 0, with_gs_local: 0, backward: None, damage: None, unfinished, run_dir: None };
     let mut backward_json = None;
     let damage = crate::store::frames::read_frames_with(
         path,
@@ -323,8 +358,18 @@ pub fn inspect_frames(path: &Path) -> Result<FrameFileInspection> {
             damage.map(|d| format!(" ({d})")).unwrap_or_default()
         )));
     }
-    found.backward = backward_json.and_then(|j| serde_json::from_str(&j).ok());
+    found.backward = backward_json.and_then(|j| serde_json::from_str::<serde_json::Value>(&j).ok());
     found.damage = damage;
+    // FILE (or FILE.tmp) is RUN_DIR/<recorded path> when that path is relative.
+    let recorded = found.backward.as_ref().and_then(|b| b["frames_path"].as_str()).map(std::path::PathBuf::from).filter(|p| p.is_relative());
+    let file = if unfinished { path.with_extension("") } else { path.to_path_buf() };
+    found.run_dir = recorded.and_then(|r| {
+        let mut dir = file.clone();
+        for _ in r.components() {
+            dir.pop();
+        }
+        (dir.join(&r) == file).then_some(dir)
+    });
     Ok(found)
 }
 
@@ -337,7 +382,12 @@ impl FrameFileInspection {
         if let Some(b) = &self.backward {
             let _ = writeln!(s, "backward options: {b}");
         }
-        let _ = writeln!(s, "{}", self.damage.as_ref().map_or("intact".to_string(), |d| format!("DAMAGED: {d}")));
+        let state = match (&self.damage, self.unfinished) {
+            (None, _) => "intact".to_string(),
+            (Some(d), true) => format!("unfinished, as a sweep writing it now or one interrupted leaves it: {d}"),
+            (Some(d), false) => format!("DAMAGED: {d}"),
+        };
+        let _ = writeln!(s, "{state}");
         s
     }
 }

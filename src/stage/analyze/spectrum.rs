@@ -62,10 +62,25 @@ impl Analysis for Spectrum {
         let (window_gs, window_gs_err) = if same_steps { (self.acc_gs.exponents(1.0), self.acc_gs.stderr(1.0)) } else { (nan.clone(), nan) };
         let (gs, gs_err) = if same_steps { (&window_gs, &window_gs_err) } else { (&run_gs, &run_gs_err) };
         let x: Vec<f64> = (0..ctx.k).map(|i| ctx.reduced(i)).collect();
+        let neutral = ctx.run.as_ref().map_or(0..0, |m| m.config.system.neutral());
+        // The finite window's exponent of the three trailing null-space CLVs (see the caption).
+        let shear = match (ctx.is_disks() && ctx.k == ctx.d && ctx.n >= 2, ctx.run.as_ref(), self.steps) {
+            (true, Some(run), Some((first, last))) => {
+                // Frame m carries the exponent over [t_m, t_(m+1)], at backward times
+                // (total - m - 1) tau .. (total - m) tau from the window's end.
+                let total = run.config.relax_steps + run.config.steps;
+                Some(((total - last - 1) as f64 * ctx.tau, (total - first) as f64 * ctx.tau))
+            }
+            _ => None,
+        };
+        let predicted = |i: usize| match shear {
+            Some((s1, s2)) if (2 * ctx.n..2 * ctx.n + 3).contains(&i) => null_shear_exponent(s1, s2),
+            _ => f64::NAN,
+        };
         write_csv(
             &out.join("spectrum.csv"),
-            &["i", "i_over_D", "lambda_gs", "stderr_gs", "lambda_gs_window", "stderr_gs_window", "lambda_clv", "stderr_clv"],
-            (0..ctx.k).map(|i| vec![(i + 1) as f64, x[i], run_gs[i], run_gs_err[i], window_gs[i], window_gs_err[i], clv[i], clv_err[i]]),
+            &["i", "i_over_D", "lambda_gs", "stderr_gs", "lambda_gs_window", "stderr_gs_window", "lambda_clv", "stderr_clv", "zero_by_symmetry", "lambda_clv_null_shear"],
+            (0..ctx.k).map(|i| vec![(i + 1) as f64, x[i], run_gs[i], run_gs_err[i], window_gs[i], window_gs_err[i], clv[i], clv_err[i], f64::from(u8::from(neutral.contains(&i))), predicted(i)]),
         )?;
         let reduced = if ctx.is_disks() { "i/4N" } else { "i/D" };
         // A line between a handful of exponents (the Henon map's two) would look like data.
@@ -76,7 +91,6 @@ impl Analysis for Spectrum {
         fig.hline(0.0);
         save_figure(&fig, out, "fig2_spectrum")?;
         // The spectrum.json of builds before h_KS was reported has the exponents but no error.
-        let neutral = ctx.run.as_ref().map_or(0..0, |m| m.config.system.neutral());
         let run_h = ctx.gs.as_ref().and_then(|g| g.ks_entropy.or_else(|| ks_entropy(&g.exponents, neutral.clone()).map(|value| Estimate { value, stderr: f64::NAN })));
         let clv_h = Estimate::or_unknown(self.acc.ks_entropy(1.0, neutral.clone()));
         let caption = if same_steps {
@@ -107,11 +121,7 @@ impl Analysis for Spectrum {
             figures: vec!["fig2_spectrum".into()],
             tables: vec!["spectrum.csv".into()],
         }];
-        if let (true, Some(run), Some((first, last))) = (ctx.is_disks() && ctx.k == ctx.d && ctx.n >= 2, ctx.run.as_ref(), self.steps) {
-            // Frame m carries the exponent over [t_m, t_(m+1)], at backward times
-            // (total - m - 1) tau .. (total - m) tau from the window's end.
-            let total = run.config.relax_steps + run.config.steps;
-            let (s1, s2) = ((total - last - 1) as f64 * ctx.tau, (total - first) as f64 * ctx.tau);
+        if let Some((s1, s2)) = shear {
             let measured: Vec<String> = (2 * ctx.n..2 * ctx.n + 3).map(|i| format!("{:.4e}", clv[i])).collect();
             produced[0].caption += &format!(
                 " The last three null-space CLV exponents (i = 2N+1..2N+3) are not zero in a finite window: backward iteration turns e_(k+3) into e_(k+3) - s e_k, \
@@ -119,6 +129,7 @@ impl Analysis for Spectrum {
                 null_shear_exponent(s1, s2),
                 measured.join(", ")
             );
+            produced[0].caption += " In spectrum.csv, zero_by_symmetry marks the null space, where the CLV errors measure this drift, not noise, and lambda_clv_null_shear gives the predicted values.";
         }
         if ctx.is_disks() && ctx.k == ctx.d {
             // The mode region: positive exponents next to the null space, with the negated
