@@ -553,3 +553,82 @@ fn an_earlier_sweeps_clv_spectrum_is_kept_beside_a_new_one() {
     backward_json(&dir, &["--save-every", "0", "--c-init", "random"]);
     assert!(!dir.join("clv_spectrum-2.json").exists(), "the same sweep again replaces its own spectrum");
 }
+
+/// A sweep that writes no frame file records none, and `clv analyze RUN_DIR` then refuses
+/// to stand in an earlier sweep's frames.mcap for it, naming the sweep and how to write a
+/// file: after `--save-every 0`, after a stream, when the sweep's file is gone, and while
+/// it is unfinished. A `--save-every 0` sweep continues with `--resume` as such (no stream
+/// on standard output), and a record of an earlier build (the default file named with
+/// --save-every 0) still continues.
+#[test]
+fn analyze_run_dir_reads_only_the_last_sweeps_own_file() {
+    let dir = forward("last-sweep-file", &["--n", "8", "--steps", "600", "--relax-steps", "50", "--clv-steps", "100"]);
+    let d = dir.to_str().unwrap();
+    let base = dir.parent().unwrap().to_path_buf();
+    let analyze = |name: &str| {
+        let rep = base.join(name);
+        (clv(&["analyze", d, "--out", rep.to_str().unwrap(), "--only", "spectrum", "--quiet"]), rep)
+    };
+    let refused = |(out, rep): (std::process::Output, PathBuf), what: &str| {
+        let err = common::stderr(&out);
+        assert!(!out.status.success() && err.contains("the run's last backward sweep") && err.contains(what) && err.contains(&format!("clv backward {d} --out")), "{err}");
+        assert!(!rep.exists(), "a refused analysis wrote {}", rep.display());
+    };
+    ok(clv(&["backward", d, "--transient", "20", "--c-init", "random", "--quiet"]));
+    let (out, rep) = analyze("first");
+    ok(out);
+    assert!(read_text(&rep.join("index.html")).contains("frames.mcap"));
+    // Only the CLV spectrum: no frame file recorded, in the progress record or the spectrum.
+    ok(clv(&["backward", d, "--save-every", "0", "--quiet"]));
+    let spectrum: serde_json::Value = serde_json::from_str(&read_text(&dir.join("clv_spectrum.json"))).unwrap();
+    let record: serde_json::Value = serde_json::from_str(&read_text(&dir.join("backward.json"))).unwrap();
+    for options in [&spectrum["options"], &record["options"]] {
+        assert!(options["frames_path"].is_null() && options["no_frames"] == true, "{options}");
+    }
+    refused(analyze("spectrum-only"), "computed only the CLV spectrum (`--save-every 0`)");
+    let (out, _) = analyze("spectrum-only-2");
+    assert!(common::stderr(&out).contains("frames.mcap is an earlier sweep's"), "{}", common::stderr(&out));
+    // Interrupted after its first segment, it continues with --resume alone, to the same spectrum.
+    let crashed = common::clv_env(&["backward", d, "--save-every", "0", "--quiet"], &[("CLV_FAULT_CRASH_AT", "atomic-renamed#2")]);
+    assert_eq!(crashed.status.code(), Some(clv::store::fault::CRASH_STATUS), "{}", common::stderr(&crashed));
+    let resumed = ok(clv(&["backward", d, "--resume", "--quiet"]));
+    assert!(!resumed.stdout.starts_with(b"\x89MCAP"), "a resumed sweep without frames streamed them");
+    let again: serde_json::Value = serde_json::from_str(&read_text(&dir.join("clv_spectrum.json"))).unwrap();
+    assert_eq!(again["exponents"], spectrum["exponents"]);
+    // A record of an earlier build named the default file with --save-every 0: it still
+    // continues, and still wrote no file.
+    let mut legacy = record.clone();
+    legacy["options"]["frames_path"] = "frames.mcap".into();
+    legacy["options"].as_object_mut().unwrap().remove("no_frames");
+    legacy.as_object_mut().unwrap().remove("crc32");
+    common::reseal(&dir.join("backward.json"), &legacy.to_string());
+    ok(clv(&["backward", d, "--resume", "--quiet"]));
+    refused(analyze("legacy"), "computed only the CLV spectrum");
+    // A stream.
+    let streamed = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", d, "--out", "-", "--quiet"]).stdout(Stdio::piped()).output().unwrap();
+    assert!(streamed.status.success() && streamed.stdout.starts_with(b"\x89MCAP"));
+    refused(analyze("stream"), "streamed its frames");
+    // A file outside the run: read while it is there, refused once it is gone.
+    let outside = base.join("outside.mcap");
+    ok(clv(&["backward", d, "--out", outside.to_str().unwrap(), "--quiet"]));
+    let (out, rep) = analyze("outside");
+    ok(out);
+    assert!(read_text(&rep.join("index.html")).contains("outside.mcap"));
+    std::fs::remove_file(&outside).unwrap();
+    refused(analyze("gone"), &format!("wrote {}, which is gone", outside.display()));
+    // An unfinished sweep into a file: continue it first.
+    let crashed = common::clv_env(&["backward", d, "--out", outside.to_str().unwrap(), "--quiet"], &[("CLV_FAULT_CRASH_AT", "atomic-renamed#2")]);
+    assert_eq!(crashed.status.code(), Some(clv::store::fault::CRASH_STATUS), "{}", common::stderr(&crashed));
+    let (out, rep) = analyze("unfinished");
+    let err = common::stderr(&out);
+    assert!(!out.status.success() && err.contains("has not finished writing") && err.contains(&format!("clv backward {d} --resume")), "{err}");
+    assert!(!rep.exists());
+    // Without a sweep record (a run of a build before them): the run's frames.mcap, as before.
+    std::fs::remove_file(base.join("outside.mcap.tmp")).unwrap();
+    std::fs::remove_file(dir.join("backward.json")).unwrap();
+    ok(analyze("no-record").0);
+}
+
+fn read_text(path: &Path) -> String {
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}

@@ -587,3 +587,61 @@ fn clv_error_bars_do_not_depend_on_how_the_frames_are_read() {
     assert!(read(&sparse_report.join("index.html")).contains("are not computed"));
 }
 
+
+/// `clv run` writes its report only over a report of its own run: one left by another run
+/// (its run directory deleted, or another run's report moved in) and files of the user's
+/// are refused before anything is computed, naming OUT/report, and stay as they were; a
+/// report of its run killed midway is written anew. A run directory as --out is refused.
+#[test]
+fn clv_run_writes_no_report_over_another_runs() {
+    let base = scratch("run-report-owner");
+    let small = ["--n", "8", "--steps", "600", "--relax-steps", "50", "--quiet"];
+    let run = |out: &Path, extra: &[&str]| clv(&[&["run", "--out", out.to_str().unwrap()], &small[..], extra].concat());
+    let refused = |out: &std::process::Output, named: &Path, what: &str| {
+        let err = common::stderr(out);
+        assert!(!out.status.success() && err.contains(&format!("{} already holds {what}", named.display())) && err.contains("choose another --out, or move or delete"), "{err}");
+    };
+    // The report of a run whose run directory is gone, under a new run of another seed.
+    let k = base.join("k");
+    ok(run(&k, &[]));
+    let index = read(&k.join("report/index.html"));
+    std::fs::remove_dir_all(k.join("run")).unwrap();
+    let again = run(&k, &["--seed", "7"]);
+    refused(&again, &k.join("report"), "a report, but");
+    assert!(!k.join("run").exists(), "a refused run computed something");
+    assert_eq!(read(&k.join("report/index.html")), index);
+    // ... and under a new run of the same seed: a new run is not the report's either.
+    refused(&run(&k, &[]), &k.join("report"), "a report, but");
+    // A file of the user's where a report would go.
+    let l = base.join("l");
+    std::fs::create_dir_all(l.join("report")).unwrap();
+    std::fs::write(l.join("report/spectrum.csv"), "mine").unwrap();
+    refused(&run(&l, &[]), &l.join("report"), "files that are not a report of clv");
+    assert_eq!(read(&l.join("report/spectrum.csv")), "mine");
+    assert!(!l.join("run").exists());
+    // Another run's report moved in beside this run: refused, naming both runs.
+    let (m, n) = (base.join("m"), base.join("n"));
+    ok(run(&m, &[]));
+    ok(run(&n, &["--seed", "7"]));
+    std::fs::remove_dir_all(m.join("report")).unwrap();
+    common::copy_dir(&n.join("report"), &m.join("report"));
+    let theirs = read(&m.join("report/index.html"));
+    let other = run(&m, &[]);
+    refused(&other, &m.join("report"), "the report of another run");
+    assert!(common::stderr(&other).contains("\"seed\":7") && common::stderr(&other).contains("\"seed\":1"), "{}", common::stderr(&other));
+    assert_eq!(read(&m.join("report/index.html")), theirs);
+    // This run's report killed midway (its page names the run): written anew.
+    std::fs::remove_dir_all(m.join("report")).unwrap();
+    let (_, meta) = clv::store::RunDir::open(&m.join("run")).unwrap();
+    clv::stage::analyze::begin_report(&m.join("report"), "a killed clv run", Some(&meta.config)).unwrap();
+    ok(run(&m, &[]));
+    assert!(m.join("report/summary.json").exists());
+    // Another run's report killed midway is not this run's.
+    clv::stage::analyze::begin_report(&m.join("report"), "a killed clv run", Some(&clv::store::RunDir::open(&n.join("run")).unwrap().1.config)).unwrap();
+    refused(&run(&m, &[]), &m.join("report"), "the report of another run");
+    // A run directory as --out.
+    let inside = run(&n.join("run"), &["--seed", "7"]);
+    let err = common::stderr(&inside);
+    assert!(!inside.status.success() && err.contains("is a run directory (it holds run.json)") && err.contains("--out"), "{err}");
+    assert!(!n.join("run/run").exists() && !n.join("run/report").exists());
+}

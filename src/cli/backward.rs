@@ -82,7 +82,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         opts.with_gs = args.with_gs;
     }
     let to_stdout = match (&stored, given("out")) {
-        (Some(s), false) => s.frames_path.is_none(),
+        (Some(s), false) => s.streams(),
         _ => args.out.as_deref() == Some(std::path::Path::new("-")),
     };
     if to_stdout && args.json {
@@ -123,6 +123,15 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
             (false, false, Some(s)) => s,
             _ => args.save_every,
         };
+        // A sweep that keeps no frame writes no file, and records none (`clv analyze RUN_DIR`
+        // must not take an earlier sweep's frames.mcap for its frames).
+        opts.no_frames = !to_stdout && opts.save_every == 0;
+        if opts.no_frames {
+            opts.frames_path = None;
+        } else if !to_stdout && opts.frames_path.is_none() {
+            // --save-every m on resuming a sweep that kept none: into the default file.
+            opts.frames_path = Some(BackwardOptions::record_frames_path(&args.dir, &clv::store::RunDir { path: args.dir.clone() }.frames_path())?);
+        }
     }
     if stored.is_none() || given("vectors_every") {
         opts.vectors_every = args.vectors_every;

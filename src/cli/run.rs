@@ -20,7 +20,8 @@ pub struct RunArgs {
     /// A configuration file (as printed by `clv config`) instead of a preset.
     #[arg(long, value_name = "FILE", conflicts_with = "preset")]
     pub config: Option<PathBuf>,
-    /// Output directory: OUT/run (the run) and OUT/report (index.html, figures, tables).
+    /// Output directory: OUT/run (the run) and OUT/report (index.html, figures, tables). A
+    /// report in OUT/report that is not of the run in OUT/run is refused, not replaced.
     #[arg(long, default_value = "clv-out")]
     pub out: PathBuf,
     /// No progress bars or notices.

@@ -67,10 +67,20 @@ pub struct BackwardOptions {
     /// vector statistics read only the frames of every m-th step anyway (`clv analyze --every`).
     #[serde(default = "one")]
     pub vectors_every: u64,
+    /// The sweep sends its frames nowhere: no frame file and no stream, only the CLV
+    /// spectrum (`clv backward --save-every 0` without --out; `frames_path` is then None, as
+    /// for a stream). Absent from the records of earlier builds, which named the default
+    /// frame file with --save-every 0 for such a sweep.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub no_frames: bool,
 }
 
 fn one() -> u64 {
     1
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 impl BackwardOptions {
@@ -82,24 +92,35 @@ impl BackwardOptions {
         Ok(file.strip_prefix(&run).map_or(file.clone(), Path::to_path_buf))
     }
 
-    /// The frame file of a sweep of the run in `run`, if it writes one.
+    /// The frame file of a sweep of the run in `run`, if it writes one (a record of an
+    /// earlier build names one with --save-every 0 for a sweep that wrote none).
     pub fn frames_file(&self, run: &Path) -> Option<PathBuf> {
-        self.frames_path.as_ref().map(|p| run.join(p))
+        self.frames_path.as_ref().filter(|_| self.save_every > 0).map(|p| run.join(p))
+    }
+
+    /// The sweep sends its frames to a reader (`--out -`, or `clv run`'s analyses in the
+    /// same process) rather than to a file or nowhere.
+    pub fn streams(&self) -> bool {
+        self.frames_path.is_none() && !self.no_frames
     }
 
     /// The options as the flags of `clv backward` that give them.
     pub fn as_flags(&self) -> String {
-        let out = self.frames_path.as_ref().map_or("-".to_string(), |p| p.display().to_string());
+        let out = match &self.frames_path {
+            Some(p) => format!("--out {} ", p.display()),
+            None if self.no_frames => String::new(),
+            None => "--out - ".into(),
+        };
         let c_init = match self.c_init {
             CInit::Identity => "identity",
             CInit::Random => "random",
         };
         let gs = if self.with_gs { " --with-gs" } else { "" };
-        format!("--out {out} --save-every {} --vectors-every {} --transient {} --c-init {c_init}{gs}", self.save_every, self.vectors_every, self.transient)
+        format!("{out}--save-every {} --vectors-every {} --transient {} --c-init {c_init}{gs}", self.save_every, self.vectors_every, self.transient)
     }
 
     pub fn for_run(meta: &RunMeta) -> Self {
-        BackwardOptions { transient: meta.store.transient, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1 }
+        BackwardOptions { transient: meta.store.transient, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1, no_frames: false }
     }
 
     /// As a frame stream's metadata records them (`backward.json`).
@@ -250,8 +271,27 @@ fn progress_path(dir: &RunDir) -> PathBuf {
 
 /// The options of the sweep recorded in the run's progress record, if there is one.
 pub fn stored_options(run: &Path) -> Option<BackwardOptions> {
-    let text = std::fs::read_to_string(progress_path(&RunDir { path: run.to_path_buf() })).ok()?;
-    Progress::read(run, &progress_path(&RunDir { path: run.to_path_buf() }), text.as_bytes()).ok().map(|p| p.options)
+    last_sweep(run).ok().flatten().map(|s| s.options)
+}
+
+/// The run's last backward sweep, as its progress record (RUN/backward.json) describes it.
+pub struct LastSweep {
+    pub options: BackwardOptions,
+    /// It finished (its frame file, if any, is complete under its own name).
+    pub done: bool,
+}
+
+/// The last backward sweep of the run in `run`: None without a progress record, an error
+/// when the record cannot be read (damaged, edited).
+pub fn last_sweep(run: &Path) -> Result<Option<LastSweep>> {
+    let file = progress_path(&RunDir { path: run.to_path_buf() });
+    let text = match std::fs::read_to_string(&file) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(Error::io(&file, e)),
+    };
+    let p = Progress::read(run, &file, text.as_bytes())?;
+    Ok(Some(LastSweep { options: p.options, done: p.done }))
 }
 
 pub fn report_path(dir: &RunDir) -> PathBuf {
@@ -283,7 +323,11 @@ impl Window {
     /// The oldest and newest step of the frames a whole sweep with `opts` leaves: in its
     /// frame file the multiples of --save-every, on a stream every step.
     pub fn frame_steps(&self, opts: &BackwardOptions) -> Option<(u64, u64)> {
-        let m = if opts.frames_path.is_some() { opts.save_every } else { 1 };
+        let m = match (&opts.frames_path, opts.no_frames) {
+            (Some(_), _) => opts.save_every,
+            (None, true) => 0,
+            (None, false) => 1,
+        };
         if m == 0 {
             return None;
         }
@@ -606,7 +650,7 @@ pub fn run(
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
         let (mut report, _): (BackwardReport, _) = checked_json::from_slice(&path, text.as_bytes())?;
         report.notes = notes;
-        if frames_path.is_none() {
+        if opts.streams() {
             report.notes.push(format!(
                 "the backward sweep of {} finished earlier and its frames went to the reader of that stream: this stream carries none; \
                  start it again without --resume for the frames",
@@ -616,7 +660,7 @@ pub fn run(
         return Ok(report);
     }
 
-    if let Some(p) = prior.as_ref().filter(|p| frames_path.is_none() && p.stats.frames > 0) {
+    if let Some(p) = prior.as_ref().filter(|p| opts.streams() && p.stats.frames > 0) {
         let sent = window.last + 1 - p.stats.frames;
         notes.push(format!(
             "the frames of steps {sent}..{} went to the reader of the interrupted stream and are not sent again: this stream carries steps {}..{}, \
@@ -929,7 +973,7 @@ mod tests {
     use super::*;
 
     fn record(c: Vec<f64>) -> Progress {
-        Progress { options: BackwardOptions { transient: 1, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1 }, at: 7, c, acc: Accumulator::new(3, 2), acc_gs: None, stats: BackwardStats::default(), done: false }
+        Progress { options: BackwardOptions { transient: 1, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1, no_frames: false }, at: 7, c, acc: Accumulator::new(3, 2), acc_gs: None, stats: BackwardStats::default(), done: false }
     }
 
     /// C survives the progress record bit for bit (hex), and records of earlier builds (a JSON
@@ -952,6 +996,30 @@ mod tests {
             let damaged = legacy.replace("\"c\":[1.0,0.0,0.0,2.0,3.0,0.0,4.0,5.0,6.0]", bad);
             assert!(serde_json::from_str::<Progress>(&damaged).is_err(), "{bad}");
         }
+    }
+
+    /// The three kinds of sweep by their options: into a file, to a reader, and without
+    /// frames (whose record names no file, and reads as such where an earlier build named
+    /// the default file with --save-every 0); records without the field still read.
+    #[test]
+    fn a_sweep_without_frames_names_no_file_and_is_no_stream() {
+        let run = Path::new("/runs/r");
+        let file = BackwardOptions { frames_path: Some("frames.mcap".into()), ..record(Vec::new()).options };
+        let stream = BackwardOptions { save_every: 0, ..record(Vec::new()).options };
+        let none = BackwardOptions { no_frames: true, ..stream.clone() };
+        let legacy = BackwardOptions { save_every: 0, ..file.clone() };
+        assert_eq!(file.frames_file(run), Some(run.join("frames.mcap")));
+        for (o, streams) in [(&stream, true), (&none, false), (&legacy, false)] {
+            assert_eq!((o.frames_file(run), o.streams()), (None, streams), "{o:?}");
+        }
+        assert!(file.as_flags().starts_with("--out frames.mcap --save-every 1") && stream.as_flags().starts_with("--out - --save-every 0"));
+        assert!(none.as_flags().starts_with("--save-every 0"), "{}", none.as_flags());
+        let window = Window { first: 10, last: 20 };
+        assert_eq!((window.frame_steps(&stream), window.frame_steps(&none), window.frame_steps(&legacy)), (Some((10, 20)), None, None));
+        // Written only where set: the records of files and streams are as before.
+        assert!(!stream.to_json().contains("no_frames") && none.to_json().contains("\"no_frames\":true"));
+        let back: BackwardOptions = serde_json::from_str(&stream.to_json()).unwrap();
+        assert_eq!(back, stream);
     }
 
     /// The frame file inside the run is recorded relative to it however both are spelled

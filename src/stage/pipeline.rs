@@ -28,8 +28,25 @@ pub struct PipelineResult {
 pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut Feedback, say: &mut dyn FnMut(String)) -> Result<PipelineResult> {
     let run_dir = out.join("run");
     let report_dir = out.join("report");
-    if run_dir.join("run.json").exists() {
-        let (_, stored) = RunDir::open(&run_dir)?;
+    if out.join("run.json").exists() {
+        return Err(Error::param(
+            "out",
+            format!(
+                "{} is a run directory (it holds run.json); `clv run` would put a second run and its report inside it (run/ and report/): \
+                 give --out a directory of its own (a new one, or the one that holds run/ and report/ of a `clv run`); \
+                 this run is continued with `clv forward --resume {}` and analysed with `clv backward {} --out - | clv analyze - --out REPORT`",
+                out.display(),
+                out.display(),
+                out.display()
+            ),
+        ));
+    }
+    let stored = match run_dir.join("run.json").exists() {
+        true => Some(RunDir::open(&run_dir)?.1),
+        false => None,
+    };
+    check_report(&report_dir, &run_dir, stored.as_ref())?;
+    if let Some(stored) = stored {
         if let Some(ext) = extension(&stored, config, store) {
             say(format!("extending the run in {} from {} to {} steps", run_dir.display(), stored.config.steps, config.steps));
             forward_run::extend(&run_dir, ext, Some(config.threads), &[&report_dir], feedback)?;
@@ -95,6 +112,38 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
         None => Vec::new(),
     };
     Ok(PipelineResult { run_dir, report_dir, produced, clv })
+}
+
+/// Refuse, before anything is computed, to write the report into `report_dir` over files
+/// that are not a report of the run in `run_dir` (`stored`; None: there is none yet, the
+/// run is new): a report can be all that is left of a long run. A report of this run,
+/// finished or killed midway (`clv run` given again after an interruption), is written anew.
+fn check_report(report_dir: &Path, run_dir: &Path, stored: Option<&RunMeta>) -> Result<()> {
+    use super::analyze::{report_in, ReportDir};
+    let found = report_in(report_dir);
+    let what = match (&found, stored) {
+        (ReportDir::Empty, _) => return Ok(()),
+        (ReportDir::Report { run: Some(run), .. }, Some(stored)) if run.same_but_threads(&stored.config) => return Ok(()),
+        // Killed midway by a build whose incomplete page named no run: its files are partial.
+        (ReportDir::Report { run: None, finished: false }, Some(_)) => return Ok(()),
+        (ReportDir::Report { .. }, None) => format!("a report, but {} holds no run (a new run starts there): the report is of another run", run_dir.display()),
+        (ReportDir::Report { run: Some(run), .. }, Some(stored)) => format!(
+            "the report of another run ({}) than the one in {} ({})",
+            serde_json::to_string(run).unwrap_or_default(),
+            run_dir.display(),
+            serde_json::to_string(&stored.config).unwrap_or_default()
+        ),
+        (ReportDir::Report { run: None, .. }, Some(_)) => format!("a report that names no run, not one of the run in {}", run_dir.display()),
+        (ReportDir::Other, _) => "files that are not a report of clv (no index.html of one)".to_string(),
+    };
+    Err(Error::param(
+        "out",
+        format!(
+            "{} already holds {what}, and `clv run` would write its report over it; choose another --out, or move or delete {} first",
+            report_dir.display(),
+            report_dir.display()
+        ),
+    ))
 }
 
 /// The extension that turns the stored run into the one asked for, if that is one: the same

@@ -43,6 +43,7 @@ pub mod transversality;
 
 use super::backward::{BackwardOptions, Window};
 use super::frame::{multiples_in, on_stride, Frame};
+use crate::config::RunConfig;
 use crate::error::{Error, Result};
 use crate::report::SpectrumSummary;
 use crate::store::frames::{Flow, StreamInfo};
@@ -351,7 +352,7 @@ pub struct Analyzer {
 
 impl Analyzer {
     pub fn start(ctx: Context, analyses: Vec<Box<dyn Analysis>>, out: &Path) -> Result<Self> {
-        begin_report(out, &ctx.source)?;
+        begin_report(out, &ctx.source, ctx.run.as_ref().map(|m| &m.config))?;
         let every = ctx.options.every;
         let mut workers = Vec::new();
         for mut analysis in analyses {
@@ -507,11 +508,17 @@ fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
+/// The line of index.html that names the run a report is of (its configuration as JSON,
+/// empty for a stream without one): what [`report_in`] reads back.
+fn run_line(run: Option<&RunConfig>) -> String {
+    let json = run.map(|c| serde_json::to_string(c).unwrap_or_default()).unwrap_or_default();
+    format!("<p>Run: <code>{}</code></p>\n", escape(&json))
+}
+
 fn write_index(ctx: &Context, out: &Path, produced: &[Produced], warnings: &[String], frames: u64, first: u64, last: u64) -> Result<()> {
-    let run = ctx.run.as_ref().map(|m| serde_json::to_string(&m.config).unwrap_or_default()).unwrap_or_default();
     let mut html = String::from("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>clv analyses</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em} figure{margin:2em 0} img{max-width:100%} code{background:#eee}</style></head><body>\n");
     html += &format!(
-        "<h1>Covariant Lyapunov vector analyses</h1>\n<p>Source: <code>{}</code>; {} frames (steps {}..{}), D = {}, k = {}{}; vector statistics use {}.</p>\n<p>Run: <code>{}</code></p>\n<p>Conventions: {}</p>\n",
+        "<h1>Covariant Lyapunov vector analyses</h1>\n<p>Source: <code>{}</code>; {} frames (steps {}..{}), D = {}, k = {}{}; vector statistics use {}.</p>\n{}<p>Conventions: {}</p>\n",
         escape(&ctx.source),
         frames,
         if frames > 0 { first } else { 0 },
@@ -520,7 +527,7 @@ fn write_index(ctx: &Context, out: &Path, produced: &[Produced], warnings: &[Str
         ctx.k,
         if ctx.with_gs { ", with Gram-Schmidt vectors" } else { "" },
         ctx.sample(),
-        escape(&run),
+        run_line(ctx.run.as_ref().map(|m| &m.config)),
         if ctx.is_disks() {
             "units σ = m = K/N = 1, exponents per unit time; step numbers count the relaxation steps too, and t = step × τ; indices i are 1-based as in the paper; vectors ordered (δq_x1, δq_y1, ..., δq_yN; δp_x1, ..., δp_yN); angles in radians, captions add degrees where the paper uses them."
         } else {
@@ -614,14 +621,15 @@ fn remove_report_file(out: &Path, name: &str) -> Result<()> {
 }
 
 /// The page index.html shows while a report is written, and after a write that did not end.
-fn unfinished_page(out: &Path, source: &str) -> String {
+fn unfinished_page(out: &Path, source: &str, run: Option<&RunConfig>) -> String {
     format!(
         "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>clv analyses: incomplete</title></head><body>\n\
          <h1>Incomplete report</h1>\n<p>clv is writing this report (from <code>{}</code>), or was stopped before it finished \
-         (a signal, an error, a full disk): the files here may be missing or partial, and there is no summary.json.</p>\n\
+         (a signal, an error, a full disk): the files here may be missing or partial, and there is no summary.json.</p>\n{}\
          <p>To write it again, give the command that wrote it once more with <code>--overwrite</code>: \
          <code>clv analyze SOURCE --out {} --overwrite</code> with the same options, or for the report of <code>clv run</code> the same <code>clv run</code> command.</p>\n</body></html>\n",
         escape(source),
+        run_line(run),
         escape(&out.display().to_string())
     )
 }
@@ -629,8 +637,9 @@ fn unfinished_page(out: &Path, source: &str) -> String {
 /// Start writing a report into `out` (made if missing): index.html becomes a page that says
 /// the report is incomplete, then the earlier report's summary.json and the files it lists
 /// are removed, and temporary files a killed writer left. Files a report does not write
-/// (notes of the user's own) stay.
-pub fn begin_report(out: &Path, source: &str) -> Result<()> {
+/// (notes of the user's own) stay. `run` is the configuration of the run the frames are
+/// of, named in the page as in a finished report's.
+pub fn begin_report(out: &Path, source: &str, run: Option<&RunConfig>) -> Result<()> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let mut earlier = report_files(out).unwrap_or_default();
     // The files of a report that was killed before its summary.json listed them.
@@ -641,7 +650,7 @@ pub fn begin_report(out: &Path, source: &str) -> Result<()> {
     // Still listed while they go: a kill in the middle of the removal leaves them named.
     let listed: String = earlier.iter().map(|n| format!("{n}\n")).collect();
     crate::store::run::write_atomic(&manifest, listed.as_bytes())?;
-    write_report_file(&out.join("index.html"), unfinished_page(out, source).as_bytes())?;
+    write_report_file(&out.join("index.html"), unfinished_page(out, source, run).as_bytes())?;
     remove_report_file(out, "summary.json")?;
     for name in earlier.iter().filter(|n| *n != "index.html") {
         remove_report_file(out, name)?;
@@ -708,6 +717,40 @@ pub fn report_files(out: &Path) -> Option<std::collections::BTreeSet<String>> {
     Some(files)
 }
 
+/// What a directory holds where a report is to be written ([`report_in`]).
+#[derive(Debug, PartialEq)]
+pub enum ReportDir {
+    /// No report and no other file: missing, empty, or only what a report's writer leaves
+    /// before its first file (its manifest, temporary files).
+    Empty,
+    /// A report of clv, finished or not, with the configuration of the run its frames were
+    /// of (None for a stream without one, and for an incomplete report of a build before
+    /// incomplete reports named their run).
+    Report { run: Option<RunConfig>, finished: bool },
+    /// Files, but no index.html of a clv report.
+    Other,
+}
+
+/// What the directory `out` holds: a report (of which run), nothing, or other files.
+pub fn report_in(out: &Path) -> ReportDir {
+    let Ok(entries) = std::fs::read_dir(out) else { return ReportDir::Empty };
+    let ours = |name: &str| name == WRITING || (name.starts_with('.') && name.ends_with(TMP_SUFFIX));
+    if entries.flatten().all(|e| ours(&e.file_name().to_string_lossy())) {
+        return ReportDir::Empty;
+    }
+    let Ok(html) = std::fs::read_to_string(out.join("index.html")) else { return ReportDir::Other };
+    if !html.contains("<title>clv analyses") {
+        return ReportDir::Other;
+    }
+    let unescape = |s: &str| s.replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&");
+    let run = html
+        .split_once("<p>Run: <code>")
+        .and_then(|(_, rest)| rest.split_once("</code>"))
+        .and_then(|(json, _)| serde_json::from_str(&unescape(json)).ok());
+    let finished = out.join("summary.json").is_file() && !html.contains("<title>clv analyses: incomplete");
+    ReportDir::Report { run, finished }
+}
+
 /// Save a figure as SVG and PNG ([`write_report_file`]).
 pub fn save_figure(fig: &crate::report::plot::Figure, out: &Path, stem: &str) -> Result<()> {
     write_report_file(&out.join(format!("{stem}.svg")), fig.to_svg().as_bytes())?;
@@ -743,25 +786,56 @@ impl Mean {
     }
 }
 
-/// A run directory stands for the frame file its last backward sweep recorded (`--out`),
-/// else the one `clv backward` writes into it by default.
+/// A run directory stands for the frame file its last backward sweep wrote (its `--out`).
+/// Where that sweep wrote none (a stream, `--save-every 0`), has not finished it, or its
+/// file is gone, the run is refused, naming the sweep: a frames.mcap left by an earlier sweep
+/// is not this one's frames. A run without a sweep record (or one of a build before them)
+/// stands for the frames.mcap in it.
 fn frame_source(source: &Path) -> Result<PathBuf> {
     if !source.is_dir() {
         return Ok(source.to_path_buf());
     }
-    let recorded = crate::stage::backward::stored_options(source).and_then(|o| o.frames_file(source)).filter(|f| f.exists());
-    let frames = crate::store::RunDir { path: source.to_path_buf() }.frames_path();
-    if let Some(recorded) = recorded {
-        return Ok(recorded);
-    }
-    if frames.exists() {
-        return Ok(frames);
-    }
     let d = source.display();
+    let frames = crate::store::RunDir { path: source.to_path_buf() }.frames_path();
+    let record = source.join("backward.json");
+    let last = crate::stage::backward::last_sweep(source).map_err(|e| {
+        Error::Other(format!("{e}; the run's last backward sweep is unknown, so {d} cannot stand for its frames: name a frame file (`clv analyze FILE --out REPORT`), or write one with `clv backward {d} --out FILE.mcap`"))
+    })?;
+    let Some(last) = last else {
+        if frames.exists() {
+            return Ok(frames);
+        }
+        return Err(Error::Other(format!(
+            "{d} is a directory without a frame file ({}); analyse a run with `clv backward {d} --out - | clv analyze - --out REPORT`, or write {} with `clv backward {d}` first",
+            frames.display(),
+            frames.display()
+        )));
+    };
+    let opts = &last.options;
+    let file = opts.frames_file(source);
+    if let Some(file) = file.as_ref().filter(|f| last.done && f.exists()) {
+        return Ok(file.clone());
+    }
+    let flags = format!("recorded in {}: {}", record.display(), opts.as_flags());
+    if let Some(f) = file.as_ref().filter(|_| !last.done) {
+        return Err(Error::Other(format!(
+            "{d}: the run's last backward sweep ({flags}) has not finished writing {}; continue it with `clv backward {d} --resume`, then analyse the run again",
+            f.display()
+        )));
+    }
+    let what = match &file {
+        Some(f) => format!("wrote {}, which is gone (deleted or moved)", f.display()),
+        None if opts.streams() => "streamed its frames to a reader (`--out -`, or the analyses of `clv run`) and wrote no frame file".into(),
+        None => "computed only the CLV spectrum (`--save-every 0`) and wrote no frame file".into(),
+    };
+    let other = if frames.exists() && file.as_ref() != Some(&frames) {
+        format!("; {} is an earlier sweep's: analyse it by name if you want those frames (`clv analyze {} --out REPORT`)", frames.display(), frames.display())
+    } else {
+        String::new()
+    };
+    let write = if frames.exists() { format!("{d}/NAME.mcap") } else { frames.display().to_string() };
     Err(Error::Other(format!(
-        "{d} is a directory without a frame file ({}); analyse a run with `clv backward {d} --out - | clv analyze - --out REPORT`, or write {} with `clv backward {d}` first",
-        frames.display(),
-        frames.display()
+        "{d}: the run's last backward sweep ({flags}) {what}, so there are no frames of it to analyse; write a frame file with `clv backward {d} --out {write}` and analyse the run again{other}"
     )))
 }
 
@@ -835,6 +909,31 @@ pub fn analyze_source(
 mod tests {
     use super::*;
 
+    /// A report names its run in index.html, finished or still being written, and
+    /// [`report_in`] reads it back; a directory without a report's index is not a report,
+    /// and one with only a killed writer's manifest is empty.
+    #[test]
+    fn a_report_names_its_run() {
+        let out = std::env::temp_dir().join(format!("clv-report-run-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        assert_eq!(report_in(&out), ReportDir::Empty);
+        std::fs::create_dir_all(&out).unwrap();
+        std::fs::write(out.join(WRITING), "spectrum.csv\n").unwrap();
+        assert_eq!(report_in(&out), ReportDir::Empty);
+        let config = RunConfig::preset("default").unwrap();
+        begin_report(&out, "test", Some(&config)).unwrap();
+        assert_eq!(report_in(&out), ReportDir::Report { run: Some(config.clone()), finished: false });
+        begin_report(&out, "test", None).unwrap();
+        assert_eq!(report_in(&out), ReportDir::Report { run: None, finished: false });
+        let index = format!("<!DOCTYPE html>\n<html><head><title>clv analyses</title></head><body>\n{}</body></html>\n", run_line(Some(&config)));
+        std::fs::write(out.join("index.html"), index).unwrap();
+        std::fs::write(out.join("summary.json"), "{}").unwrap();
+        assert_eq!(report_in(&out), ReportDir::Report { run: Some(config), finished: true });
+        std::fs::write(out.join("index.html"), "<html>my own page</html>").unwrap();
+        assert_eq!(report_in(&out), ReportDir::Other);
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+
     #[test]
     fn csv_numbers_read_back_exactly_and_whole_numbers_as_integers() {
         for x in [78.0, -3.0, 0.0, 1e14, 0.1, 1.0 / 3.0, -2.5e-17, 1e15, 6.02e23, f64::NAN] {
@@ -903,7 +1002,7 @@ mod tests {
         });
         let listed: std::collections::BTreeSet<String> = std::fs::read_to_string(out.join(WRITING)).unwrap().lines().map(String::from).collect();
         assert_eq!(listed, names.iter().cloned().collect());
-        begin_report(&out, "test").unwrap();
+        begin_report(&out, "test", None).unwrap();
         let listed = std::fs::read_to_string(out.join(WRITING)).unwrap();
         assert!(names.iter().all(|n| listed.lines().any(|l| l == n) && !out.join(n).exists()), "{listed}");
         std::fs::remove_dir_all(&out).unwrap();
