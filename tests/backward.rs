@@ -586,6 +586,8 @@ fn analyze_run_dir_reads_only_the_last_sweeps_own_file() {
         assert!(options["frames_path"].is_null() && options["no_frames"] == true, "{options}");
     }
     refused(analyze("spectrum-only"), "computed only the CLV spectrum (`--save-every 0`)");
+    let shown = String::from_utf8(clv(&["inspect", d]).stdout).unwrap();
+    assert!(shown.contains("backward sweep: finished, ") && shown.contains("(no frame file)"), "{shown}");
     let (out, _) = analyze("spectrum-only-2");
     assert!(common::stderr(&out).contains("frames.mcap is an earlier sweep's"), "{}", common::stderr(&out));
     // Interrupted after its first segment, it continues with --resume alone, to the same spectrum.

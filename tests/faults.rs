@@ -346,6 +346,22 @@ fn a_new_sweep_does_not_strand_an_interrupted_one() {
     ok(clv(&["backward", d, "--quiet", "--out", p, "--resume"]));
     assert!(frames(&part) == frames(&whole));
     ok(clv(&["backward", d, "--quiet", "--out", "-"]));
+    // The refusal counts the frames the interrupted file keeps, not those the sweep formed.
+    let tenth = dir.join("tenth.mcap");
+    assert!(crashed(&clv_env(&["backward", d, "--quiet", "--save-every", "10", "--out", tenth.to_str().unwrap()], &[("CLV_FAULT_CRASH_AT", "frames-synced#8")]), "frames-synced#8"));
+    let err = stderr(&clv(&["backward", d, "--out", "-"]));
+    let mut kept = 0;
+    clv::store::frames::read_frames(&dir.join("tenth.mcap.tmp"), |_| {
+        kept += 1;
+        Ok(clv::store::frames::Flow::Continue)
+    })
+    .unwrap();
+    // The record's count (the file may hold a few frames more, synced after it): the frames
+    // formed, and of them those on the stride of 10.
+    let (before, after) = err.split_once(" frames, ").expect("a count of frames");
+    let formed: u64 = before.rsplit(' ').next().unwrap().parse().unwrap();
+    let said: usize = after.split(' ').next().unwrap().parse().unwrap();
+    assert!(after.contains("of them kept in") && said > 0 && said <= kept && said as u64 <= formed.div_ceil(10) && said as u64 >= formed / 10, "{kept} frames in the file: {err}");
 }
 
 /// On a file system without locks (Lustre without flock, NFS without a lock manager) a run
@@ -731,7 +747,7 @@ fn damaged_or_edited_records_are_refused_not_continued_from() {
     ok(clv(&["backward", d, "--quiet", "--out", want.to_str().unwrap()]));
     let out = dir.parent().unwrap().join("part.mcap");
     let o = out.to_str().unwrap();
-    assert!(crashed(&clv_env(&["backward", d, "--quiet", "--out", o], &[("CLV_FAULT_CRASH_AT", "frames-synced#3")]), "frames-synced#3"));
+    assert!(crashed(&clv_env(&["backward", d, "--quiet", "--out", o], &[("CLV_FAULT_CRASH_AT", "frames-synced#8")]), "frames-synced#8"));
     let record = dir.join("backward.json");
     let text = std::fs::read_to_string(&record).unwrap();
     let at: serde_json::Value = serde_json::from_str(&text).unwrap();
@@ -819,7 +835,7 @@ fn a_resumed_sweep_continues_its_own_frames_only() {
         c.args(args).current_dir(cwd).envs(env.iter().copied());
         c.output().unwrap()
     };
-    assert!(crashed(&run_in(&base, &["backward", "run", "--quiet", "--with-gs"], &[("CLV_FAULT_CRASH_AT", "frames-synced#3")]), "frames-synced#3"));
+    assert!(crashed(&run_in(&base, &["backward", "run", "--quiet", "--with-gs"], &[("CLV_FAULT_CRASH_AT", "frames-synced#8")]), "frames-synced#8"));
     let moved = base.join("moved");
     std::fs::rename(&dir, &moved).unwrap();
     // On another number of threads, as on another node: the same sweep.

@@ -526,7 +526,7 @@ fn configuration_files_round_trip_and_flags_override_them() {
     assert_eq!((&run["store"]["clv_steps"], &run["store"]["transient"], &run["config"]["seed"]), (&serde_json::json!(80), &serde_json::json!(50), &serde_json::json!(5)));
     let refused = clv(&["run", "--config", small.to_str().unwrap(), "--out", changed.to_str().unwrap(), "--quiet", "--clv-steps", "90", "--seed", "5"]);
     let err = String::from_utf8_lossy(&refused.stderr);
-    assert!(!refused.status.success() && err.contains("another configuration") && err.contains("\"clv_steps\":80"), "{err}");
+    assert!(!refused.status.success() && err.contains("another configuration: --clv-steps 80 in the run, 90 asked for;"), "{err}");
     // A bad value in a file is reported as the file's, for forward and run alike.
     let bad = base.join("bad.toml");
     std::fs::write(&bad, "n = \"many\"\n").unwrap();
@@ -604,6 +604,10 @@ fn clv_run_writes_no_report_over_another_runs() {
     // The report of a run whose run directory is gone, under a new run of another seed.
     let k = base.join("k");
     ok(run(&k, &[]));
+    // Another configuration in the same --out: refused, naming the settings as flags.
+    let other = run(&k, &["--seed", "5"]);
+    let err = common::stderr(&other);
+    assert!(!other.status.success() && err.contains("holds a run of another configuration: --seed 1 in the run, 5 asked for;"), "{err}");
     let index = read(&k.join("report/index.html"));
     std::fs::remove_dir_all(k.join("run")).unwrap();
     let again = run(&k, &["--seed", "7"]);

@@ -185,10 +185,11 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
 fn backward_sweep(dir: &RunDir) -> Option<String> {
     let (v, _): (serde_json::Value, _) = crate::store::checked_json::read(&dir.path.join("backward.json")).ok()?;
     let frames = v["stats"]["frames"].as_u64().unwrap_or(0);
-    let out = match v["options"]["frames_path"].as_str() {
-        Some(p) if v["options"]["save_every"].as_u64().unwrap_or(1) > 0 => format!("frames to {p}"),
-        Some(_) => "no frame file".to_string(),
-        None => "frames to a stream".to_string(),
+    let opts: crate::stage::backward::BackwardOptions = serde_json::from_value(v["options"].clone()).ok()?;
+    let out = match (&opts.frames_path, opts.streams()) {
+        (_, true) => "frames to a stream".to_string(),
+        (Some(p), false) if opts.save_every > 0 => format!("frames to {}", p.display()),
+        _ => "no frame file".to_string(),
     };
     Some(if v["done"].as_bool().unwrap_or(false) {
         format!("finished, {frames} frames ({out})")

@@ -529,8 +529,10 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
                 && let Some(stranded) = p.options.frames_file(&dir.path).map(|f| tmp_path(&f)).filter(|t| t.exists())
             {
                 let file = p.options.frames_file(&dir.path).map(|f| f.display().to_string()).unwrap_or_default();
+                let m = p.options.save_every.max(1);
+                let kept = if p.stats.frames == 0 { 0 } else { (p.stats.last_frame_step / m + 1).saturating_sub(p.stats.first_frame_step.div_ceil(m)) };
                 return Err(Error::Other(format!(
-                    "{} holds the progress of an interrupted backward sweep into {file} (down to step {}, {} frames in {}), which a new sweep would make impossible to resume; \
+                    "{} holds the progress of an interrupted backward sweep into {file} (down to step {}: {} frames, {kept} of them kept in {}), which a new sweep would make impossible to resume; \
                      finish it first with `clv backward {} --out {file} --resume`, or delete {} to give it up",
                     progress_file.display(),
                     p.at,

@@ -52,14 +52,12 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
             forward_run::extend(&run_dir, ext, Some(config.threads), &[&report_dir], feedback)?;
         } else if !stored.config.same_but_threads(config) || stored.store != *store {
             // The threads are the process's, not the run's: the numbers do not depend on them.
-            let json = |c: &RunConfig, s: &StoreConfig| format!("{}, store {}", serde_json::to_string(c).unwrap_or_default(), serde_json::to_string(s).unwrap_or_default());
             return Err(Error::param(
                 "out",
                 format!(
-                    "{} holds a run of another configuration ({}), not of the one asked for ({}); choose another --out, or ask for that run's configuration to continue it (or for more --steps to extend it)",
+                    "{} holds a run of another configuration: {}; choose another --out, or ask for that run's configuration to continue it (or for more --steps to extend it)",
                     run_dir.display(),
-                    json(&stored.config, &stored.store),
-                    json(config, store)
+                    differences(&stored.config, &stored.store, config, store).join(", ")
                 ),
             ));
         } else {
@@ -153,4 +151,35 @@ fn extension(stored: &RunMeta, config: &RunConfig, store: &StoreConfig) -> Optio
     let rewindowed = StoreConfig { clv_steps: store.clv_steps, transient: store.transient, ..stored.store.clone() };
     (config.steps > stored.config.steps && longer.same_but_threads(config) && rewindowed == *store)
         .then_some(forward_run::Extension { steps: config.steps, clv_steps: Some(store.clv_steps), transient: Some(store.transient) })
+}
+
+/// The settings in which a stored run and the one asked for differ, as the flags that set
+/// them: "--steps 10000 in the run, 5000 asked for" (the thread count is no setting of a run).
+fn differences(run: &RunConfig, run_store: &StoreConfig, asked: &RunConfig, asked_store: &StoreConfig) -> Vec<String> {
+    fn leaves(prefix: &str, v: &serde_json::Value, out: &mut Vec<(String, String)>) {
+        match v {
+            serde_json::Value::Object(map) => map.iter().for_each(|(k, v)| leaves(k, v, out)),
+            _ => out.push((prefix.replace('_', "-"), v.to_string())),
+        }
+    }
+    let flat = |c: &RunConfig, s: &StoreConfig| {
+        let mut out = Vec::new();
+        leaves("", &serde_json::to_value(c).unwrap_or_default(), &mut out);
+        leaves("", &serde_json::to_value(s).unwrap_or_default(), &mut out);
+        out
+    };
+    let (ours, theirs) = (flat(run, run_store), flat(asked, asked_store));
+    let mut out: Vec<String> = theirs
+        .iter()
+        .filter(|(k, _)| k != "threads")
+        .filter_map(|(k, want)| match ours.iter().find(|(o, _)| o == k) {
+            Some((_, have)) if have == want => None,
+            Some((_, have)) => Some(format!("--{k} {have} in the run, {want} asked for")),
+            None => Some(format!("--{k} {want} asked for, which the run does not have")),
+        })
+        .collect();
+    if out.is_empty() {
+        out.push("settings that flags do not show".into());
+    }
+    out
 }
