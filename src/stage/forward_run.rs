@@ -68,8 +68,7 @@ pub fn create(path: &Path, meta: &RunMeta, feedback: &mut Feedback) -> Result<Ou
     meta.config.validate()?;
     meta.store.validate(&meta.config)?;
     meta.config.build_system()?; // refuse impossible systems, or too big ones, before anything is written
-    let dir = RunDir::create(path, meta)?;
-    let _lock = dir.lock("forward pass")?;
+    let (dir, _lock) = RunDir::create(path, meta, "forward pass")?;
     let fwd = Forward::new(&meta.config)?;
     let energy0 = fwd.system.invariants().energy;
     drive(&dir, meta, fwd, energy0, 0.0, true, feedback).map(|report| Outcome { report, resumed_from: None, already_finished: false })
