@@ -314,7 +314,10 @@ fn triage(dir: &RunDir, checkpoint_every: u64, feedback: &mut Feedback) -> Resul
     }
     let damaged = reads.iter().position(Result::is_err).unwrap_or(segments.len());
     let c = checkpoint_every.max(1);
-    let gap = segments.windows(2).position(|w| w[1].first != (w[0].last / c + 1) * c).map(|i| i + 1);
+    // A segment begins at the checkpoint after the last one of the segment before, or
+    // earlier: at the checkpoint of its own that a stop on a signal wrote (off the grid of
+    // every C steps) before the next one was due.
+    let gap = segments.windows(2).position(|w| !(w[0].last < w[1].first && w[1].first <= (w[0].last / c + 1) * c)).map(|i| i + 1);
     if let Some(i) = gap.filter(|&i| i < damaged) {
         feedback.notice(format!("the checkpoints of steps {}..{} are missing (no segment holds them): recomputing them and what follows", (segments[i - 1].last / c + 1) * c, segments[i].first - 1));
     }
