@@ -324,6 +324,127 @@ fn a_second_writer_is_refused_and_a_killed_one_leaves_no_stale_lock() {
     assert!(still_running, "resume after a killed writer failed: {}", String::from_utf8_lossy(&out.stderr));
 }
 
+/// Start two clv processes at once (both spawned before either is waited for), and wait
+/// for both.
+fn at_once(a: &[String], b: &[String]) -> [std::process::Output; 2] {
+    let start = |args: &[String]| Command::new(env!("CARGO_BIN_EXE_clv")).args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let (first, second) = (start(a), start(b));
+    [first.wait_with_output().unwrap(), second.wait_with_output().unwrap()]
+}
+
+/// Of two writers of `thing` started at once, exactly one succeeded and the other was
+/// refused as a second writer, naming it; the index of the one that succeeded.
+fn one_refused(outs: &[std::process::Output; 2], thing: &Path) -> usize {
+    let succeeded: Vec<usize> = (0..2).filter(|&i| outs[i].status.success()).collect();
+    assert!(succeeded.len() == 1, "{} of two writers of {} succeeded: {:?} / {:?}", succeeded.len(), thing.display(), stderr(&outs[0]), stderr(&outs[1]));
+    let err = stderr(&outs[1 - succeeded[0]]);
+    let name = thing.file_name().unwrap().to_string_lossy();
+    assert!(err.contains("another clv process is writing") && err.contains(&*name) && err.contains("wait for it to finish") && !err.contains("panicked"), "{err}");
+    succeeded[0]
+}
+
+/// `clv forward` of a tiny run with `seed` into `out` (the races below need runs, quickly).
+fn tiny_forward(seed: u64, out: &Path) -> Vec<String> {
+    ["forward", "--quiet", "--n", "8", "--steps", "600", "--relax-steps", "50", "--seed", &seed.to_string(), "--out", out.to_str().unwrap()].map(String::from).to_vec()
+}
+
+fn strs(args: &[String]) -> Vec<&str> {
+    args.iter().map(String::as_str).collect()
+}
+
+/// Two tiny runs of different seeds (1, 2) in `base/run-1`, `base/run-2`.
+fn two_runs(base: &Path) -> [std::path::PathBuf; 2] {
+    [1, 2].map(|seed| {
+        let dir = base.join(format!("run-{seed}"));
+        ok(clv(&strs(&tiny_forward(seed, &dir))));
+        dir
+    })
+}
+
+/// Two `clv forward` passes of different runs started at once into one new directory: one
+/// is refused as a second writer before it writes anything (run.json included), and the
+/// directory holds the other's run whole, as if it had run alone.
+#[test]
+fn two_forward_passes_into_one_directory_at_once_leave_one_run() {
+    let base = scratch("faults", "race-forward");
+    let alone = [1, 2].map(|seed| {
+        let dir = base.join(format!("alone-{seed}"));
+        ok(clv(&strs(&tiny_forward(seed, &dir))));
+        contents(&dir)
+    });
+    for trial in 0..4 {
+        let dir = base.join(format!("race-{trial}"));
+        let outs = at_once(&tiny_forward(1, &dir), &tiny_forward(2, &dir));
+        let won = one_refused(&outs, &dir);
+        let (_, meta) = clv::store::RunDir::open(&dir).unwrap();
+        assert_eq!(meta.config.seed, won as u64 + 1, "trial {trial}: run.json is not the run of the process that succeeded");
+        assert!(contents(&dir) == alone[won], "trial {trial}: the run differs from one written alone");
+        let seen = String::from_utf8_lossy(&ok(clv(&["inspect", dir.to_str().unwrap()])).stdout).into_owned();
+        assert!(seen.contains("all finished files intact"), "{seen}");
+    }
+}
+
+/// Two backward sweeps of different runs started at once with the same --out: one is
+/// refused as a second writer before it writes anything (its progress record included), and
+/// the file holds the other's frames, intact, as if it had run alone; no FILE.tmp or lock
+/// file is left.
+#[test]
+fn two_sweeps_into_one_frame_file_at_once_leave_one_sweeps_frames() {
+    let base = scratch("faults", "race-backward");
+    let runs = two_runs(&base);
+    let sweep = |run: &Path, out: &Path| ["backward", run.to_str().unwrap(), "--quiet", "--out", out.to_str().unwrap()].map(String::from).to_vec();
+    let alone = [0, 1].map(|i| {
+        let out = base.join(format!("alone-{i}.mcap"));
+        ok(clv(&strs(&sweep(&runs[i], &out))));
+        std::fs::remove_file(runs[i].join("backward.json")).unwrap();
+        frames(&out)
+    });
+    for trial in 0..4 {
+        let shared = base.join(format!("shared-{trial}.mcap"));
+        let outs = at_once(&sweep(&runs[0], &shared), &sweep(&runs[1], &shared));
+        let won = one_refused(&outs, &shared);
+        assert!(frames(&shared) == alone[won], "trial {trial}: the frames differ from those of the sweep alone");
+        let seen = String::from_utf8_lossy(&ok(clv(&["inspect", shared.to_str().unwrap()])).stdout).into_owned();
+        assert!(seen.contains("intact") && !seen.contains("DAMAGED"), "{seen}");
+        assert!(!clv::store::frames::tmp_path(&shared).exists() && !base.join(format!("shared-{trial}.mcap.lock")).exists(), "trial {trial}: a temporary or lock file was left");
+        assert!(!runs[1 - won].join("backward.json").exists(), "trial {trial}: the refused sweep left a progress record");
+        std::fs::remove_file(runs[won].join("backward.json")).unwrap();
+    }
+}
+
+/// Two `clv analyze` into one report directory started at once, replacing a report
+/// (--overwrite) and into a new directory: one is refused as a second writer before it
+/// writes or removes anything, and the report is the other's, exactly as written alone
+/// (without the lock file).
+#[test]
+fn two_analyses_into_one_report_at_once_leave_one_report() {
+    let base = scratch("faults", "race-analyze");
+    let runs = two_runs(&base);
+    let frame_files = [0, 1].map(|i| {
+        let out = base.join(format!("f{i}.mcap"));
+        ok(clv(&["backward", runs[i].to_str().unwrap(), "--quiet", "--out", out.to_str().unwrap()]));
+        out
+    });
+    let analyze = |i: usize, out: &Path, overwrite: bool| {
+        let mut a = ["analyze", frame_files[i].to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"].map(String::from).to_vec();
+        a.extend(overwrite.then(|| "--overwrite".to_string()));
+        a
+    };
+    let alone = [0, 1].map(|i| {
+        let out = base.join(format!("alone-{i}"));
+        ok(clv(&strs(&analyze(i, &out, false))));
+        report_contents(&out, &[])
+    });
+    let replaced = base.join("replaced");
+    std::fs::create_dir_all(&replaced).unwrap();
+    for (trial, overwrite) in [true, true, false, false].into_iter().enumerate() {
+        let rep = if overwrite { replaced.clone() } else { base.join(format!("new-{trial}")) };
+        let outs = at_once(&analyze(0, &rep, overwrite), &analyze(1, &rep, overwrite));
+        let won = one_refused(&outs, &rep);
+        assert!(report_contents(&rep, &[]) == alone[won], "trial {trial}: the report is not the one written alone: {:?}", report_contents(&rep, &[]).keys());
+    }
+}
+
 /// A new sweep must not strand the frames of an interrupted one: while RUN/backward.json
 /// records an interrupted sweep into a file whose FILE.tmp exists, a sweep with other options
 /// (a stream, or another file) is refused, naming the file and how to finish it; finished,
@@ -371,7 +492,9 @@ fn a_file_system_without_locks_gets_a_warning_not_a_refusal() {
     let dir = scratch("faults", "no-locks").join("run");
     let d = dir.to_str().unwrap();
     let no_locks = [("CLV_FAULT_NO_LOCKS", "1")];
-    for args in [&["forward", "--n", "8", "--steps", "300", "--clv-steps", "100", "--transient", "50", "--out", d][..], &["backward", d, "--out", "-"][..]] {
+    let frames = dir.with_file_name("frames.mcap");
+    let f = frames.to_str().unwrap();
+    for args in [&["forward", "--n", "8", "--steps", "300", "--clv-steps", "100", "--transient", "50", "--out", d][..], &["backward", d, "--out", "-"][..], &["backward", d, "--out", f][..]] {
         let out = common::clv_env(&[args, &["--quiet"][..]].concat(), &no_locks);
         let err = stderr(&out);
         assert!(out.status.success(), "{err}");
@@ -963,8 +1086,9 @@ fn an_interrupted_overwrite_says_so_and_the_command_again_gives_a_clean_report()
     let html = std::fs::read_to_string(rep.join("index.html")).unwrap();
     assert!(html.contains("Incomplete report") && html.contains("--overwrite"), "{html}");
     // The new analyses write at the end of the stream: nothing of either report is left but
-    // the manifest of what the killed one wrote (its page).
-    assert_eq!(report_contents(&rep, &[]).into_keys().collect::<Vec<_>>(), [".clv-writing", "index.html", "notes.txt"]);
+    // the manifest of what the killed one wrote (its page), and its lock file (the lock died
+    // with it).
+    assert_eq!(report_contents(&rep, &[]).into_keys().collect::<Vec<_>>(), [".clv-lock", ".clv-writing", "index.html", "notes.txt"]);
     // Killed later, it would have written tables too, listed in its manifest before they
     // were written: the next report removes them although no summary.json names them.
     std::fs::write(rep.join("modes.csv"), "a table of the killed report").unwrap();

@@ -52,13 +52,22 @@ pub fn analyze(args: &AnalyzeArgs) -> Result<()> {
     if args.out.join("run.json").exists() {
         return Err(Error::param("out", format!("{} is a run directory; a report goes into a directory of its own (e.g. {})", args.out.display(), args.out.join("report").display())));
     }
-    let holds_files = std::fs::read_dir(&args.out).is_ok_and(|mut entries| entries.next().is_some());
-    if holds_files && !args.overwrite {
-        return Err(Error::param(
-            "out",
-            format!("{} already holds files (an earlier report?); choose another --out, or add --overwrite to replace them", args.out.display()),
-        ));
-    }
+    // Asked before the report's lock is taken, so that a refusal writes nothing into a
+    // directory of other files, and again under it, where the answer holds.
+    let refuse_files = || {
+        let holds_files = std::fs::read_dir(&args.out).is_ok_and(|entries| entries.flatten().any(|e| e.file_name() != clv::stage::analyze::LOCK));
+        if holds_files && !args.overwrite {
+            clv::stage::analyze::refuse_if_being_written(&args.out)?;
+            return Err(Error::param(
+                "out",
+                format!("{} already holds files (an earlier report?); choose another --out, or add --overwrite to replace them", args.out.display()),
+            ));
+        }
+        Ok(())
+    };
+    refuse_files()?;
+    let _lock = clv::stage::analyze::lock_report(&args.out)?;
+    refuse_files()?;
     // --overwrite replaces the report: the earlier one's files go when the first frame
     // arrives (analyze::begin_report; a stream that brings none leaves the report as it
     // was). Other files in --out are not touched.

@@ -144,7 +144,9 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     let c = meta.store.checkpoint_every.max(1);
     let gaps: Vec<String> = segments
         .windows(2)
-        .filter(|w| w[1].first_step != (w[0].last_step / c + 1) * c)
+        // A segment may begin off the grid of every C steps, before the next checkpoint was
+        // due: at the checkpoint of a stop on a signal (forward_run::triage).
+        .filter(|w| !(w[0].last_step < w[1].first_step && w[1].first_step <= (w[0].last_step / c + 1) * c))
         .map(|w| format!("the checkpoints of steps {}..{} are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them", (w[0].last_step / c + 1) * c, w[1].first_step - 1, dir.path.display()))
         .collect();
     previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));

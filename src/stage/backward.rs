@@ -645,6 +645,12 @@ pub fn run(
     let metadata = stream_info(&dir, &meta, opts).metadata();
     let progress_file = progress_path(&dir);
     let mut notes = Vec::new();
+    // Before anything looks at the frame file or writes: another run's sweep may be writing
+    // the same --out.
+    let _frames_lock = match (&frames_path, saving) {
+        (Some(f), true) => Some(crate::store::frames::lock(f)?),
+        _ => None,
+    };
     let prior = prior_sweep(&dir, opts, resume)?;
     if prior.as_ref().is_some_and(|p| p.done) {
         // The sweep finished earlier: its report is the answer.

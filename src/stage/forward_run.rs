@@ -68,8 +68,7 @@ pub fn create(path: &Path, meta: &RunMeta, feedback: &mut Feedback) -> Result<Ou
     meta.config.validate()?;
     meta.store.validate(&meta.config)?;
     meta.config.build_system()?; // refuse impossible systems, or too big ones, before anything is written
-    let dir = RunDir::create(path, meta)?;
-    let _lock = dir.lock("forward pass")?;
+    let (dir, _lock) = RunDir::create(path, meta, "forward pass")?;
     let fwd = Forward::new(&meta.config)?;
     let energy0 = fwd.system.invariants().energy;
     drive(&dir, meta, fwd, energy0, 0.0, true, feedback).map(|report| Outcome { report, resumed_from: None, already_finished: false })
@@ -315,7 +314,10 @@ fn triage(dir: &RunDir, checkpoint_every: u64, feedback: &mut Feedback) -> Resul
     }
     let damaged = reads.iter().position(Result::is_err).unwrap_or(segments.len());
     let c = checkpoint_every.max(1);
-    let gap = segments.windows(2).position(|w| w[1].first != (w[0].last / c + 1) * c).map(|i| i + 1);
+    // A segment begins at the checkpoint after the last one of the segment before, or
+    // earlier: at the checkpoint of its own that a stop on a signal wrote (off the grid of
+    // every C steps) before the next one was due.
+    let gap = segments.windows(2).position(|w| !(w[0].last < w[1].first && w[1].first <= (w[0].last / c + 1) * c)).map(|i| i + 1);
     if let Some(i) = gap.filter(|&i| i < damaged) {
         feedback.notice(format!("the checkpoints of steps {}..{} are missing (no segment holds them): recomputing them and what follows", (segments[i - 1].last / c + 1) * c, segments[i].first - 1));
     }

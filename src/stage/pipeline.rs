@@ -77,6 +77,8 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
         forward_run::create(&run_dir, &meta, feedback)?;
     }
     let (dir, meta) = RunDir::open(&run_dir)?;
+    // Taken after the forward pass, which may move an earlier report aside (extend).
+    let _report_lock = super::analyze::lock_report(&report_dir)?;
     let mut opts = BackwardOptions::for_run(&meta);
     opts.with_gs = true;
     opts.save_every = 0;

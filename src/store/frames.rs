@@ -2,7 +2,9 @@
 //!
 //! A frame file is written as `FILE.tmp`; at the end of every backward segment its chunk is
 //! closed and the file fsynced, so that a killed backward stage can salvage every frame up to
-//! its last progress record and continue. The finished file is renamed to `FILE`.
+//! its last progress record and continue. The finished file is renamed to `FILE`. A sweep
+//! holds `FILE.lock` beside it from before it looks at the file to its end ([`lock`]): sweeps
+//! of two runs may be given the same --out, and only one may write it.
 //! Standard output carries the same MCAP stream without seeking, for shell pipes.
 //!
 //! Files and pipes alike hold the frames in the order the backward sweep forms them, newest
@@ -80,9 +82,22 @@ pub struct FrameFile {
 }
 
 pub fn tmp_path(path: &Path) -> PathBuf {
+    suffixed(path, ".tmp")
+}
+
+fn suffixed(path: &Path, suffix: &str) -> PathBuf {
     let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".tmp");
+    name.push(suffix);
     path.with_file_name(name)
+}
+
+/// Take the right to write the frame file `path` (and its FILE.tmp, FILE.tmp.old) for a
+/// whole backward sweep: a lock on FILE.lock beside it ([`super::lock`]), removed when the
+/// sweep is done. Two sweeps of different runs may name the same --out; of two at once, the
+/// second is refused here, before it looks at or writes anything of the file.
+pub fn lock(path: &Path) -> Result<super::lock::WriteLock> {
+    let lock = suffixed(path, ".lock");
+    super::lock::take(&lock, path, "backward pass (or give this sweep another --out)", true, |e| Error::io(&lock, e))
 }
 
 /// Whether two frame streams' metadata describe the same run and backward sweep: their
@@ -127,8 +142,10 @@ fn begins_with_other_metadata(path: &Path, metadata: &BTreeMap<String, String>) 
 }
 
 impl FrameFile {
-    /// Start FILE.tmp (replacing a stale one) in FILE's directory, made if missing (as a run
-    /// directory or a report is); refuses if FILE exists.
+    /// Start FILE.tmp in FILE's directory, made if missing (as a run directory or a report
+    /// is); refuses if FILE exists, or FILE.tmp (the caller decides what to do with an
+    /// interrupted sweep's, under [`lock`]). FILE.tmp is created only if it is not there, so
+    /// that even where files cannot be locked two sweeps never write one file.
     pub fn create(path: &Path, metadata: &BTreeMap<String, String>) -> Result<Self> {
         if path.exists() {
             return Err(Error::Other(format!("{} already exists; refusing to overwrite it: choose another --out (or delete it yourself, if it is a frame file you no longer need)", path.display())));
@@ -137,7 +154,19 @@ impl FrameFile {
             std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
         }
         let tmp = tmp_path(path);
-        let file = File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        let file = match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(file) => file,
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                return Err(Error::Other(format!(
+                    "another clv process is writing {} (it holds {}); wait for it to finish or stop it, or give this sweep another --out \
+                     (if no clv process is running, {} is left by an interrupted sweep: continue that one with `clv backward RUN --resume`, or delete the file to give it up)",
+                    path.display(),
+                    tmp.display(),
+                    tmp.display()
+                )));
+            }
+            Err(e) => return Err(Error::io(&tmp, e)),
+        };
         let sync_handle = file.try_clone().map_err(|e| Error::io(&tmp, e))?;
         let out = McapOut::new(BufWriter::with_capacity(1 << 20, super::fault::Output(file)), true, metadata).map_err(|e| mcap_err(&tmp, e))?;
         Ok(FrameFile { path: path.to_path_buf(), tmp, out, sync_handle, frames: 0 })
@@ -200,6 +229,13 @@ impl FrameFile {
             }
             std::fs::rename(&tmp, &old).map_err(|e| Error::io(&tmp, e))?;
         } else if tmp.exists() {
+            if begins_with_other_metadata(&tmp, metadata)? {
+                return Err(Error::Other(format!(
+                    "{} holds the frames of another run or backward sweep (one whose --out names the same file), not this sweep's: \
+                     leave it for that sweep, and give this command without --resume and with another --out to start this sweep over",
+                    tmp.display()
+                )));
+            }
             std::fs::remove_file(&tmp).map_err(|e| Error::io(&tmp, e))?;
         }
         super::fault::crash_point("salvage-moved");

@@ -5,6 +5,7 @@
 //! RUN_DIR/seg-FIRST-LAST.mcap       finished segments: checkpoints FIRST..=LAST (steps)
 //! RUN_DIR/seg-FIRST.mcap.tmp        the segment being written (a leftover means a crash)
 //! RUN_DIR/spectrum.json             the final forward spectrum, once the run is complete
+//! RUN_DIR/.lock                     the write lock a stage holds while it writes the run (lock.rs)
 //! ```
 //!
 //! Why this shape: the Ginelli backward pass needs, newest first, what the forward pass
@@ -18,6 +19,7 @@ pub mod checked_json;
 pub mod checkpoints;
 pub mod fault;
 pub mod frames;
+pub mod lock;
 pub mod records;
 pub mod run;
 pub mod schema;

@@ -259,12 +259,9 @@ pub struct RunDir {
     pub path: PathBuf,
 }
 
-/// Exclusive right to write a run directory, held while a stage writes it. An OS file lock
-/// (flock) on RUN_DIR/.lock: the kernel releases it when the process ends, however it ends,
-/// so a crashed run never leaves a stale lock behind.
-pub struct RunLock {
-    _file: fs::File,
-}
+/// Exclusive right to write a run directory, held while a stage writes it: an OS file lock
+/// on RUN_DIR/.lock ([`super::lock`]), which stays in place.
+pub type RunLock = super::lock::WriteLock;
 
 impl RunDir {
     pub fn meta_path(&self) -> PathBuf {
@@ -278,24 +275,39 @@ impl RunDir {
         self.path.join("spectrum.json")
     }
 
-    /// Create a new run directory (it must not exist, or be empty).
-    pub fn create(path: &Path, meta: &RunMeta) -> Result<Self> {
-        if path.exists() {
-            // A creation cut short before run.json was in place left at most its temporary file.
-            let stale = path.join("run.tmp");
-            let mut entries = fs::read_dir(path).map_err(|e| Error::io(path, e))?.filter(|e| !e.as_ref().is_ok_and(|e| e.path() == stale));
-            if entries.next().is_some() {
-                return Err(Error::Other(format!(
-                    "{} already exists and is not empty; resume it with `clv forward --resume {}` or choose another --out",
-                    path.display(),
-                    path.display()
-                )));
-            }
-        }
+    /// Create a new run directory (it must not exist, or be empty) and lock it for the
+    /// `what`: the lock is taken before run.json is written, so that of two processes
+    /// creating the same directory at once, one is refused before it writes anything.
+    pub fn create(path: &Path, meta: &RunMeta, what: &str) -> Result<(Self, RunLock)> {
+        // Asked first too, so that a refusal writes nothing (not even the lock file) into a
+        // directory that holds something else; asked again under the lock, where it is sure.
+        Self::check_empty(path, what)?;
         fs::create_dir_all(path).map_err(|e| Error::io(path, e))?;
         let dir = RunDir { path: path.to_path_buf() };
+        let lock = dir.lock(what)?;
+        Self::check_empty(path, what)?;
         write_atomic(&dir.meta_path(), &super::checked_json::to_vec(meta)?)?;
-        Ok(dir)
+        Ok((dir, lock))
+    }
+
+    /// Refuse a directory that holds anything but what a creation cut short before run.json
+    /// was in place leaves: its lock file and run.json's temporary file. Not empty because
+    /// another process is creating the run there now, it is refused as a second writer.
+    fn check_empty(path: &Path, what: &str) -> Result<()> {
+        if !path.exists() {
+            return Ok(());
+        }
+        let leftover = [path.join("run.tmp"), path.join(".lock")];
+        let mut entries = fs::read_dir(path).map_err(|e| Error::io(path, e))?.filter(|e| !e.as_ref().is_ok_and(|e| leftover.contains(&e.path())));
+        if entries.next().is_some() {
+            super::lock::refuse_if_held(&path.join(".lock"), path, what)?;
+            return Err(Error::Other(format!(
+                "{} already exists and is not empty; resume it with `clv forward --resume {}` or choose another --out",
+                path.display(),
+                path.display()
+            )));
+        }
+        Ok(())
     }
 
     /// Complete a creation cut short between writing run.json's temporary file and renaming
@@ -305,6 +317,11 @@ impl RunDir {
     pub fn complete_creation(path: &Path) -> Result<bool> {
         let dir = RunDir { path: path.to_path_buf() };
         let (meta_path, tmp) = (dir.meta_path(), path.join("run.tmp"));
+        if meta_path.exists() || !tmp.exists() {
+            return Ok(false);
+        }
+        // Not while a process creating the run is between writing run.tmp and renaming it.
+        let _lock = dir.lock("forward pass")?;
         if meta_path.exists() || !tmp.exists() {
             return Ok(false);
         }
@@ -325,39 +342,19 @@ impl RunDir {
     /// Whether a process holds the run's write lock now (a forward or backward pass). Asks
     /// without taking it; false where the file system cannot lock.
     pub fn is_being_written(&self) -> bool {
-        let Ok(file) = fs::File::open(self.path.join(".lock")) else { return false };
-        matches!(file.try_lock_shared(), Err(fs::TryLockError::WouldBlock))
+        super::lock::is_held(&self.path.join(".lock"))
     }
 
-    /// Take the run's write lock, or explain who holds it.
+    /// Take the run's write lock, or explain who holds it ([`super::lock`]).
     pub fn lock(&self, what: &str) -> Result<RunLock> {
         let path = self.path.join(".lock");
-        let file = fs::OpenOptions::new().create(true).truncate(false).write(true).open(&path).map_err(|e| match e.kind() {
+        super::lock::take(&path, &self.path, what, false, |e| match e.kind() {
             std::io::ErrorKind::PermissionDenied | std::io::ErrorKind::ReadOnlyFilesystem => Error::Other(format!(
                 "{} is not writable ({e}), and the {what} writes into it (its lock, progress record and results); copy the run to a place you can write (`cp -r`) and run it there",
                 self.path.display()
             )),
             _ => Error::io(&path, e),
-        })?;
-        let locked = if super::fault::locks_unsupported() { Err(fs::TryLockError::Error(std::io::Error::from_raw_os_error(libc::ENOLCK))) } else { file.try_lock() };
-        match locked {
-            Ok(()) => Ok(RunLock { _file: file }),
-            Err(fs::TryLockError::WouldBlock) => Err(Error::Other(format!(
-                "another clv process is writing {} (it holds {}); wait for it to finish or stop it before the {what}",
-                self.path.display(),
-                path.display()
-            ))),
-            // Cluster file systems may have no locks (Lustre without flock, NFS without a
-            // lock manager): the run must still be possible there.
-            Err(fs::TryLockError::Error(e)) if matches!(e.raw_os_error(), Some(libc::ENOLCK | libc::EOPNOTSUPP | libc::ENOSYS)) => {
-                eprintln!(
-                    "clv: warning: the file system of {} cannot lock files ({e}), so clv cannot refuse a second process writing this run; make sure only one runs the {what}",
-                    self.path.display()
-                );
-                Ok(RunLock { _file: file })
-            }
-            Err(fs::TryLockError::Error(e)) => Err(Error::io(&path, e)),
-        }
+        })
     }
 
     pub fn open(path: &Path) -> Result<(Self, RunMeta)> {

@@ -24,7 +24,9 @@
 //! into place (whole or absent when the process dies; a symbolic link in the way is
 //! replaced, not written through), and only plain file names directly inside the report
 //! directory are ever removed, whatever an edited summary.json lists. The files are not
-//! fsynced: a report lost to a power cut is regenerated, not recovered.
+//! fsynced: a report lost to a power cut is regenerated, not recovered. One writer at a
+//! time: it holds a lock in the report directory from before its first look at it to its
+//! end ([`lock_report`]), so that two processes never leave a mix of their reports.
 
 pub mod convergence;
 pub mod henon;
@@ -633,6 +635,47 @@ fn unfinished_page(out: &Path, source: &str, run: Option<&RunConfig>) -> String 
         escape(&out.display().to_string())
     )
 }
+
+/// The lock file of a report directory ([`lock_report`]).
+pub const LOCK: &str = ".clv-lock";
+
+/// Exclusive right to write the report in a directory, held for a whole analysis: two
+/// processes writing one report would leave a mix of both. Released, with its lock file,
+/// when dropped; a directory it made and nothing was written into goes too.
+pub struct ReportLock {
+    lock: Option<crate::store::lock::WriteLock>,
+    dir: PathBuf,
+    made: bool,
+}
+
+impl Drop for ReportLock {
+    fn drop(&mut self) {
+        drop(self.lock.take());
+        if self.made {
+            // Only if empty: a refused or failed analysis leaves no directory behind.
+            let _ = std::fs::remove_dir(&self.dir);
+        }
+    }
+}
+
+/// Lock the report directory `out` (made if missing) for the analyses, before anything in
+/// it is written or removed: an OS file lock on `out/.clv-lock` ([`crate::store::lock`]),
+/// which is not a report file ([`is_report_name`]), so that no report lists or removes it.
+pub fn lock_report(out: &Path) -> Result<ReportLock> {
+    let made = !out.exists();
+    let path = out.join(LOCK);
+    let lock = crate::store::lock::take(&path, out, LOCKED_FOR, true, |e| Error::io(&path, e))?;
+    Ok(ReportLock { lock: Some(lock), dir: out.to_path_buf(), made })
+}
+
+/// Refuse as [`lock_report`] would if another process is writing the report in `out` now:
+/// for a check made before the lock that would otherwise give another reason (files in
+/// `out`, which that process is writing).
+pub fn refuse_if_being_written(out: &Path) -> Result<()> {
+    crate::store::lock::refuse_if_held(&out.join(LOCK), out, LOCKED_FOR)
+}
+
+const LOCKED_FOR: &str = "analyses (or give this report another --out)";
 
 /// Start writing a report into `out` (made if missing): index.html becomes a page that says
 /// the report is incomplete, then the earlier report's summary.json and the files it lists
