@@ -777,7 +777,7 @@ pub enum ReportDir {
 /// What the directory `out` holds: a report (of which run), nothing, or other files.
 pub fn report_in(out: &Path) -> ReportDir {
     let Ok(entries) = std::fs::read_dir(out) else { return ReportDir::Empty };
-    let ours = |name: &str| name == WRITING || (name.starts_with('.') && name.ends_with(TMP_SUFFIX));
+    let ours = |name: &str| name == WRITING || name == LOCK || (name.starts_with('.') && name.ends_with(TMP_SUFFIX));
     if entries.flatten().all(|e| ours(&e.file_name().to_string_lossy())) {
         return ReportDir::Empty;
     }
@@ -954,7 +954,7 @@ mod tests {
 
     /// A report names its run in index.html, finished or still being written, and
     /// [`report_in`] reads it back; a directory without a report's index is not a report,
-    /// and one with only a killed writer's manifest is empty.
+    /// and one with only a killed writer's manifest and lock file is empty.
     #[test]
     fn a_report_names_its_run() {
         let out = std::env::temp_dir().join(format!("clv-report-run-{}", std::process::id()));
@@ -962,7 +962,8 @@ mod tests {
         assert_eq!(report_in(&out), ReportDir::Empty);
         std::fs::create_dir_all(&out).unwrap();
         std::fs::write(out.join(WRITING), "spectrum.csv\n").unwrap();
-        assert_eq!(report_in(&out), ReportDir::Empty);
+        std::fs::write(out.join(LOCK), "").unwrap();
+        assert_eq!(report_in(&out), ReportDir::Empty, "a killed writer's manifest and lock file are no report");
         let config = RunConfig::preset("default").unwrap();
         begin_report(&out, "test", Some(&config)).unwrap();
         assert_eq!(report_in(&out), ReportDir::Report { run: Some(config.clone()), finished: false });
