@@ -20,10 +20,11 @@ pub enum Error {
     /// up to it saved in the run directory `run`; `then` says how to continue. The process
     /// exits as a shell reports death by that signal (128 + signal).
     Stopped { step: u64, total: u64, run: PathBuf, signal: i32, then: String },
-    /// The reader of a frame stream (`clv backward --out -`) closed it after `frames` frames:
-    /// the sweep stopped unfinished. The process exits as a writer killed by SIGPIPE (141),
-    /// so that a script does not take the sweep for done.
-    ReaderClosed { frames: u64 },
+    /// The reader of a frame stream (`clv backward --out -`) closed it after `frames` frames,
+    /// of which the progress record holds `recorded` (those of the finished segments): the
+    /// sweep stopped unfinished. The process exits as a writer killed by SIGPIPE (141), so
+    /// that a script does not take the sweep for done.
+    ReaderClosed { frames: u64, recorded: u64 },
     /// Anything else, already phrased for the user.
     Other(String),
 }
@@ -51,11 +52,13 @@ impl fmt::Display for Error {
             Error::Dynamics(msg) => write!(f, "dynamics: {msg}"),
             Error::Corrupt { path, msg } => write!(f, "{}: corrupt or unreadable: {msg}", path.display()),
             Error::Stopped { step, total, run, then, .. } => write!(f, "stopped by a signal after step {step} of {total} of the forward pass; everything up to it is saved in {}: {then}", run.display()),
-            Error::ReaderClosed { frames } => write!(
+            Error::ReaderClosed { frames, recorded } => write!(
                 f,
                 "the reader closed the stream after {frames} frames, and the sweep stopped unfinished (no CLV spectrum written). \
                  If the reader failed or was stopped, give the same command again without --resume for the whole window \
-                 (and the reader's own again, e.g. `clv analyze - --overwrite`); with --resume it streams only the frames after those, for a reader that kept them"
+                 (and the reader's own again, e.g. `clv analyze - --overwrite`); with --resume it streams the frames after the first {recorded}, \
+                 those of its finished segments{}",
+                if frames > recorded { format!(" (the {} after them come again)", frames - recorded) } else { String::new() }
             ),
             Error::Other(msg) => f.write_str(msg),
         }

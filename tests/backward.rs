@@ -411,6 +411,10 @@ fn frames_flow_through_real_pipes_and_a_closed_pipe_ends_cleanly() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(141), "{err}");
     assert!(err.contains("closed the stream") && err.contains("without --resume for the whole window"), "{err}");
+    // --resume continues after the frames of the finished segments, as the record holds them.
+    let recorded = err.split("with --resume it streams the frames after the first ").nth(1).and_then(|t| t.split(',').next()).unwrap_or_else(|| panic!("{err}"));
+    let shown = String::from_utf8(clv(&["inspect", d]).stdout).unwrap();
+    assert!(shown.contains(&format!("backward sweep: interrupted after {recorded} frames")), "{recorded}: {shown}");
     assert!(std::fs::read(dir.join("clv_spectrum.json")).unwrap() == clv_spectrum, "an unfinished sweep writes no CLV spectrum");
     // --json would put the spectrum into the frame stream: refused.
     let both = clv(&["backward", d, "--out", "-", "--json"]);

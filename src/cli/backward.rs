@@ -183,7 +183,8 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     }
     // Not a notice: the CLV spectrum of an unfinished sweep is not written.
     if report.statistics.stopped_early {
-        return Err(Error::ReaderClosed { frames: report.statistics.frames });
+        let recorded = backward::last_sweep(&args.dir).ok().flatten().map_or(0, |s| s.frames);
+        return Err(Error::ReaderClosed { frames: report.statistics.frames, recorded });
     }
     if args.json {
         print_json(&report)?;

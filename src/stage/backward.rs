@@ -279,6 +279,8 @@ pub struct LastSweep {
     pub options: BackwardOptions,
     /// It finished (its frame file, if any, is complete under its own name).
     pub done: bool,
+    /// Frames emitted up to its last finished segment, where `--resume` continues.
+    pub frames: u64,
 }
 
 /// The last backward sweep of the run in `run`: None without a progress record, an error
@@ -291,7 +293,7 @@ pub fn last_sweep(run: &Path) -> Result<Option<LastSweep>> {
         Err(e) => return Err(Error::io(&file, e)),
     };
     let p = Progress::read(run, &file, text.as_bytes())?;
-    Ok(Some(LastSweep { options: p.options, done: p.done }))
+    Ok(Some(LastSweep { options: p.options, done: p.done, frames: p.stats.frames }))
 }
 
 pub fn report_path(dir: &RunDir) -> PathBuf {

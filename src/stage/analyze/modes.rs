@@ -372,7 +372,7 @@ impl Analysis for Modes {
         let caption = match (&why, found.is_empty()) {
             (Some(why), _) => format!("No mode table: {why}."),
             (None, true) => format!(
-                "No degenerate steps of {} exponents (neighbours equal within {STEP_TOL} combined standard errors, or set apart by gaps {:.0} times their spread) within {} indices of the null space in the forward GS spectrum: this system shows no Lyapunov modes at this precision. The table is empty.",
+                "No degenerate steps of {} exponents (neighbours equal within {STEP_TOL} combined standard errors, or set apart by gaps {:.0} times their spread) within {} indices of the null space in the forward GS spectrum, and no block next to the null space that stands apart from its neighbours with vectors of a mode: this system shows no Lyapunov modes at this precision. The table is empty.",
                 lengths,
                 1.0 / km::SEPARATION,
                 step_window(d, cands)

@@ -64,7 +64,7 @@ impl Analysis for Spectrum {
         let x: Vec<f64> = (0..ctx.k).map(|i| ctx.reduced(i)).collect();
         let neutral = ctx.run.as_ref().map_or(0..0, |m| m.config.system.neutral());
         // The finite window's exponent of the three trailing null-space CLVs (see the caption).
-        let shear = match (ctx.is_disks() && ctx.k == ctx.d && ctx.n >= 2, ctx.run.as_ref(), self.steps) {
+        let shear = match (ctx.is_disks() && ctx.n >= 2 && ctx.k >= 2 * ctx.n + 3, ctx.run.as_ref(), self.steps) {
             (true, Some(run), Some((first, last))) => {
                 // Frame m carries the exponent over [t_m, t_(m+1)], at backward times
                 // (total - m - 1) tau .. (total - m) tau from the window's end.
@@ -203,6 +203,42 @@ mod tests {
         let produced = a.finish(&out_dir("spectrum-h"), frames).unwrap();
         let caption = &produced[0].caption;
         assert!(caption.contains(&format!("identity): {want_gs:.6} (GS), {want_clv:.6} ± ")), "{caption}");
+    }
+
+    /// With only the leading k >= 2N+3 vectors the last three null-space CLV exponents are
+    /// there, and spectrum.csv gives their predicted shear exponent too.
+    #[test]
+    fn the_null_shear_is_given_for_leading_vectors_that_reach_it() {
+        use crate::store::run::{BuildInfo, RunMeta, StoreConfig, FORMAT};
+        let n = 4;
+        let d = 4 * n;
+        let mut config = crate::config::RunConfig::preset("default").unwrap();
+        config.system = crate::config::SystemConfig::disks(n, 0.7, 1.0).unwrap();
+        config.vectors = 2 * n + 3;
+        let mut ctx = context("disks", n, d, 4.0, 4.0, None, false);
+        ctx.k = config.vectors;
+        ctx.run = Some(RunMeta { format: FORMAT.into(), store: StoreConfig::for_run(&config), config: config.clone(), build: BuildInfo::current() });
+        let mut a = new(&ctx).unwrap();
+        let total = config.relax_steps + config.steps;
+        for step in [total - 20, total - 10] {
+            let mut f = frame(step, vec![0.0; d], vec![0.0; d * ctx.k], None);
+            f.k = ctx.k;
+            f.local = vec![0.0; ctx.k];
+            a.consume(&f).unwrap();
+        }
+        let out = out_dir("spectrum-null-shear-k");
+        a.finish(&out, 2).unwrap();
+        let rows = crate::stage::analyze::testing::read_csv(&out.join("spectrum.csv"));
+        assert_eq!(rows.len(), ctx.k);
+        let (s1, s2) = (9.0 * ctx.tau, 20.0 * ctx.tau); // (total - last - 1) tau, (total - first) tau
+        for (i, row) in rows.iter().enumerate() {
+            let shear: f64 = row["lambda_clv_null_shear"].parse().unwrap();
+            if i >= 2 * n {
+                assert!((shear - null_shear_exponent(s1, s2)).abs() < 1e-15, "lambda_{}: {shear}", i + 1);
+            } else {
+                assert!(shear.is_nan(), "lambda_{}: {shear}", i + 1);
+            }
+        }
     }
 
     /// Frames that carry their local GS exponents give the GS spectrum over the same steps as

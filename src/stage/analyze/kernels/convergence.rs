@@ -7,10 +7,6 @@
 //!   halves of h blocks. A stationary run with independent blocks has |z_i| > 2 for a
 //!   fraction P(|t| > 2) of the exponents (4.6 % for many blocks, 18 % for halves of two);
 //!   a run still settling has many more.
-//! * Start: z1_i = (a_1^i - mean of the other blocks) / (their spread sqrt(1 + 1/(B-1))),
-//!   a Student t with B - 2 degrees of freedom for stationary blocks. The halves test dilutes
-//!   a transient confined to the first block (a run accumulating before the system relaxed)
-//!   by B/2; this one sees it whole.
 //! * Independence: r_1, the lag-1 autocorrelation of consecutive block averages, averaged over
 //!   the exponents. Independent blocks give about -1/B, with a spread of about 1/sqrt(B) for
 //!   one exponent. Blocks shorter than the correlation time make r_1 clearly positive; their
@@ -30,8 +26,6 @@ pub struct Diagnostics {
     pub tested: usize,
     /// Fraction of them with |z| > 2.
     pub drifting: f64,
-    /// Fraction of them whose first block stands out from the others, |z1| > 2.
-    pub first_block: f64,
     /// The largest |z| and its exponent (0-based).
     pub max_z: f64,
     pub max_z_index: usize,
@@ -54,45 +48,33 @@ impl Diagnostics {
         student_t_two_sided(2.0, dof)
     }
 
-    /// P(|z1| > 2) for one exponent of a stationary run: the start test's chance rate.
-    pub fn first_block_chance(&self) -> f64 {
-        student_t_two_sided(2.0, self.blocks as f64 - 2.0)
-    }
-
     /// Whether the exponents drift: four times the chance rate of them with |z| > 2 (a
     /// margin for the exponents' correlations with each other, such as a symplectic
     /// spectrum's mirrored pairs), in a count that chance gives with probability below 1 %
     /// (so that one exponent of a run with k = 1 that strays by chance does not count).
     pub fn drifts(&self) -> bool {
-        stands_out(self.drifting, self.tested, self.chance())
-    }
-
-    /// Whether the first block carries a start transient, by the same rule as [`Self::drifts`].
-    pub fn starts_unrelaxed(&self) -> bool {
-        stands_out(self.first_block, self.tested, self.first_block_chance())
+        let count = (self.drifting * self.tested as f64).round() as usize;
+        self.drifting > 4.0 * self.chance() && binomial_tail(count, self.tested, self.chance()) < 0.01
     }
 
     /// What the two tests say, in words.
     pub fn verdict(&self) -> &'static str {
-        match (self.drifts(), self.starts_unrelaxed(), self.r1 > self.r1_limit()) {
-            (false, false, false) => "all as for a converged run with independent blocks",
-            (true, _, _) => "the exponents still drift: the run is too short for its standard errors; extend it",
-            (false, true, _) => "the first block stands apart: the run began to accumulate before the system relaxed, a bias that shrinks as the run grows; extend it, or relax longer (--relax-steps) in a new run",
-            (false, false, true) => "the blocks are correlated: the standard errors are too small; extend the run (its blocks then grow)",
+        match (self.drifts(), self.r1 > self.r1_limit()) {
+            (false, false) => "both as for a converged run with independent blocks",
+            (true, _) => "the exponents still drift: the run is too short for its standard errors; extend it",
+            (false, true) => "the blocks are correlated: the standard errors are too small; extend the run (its blocks then grow)",
         }
     }
 
     /// The numbers of both tests, for a report line.
     pub fn numbers(&self) -> String {
         format!(
-            "{:.0} % of {} exponents have |z| > 2 (by chance {:.0} %; largest |z| = {:.1}, i = {}); first block apart (|z1| > 2) for {:.0} % (by chance {:.0} %); r_1 = {:+.3} (limit {:+.3})",
+            "{:.0} % of {} exponents have |z| > 2 (by chance {:.0} %; largest |z| = {:.1}, i = {}); r_1 = {:+.3} (limit {:+.3})",
             100.0 * self.drifting,
             self.tested,
             100.0 * self.chance(),
             self.max_z,
             self.max_z_index + 1,
-            100.0 * self.first_block,
-            100.0 * self.first_block_chance(),
             self.r1,
             self.r1_limit()
         )
@@ -148,13 +130,6 @@ fn incomplete_beta(x: f64, a: f64, b: f64) -> f64 {
     front * f
 }
 
-/// More than four times the chance rate `p` among `tested`, in a count chance gives with
-/// probability below 1 %.
-fn stands_out(fraction: f64, tested: usize, p: f64) -> bool {
-    let count = (fraction * tested as f64).round() as usize;
-    fraction > 4.0 * p && binomial_tail(count, tested, p) < 0.01
-}
-
 /// P(X >= x) for X binomial with n trials of probability p.
 fn binomial_tail(x: usize, n: usize, p: f64) -> f64 {
     let ln_choose = |k: usize| -> f64 { (1..=k).map(|j| ((n - k + j) as f64 / j as f64).ln()).sum() };
@@ -196,7 +171,7 @@ pub fn diagnose(blocks: &[Vec<f64>], neutral: std::ops::Range<usize>) -> Option<
         return None;
     }
     let half = nb / 2;
-    let (mut drifting, mut first_block, mut max_z, mut max_z_index, mut r1) = (0usize, 0usize, 0.0f64, 0usize, 0.0);
+    let (mut drifting, mut max_z, mut max_z_index, mut r1) = (0usize, 0.0f64, 0usize, 0.0);
     for &i in &varies {
         let x = column(i);
         let (old, new) = (&x[..half], &x[nb - half..]);
@@ -208,17 +183,12 @@ pub fn diagnose(blocks: &[Vec<f64>], neutral: std::ops::Range<usize>) -> Option<
         if z.abs() > max_z {
             (max_z, max_z_index) = (z.abs(), i);
         }
-        let rest = &x[1..];
-        let z1 = (x[0] - mean(rest)) / (spread(rest) * (1.0 + 1.0 / rest.len() as f64).sqrt());
-        if z1.abs() > 2.0 {
-            first_block += 1;
-        }
         let m = mean(&x);
         let var: f64 = x.iter().map(|v| (v - m).powi(2)).sum();
         r1 += x.windows(2).map(|w| (w[0] - m) * (w[1] - m)).sum::<f64>() / var;
     }
     let tested = varies.len();
-    Some(Diagnostics { tested, drifting: drifting as f64 / tested as f64, first_block: first_block as f64 / tested as f64, max_z, max_z_index, r1: r1 / tested as f64, blocks: nb })
+    Some(Diagnostics { tested, drifting: drifting as f64 / tested as f64, max_z, max_z_index, r1: r1 / tested as f64, blocks: nb })
 }
 
 #[cfg(test)]
@@ -259,7 +229,7 @@ mod tests {
         assert!((binomial_tail(0, 10, 0.3) - 1.0).abs() < 1e-12);
         assert!((binomial_tail(2, 2, 0.3) - 0.09).abs() < 1e-12);
         assert!((binomial_tail(1, 3, 0.5) - 0.875).abs() < 1e-12);
-        let d = |tested: usize, count: usize| Diagnostics { tested, drifting: count as f64 / tested as f64, first_block: 0.0, max_z: 3.0, max_z_index: 0, r1: 0.0, blocks: 20 };
+        let d = |tested: usize, count: usize| Diagnostics { tested, drifting: count as f64 / tested as f64, max_z: 3.0, max_z_index: 0, r1: 0.0, blocks: 20 };
         assert!((d(1, 0).chance() - 0.0608).abs() < 1e-3, "t with 18 degrees of freedom: {}", d(1, 0).chance());
         assert!(!d(1, 1).drifts() && !d(2, 1).drifts() && !d(154, 20).drifts());
         assert!(d(154, 40).drifts() && d(20, 10).drifts());
@@ -278,26 +248,14 @@ mod tests {
     /// exponents drift by chance, and r_1 stays below its limit.
     #[test]
     fn a_stationary_run_with_independent_blocks_passes() {
-        let (mut drifting, mut first_block) = (0.0, 0.0);
+        let mut drifting = 0.0;
         for seed in 0..20 {
             let d = diagnose(&blocks(|_, i| 3.0 - 0.1 * i as f64, 0.0, seed), 0..0).unwrap();
             assert_eq!((d.tested, d.blocks), (30, 40));
             assert!(d.r1 < d.r1_limit(), "seed {seed}: r1 = {}", d.r1);
-            assert!(!d.drifts() && !d.starts_unrelaxed(), "seed {seed}: {d:?}");
             drifting += d.drifting / 20.0;
-            first_block += d.first_block / 20.0;
         }
         assert!((0.02..0.09).contains(&drifting), "{drifting}");
-        assert!((0.02..0.09).contains(&first_block), "{first_block}");
-    }
-
-    /// A transient confined to the first block (three of its standard deviations) is diluted
-    /// below the halves test's sight, and caught by the start test.
-    #[test]
-    fn a_start_transient_in_the_first_block_is_caught() {
-        let d = diagnose(&blocks(|b, i| 3.0 - 0.1 * i as f64 + if b == 0 { 0.3 } else { 0.0 }, 0.0, 4), 0..0).unwrap();
-        assert!(!d.drifts() && d.starts_unrelaxed() && d.first_block > 0.6, "{d:?}");
-        assert!(d.verdict().starts_with("the first block stands apart"), "{}", d.verdict());
     }
 
     /// A run still settling (exponents relaxing towards their values) drifts, and blocks
