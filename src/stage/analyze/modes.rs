@@ -1064,6 +1064,42 @@ mod tests {
         assert!(rows.iter().all(|r| r["detection"] != "vectors") && rows.len() == 2, "{rows:?}");
     }
 
+    /// Two exponents equal within their errors in the smooth part, apart from the mode region
+    /// at the null space, are a step only if their vectors are a mode: chance equality in a
+    /// short run is no step (kept with planted T(2,0) vectors, dropped with random ones).
+    #[test]
+    fn a_chance_pair_apart_from_the_mode_region_needs_mode_vectors() {
+        let d = 4 * N;
+        let mut rng = Rng::new(11);
+        let mut spec = spectrum(N, 2);
+        let at = 2 * N - 11; // 0-based, four indices above the T pair at 2N-5..2N-4, in the search window
+        let mean = (spec.exponents[at] + spec.exponents[at + 1]) / 2.0;
+        for i in [at, at + 1] {
+            spec.exponents[i] = mean;
+            spec.exponents[d - 1 - i] = -mean;
+        }
+        let detected = km::mode_steps(&spec.exponents, &spec.stderr, STEP_TOL, step_window(d, &Candidates::new(LX, LY, MAX_N)), &[4, 2]);
+        assert!(detected.iter().any(|s| (s.start, s.len) == (at, 2)), "the exponents alone take the pair: {detected:?}");
+        let ctx = context("disks", N, d, LX, LY, Some(spec), true);
+        let phase = phase(N, LX, LY, &mut rng);
+        let pat = km::mode_patterns(ModeKind::T, &single(2, 0), &phase, LX, LY);
+        let h = 2 * N;
+        let cols: Vec<Vec<f64>> = (0..2).map(|j| tangent(&pat[j * h..(j + 1) * h], 0.5).0).collect();
+        let random = random_set(d, &mut rng);
+        let mut g = random.clone();
+        plant(&mut g, d, at, &cols);
+        for (set, name, kept) in [(g, "chance-pair-mode", true), (random, "chance-pair-random", false)] {
+            let (out, _) = run(&ctx, &[frame(3, phase.clone(), set.clone(), Some(set))], name);
+            let rows = read_csv(&out.join("modes.csv"));
+            let pair = rows.iter().find(|r| r["first"] == (at + 1).to_string());
+            assert_eq!(pair.is_some(), kept, "{name}: {rows:?}");
+            if let Some(r) = pair {
+                assert_eq!((r["name"].as_str(), r["detection"].as_str()), ("T(2,0)", "degenerate"), "{r:?}");
+            }
+            assert!(rows.iter().any(|r| r["first"] == (2 * N - 4).to_string()), "the pair at the null space stays, unclassified or not: {rows:?}");
+        }
+    }
+
     /// A pair of LP-like vectors next to the smooth part of the spectrum is not widened: the
     /// four-fold blocks around it do not stand apart from their neighbours.
     #[test]
