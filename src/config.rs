@@ -147,8 +147,8 @@ impl RunConfig {
         // beyond e^709: no chaotic system gets through a much longer interval in one piece.
         if self.tau > MAX_TAU {
             return Err(Error::param("tau", format!(
-                "{} is longer than a QR interval can be (the tangent vectors grow like e^(lambda_1 tau) between two QR steps and overflow beyond e^709); give at most {MAX_TAU:e}",
-                format!("{:e}", self.tau)
+                "{:e} is longer than a QR interval can be (the tangent vectors grow like e^(lambda_1 tau) between two QR steps and overflow beyond e^709); give at most {MAX_TAU:e}",
+                self.tau
             )));
         }
         if matches!(self.system, SystemConfig::Henon { .. }) && self.tau != 1.0 {

@@ -139,8 +139,8 @@ impl Analysis for Spectrum {
             let idx: Vec<f64> = (first..=last).map(|i| (i + 1) as f64).collect();
             let pick = |v: &[f64], conj: bool| -> Vec<f64> { (first..=last).map(|i| if conj { -v[ctx.d - 1 - i] } else { v[i] }).collect() };
             let mut fig = Figure::new("Mode region: λ_i and -λ_(4N+1-i)").x_label("i").y_label("λ");
-            fig.series("GS λ_i", &idx, &pick(&gs, false), Marker::LinePoints);
-            fig.series("GS -λ_(4N+1-i)", &idx, &pick(&gs, true), Marker::Points);
+            fig.series("GS λ_i", &idx, &pick(gs, false), Marker::LinePoints);
+            fig.series("GS -λ_(4N+1-i)", &idx, &pick(gs, true), Marker::Points);
             fig.series("CLV λ_i", &idx, &pick(&clv, false), Marker::LinePoints);
             fig.series("CLV -λ_(4N+1-i)", &idx, &pick(&clv, true), Marker::Points);
             save_figure(&fig, out, "fig8_mode_region")?;
@@ -249,7 +249,7 @@ mod tests {
         let n = 4;
         let d = 4 * n;
         let ctx = context("disks", n, d, 4.0, 4.0, Some(spectrum(n, 2)), false);
-        let gs_local = |step: u64, i: usize| (d / 2) as f64 - i as f64 - 0.5 + if step % 3 == 0 { 0.3 } else { -0.15 };
+        let gs_local = |step: u64, i: usize| (d / 2) as f64 - i as f64 - 0.5 + if step.is_multiple_of(3) { 0.3 } else { -0.15 };
         for missing in [false, true] {
             let mut a = new(&ctx).unwrap();
             let mut want = vec![0.0; d];
