@@ -57,7 +57,7 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
                 format!(
                     "{} holds a run of another configuration: {}; choose another --out, or ask for that run's configuration to continue it (or for more --steps to extend it)",
                     run_dir.display(),
-                    differences(&stored.config, &stored.store, config, store).join(", ")
+                    differences((&stored.config, &stored.store, "in the run"), (config, store, "asked for")).join(", ")
                 ),
             ));
         } else {
@@ -128,10 +128,9 @@ fn check_report(report_dir: &Path, run_dir: &Path, stored: Option<&RunMeta>) -> 
         (ReportDir::Report { run: None, finished: false }, Some(_)) => return Ok(()),
         (ReportDir::Report { .. }, None) => format!("a report, but {} holds no run (a new run starts there): the report is of another run", run_dir.display()),
         (ReportDir::Report { run: Some(run), .. }, Some(stored)) => format!(
-            "the report of another run ({}) than the one in {} ({})",
-            serde_json::to_string(run).unwrap_or_default(),
+            "the report of another run than the one in {} ({})",
             run_dir.display(),
-            serde_json::to_string(&stored.config).unwrap_or_default()
+            differences((run, &stored.store, "in the report"), (&stored.config, &stored.store, "in the run")).join(", ")
         ),
         (ReportDir::Report { run: None, .. }, Some(_)) => format!("a report that names no run, not one of the run in {}", run_dir.display()),
         (ReportDir::Other, _) => "files that are not a report of clv (no index.html of one)".to_string(),
@@ -155,9 +154,9 @@ fn extension(stored: &RunMeta, config: &RunConfig, store: &StoreConfig) -> Optio
         .then_some(forward_run::Extension { steps: config.steps, clv_steps: Some(store.clv_steps), transient: Some(store.transient) })
 }
 
-/// The settings in which a stored run and the one asked for differ, as the flags that set
-/// them: "--steps 10000 in the run, 5000 asked for" (the thread count is no setting of a run).
-fn differences(run: &RunConfig, run_store: &StoreConfig, asked: &RunConfig, asked_store: &StoreConfig) -> Vec<String> {
+/// The settings in which two runs differ, as the flags that set them, each side named by its
+/// label: "--steps 10000 in the run, 5000 asked for" (the thread count is no setting of a run).
+fn differences((run, run_store, here): (&RunConfig, &StoreConfig, &str), (asked, asked_store, there): (&RunConfig, &StoreConfig, &str)) -> Vec<String> {
     fn leaves(prefix: &str, v: &serde_json::Value, out: &mut Vec<(String, String)>) {
         match v {
             serde_json::Value::Object(map) => map.iter().for_each(|(k, v)| leaves(k, v, out)),
@@ -176,8 +175,8 @@ fn differences(run: &RunConfig, run_store: &StoreConfig, asked: &RunConfig, aske
         .filter(|(k, _)| k != "threads")
         .filter_map(|(k, want)| match ours.iter().find(|(o, _)| o == k) {
             Some((_, have)) if have == want => None,
-            Some((_, have)) => Some(format!("--{k} {have} in the run, {want} asked for")),
-            None => Some(format!("--{k} {want} asked for, which the run does not have")),
+            Some((_, have)) => Some(format!("--{k} {have} {here}, {want} {there}")),
+            None => Some(format!("--{k} {want} {there}, none {here}")),
         })
         .collect();
     if out.is_empty() {
