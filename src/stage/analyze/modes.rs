@@ -736,6 +736,14 @@ mod tests {
         (unit(v), 1.0 / norm)
     }
 
+    /// Unit tangent vectors of the `kind` mode of wave vector (n_x, 0) at `phase`, columns
+    /// `which` of its Table IV basis, with dp = c dq.
+    fn mode_vectors(kind: ModeKind, n_x: i32, phase: &[f64], c: f64, which: &[usize]) -> Vec<Vec<f64>> {
+        let pat = km::mode_patterns(kind, &single(n_x, 0), phase, LX, LY);
+        let h = 2 * N;
+        which.iter().map(|&j| tangent(&pat[j * h..(j + 1) * h], c).0).collect()
+    }
+
     fn run(ctx: &Context, frames: &[Frame], name: &str) -> (OutDir, Vec<Produced>) {
         let out = out_dir(name);
         let mut a = new(ctx).expect("disks");
@@ -890,9 +898,7 @@ mod tests {
         assert_eq!(detected.iter().map(|s| (s.start, s.len)).collect::<Vec<_>>(), [(at + 1, 2), (d - at - 3, 2)]);
         let ctx = context("disks", N, d, LX, LY, Some(spec), true);
         let phase = phase(N, LX, LY, &mut rng);
-        let pat = km::mode_patterns(ModeKind::LP, &single(2, 0), &phase, LX, LY);
-        let h = 2 * N;
-        let cols: Vec<Vec<f64>> = (0..4).map(|j| tangent(&pat[j * h..(j + 1) * h], -0.4).0).collect();
+        let cols = mode_vectors(ModeKind::LP, 2, &phase, -0.4, &[0, 1, 2, 3]);
         let mut g = random_set(d, &mut rng);
         plant(&mut g, d, at, &cols);
         let f = frame(3, phase, g.clone(), Some(g));
@@ -929,9 +935,7 @@ mod tests {
         spec.stderr.iter_mut().for_each(|e| *e = 1e-5);
         let ctx = context("disks", N, d, LX, LY, Some(spec), true);
         let phase = phase(N, LX, LY, &mut rng);
-        let pat = km::mode_patterns(ModeKind::LP, &single(1, 0), &phase, LX, LY);
-        let h = 2 * N;
-        let cols: Vec<Vec<f64>> = (0..4).map(|j| tangent(&pat[j * h..(j + 1) * h], 0.5).0).collect();
+        let cols = mode_vectors(ModeKind::LP, 1, &phase, 0.5, &[0, 1, 2, 3]);
         let mut g = random_set(d, &mut rng);
         plant(&mut g, d, at, &cols);
         let (out, produced) = run(&ctx, &[frame(3, phase, g.clone(), Some(g))], "separated");
@@ -1028,9 +1032,7 @@ mod tests {
         assert_eq!(detected.iter().map(|s| (s.start, s.len)).collect::<Vec<_>>(), [(at + 4, 2), (d - at - 6, 2)], "the exponents alone see the T pair only");
         let ctx = context("disks", N, d, LX, LY, Some(spec), true);
         let phase = phase(N, LX, LY, &mut rng);
-        let pat = km::mode_patterns(ModeKind::LP, &single(1, 0), &phase, LX, LY);
-        let h = 2 * N;
-        let cols: Vec<Vec<f64>> = (0..4).map(|j| tangent(&pat[j * h..(j + 1) * h], 0.5).0).collect();
+        let cols = mode_vectors(ModeKind::LP, 1, &phase, 0.5, &[0, 1, 2, 3]);
         let random = random_set(d, &mut rng);
         let mut g = random.clone();
         plant(&mut g, d, at, &cols);
@@ -1082,9 +1084,7 @@ mod tests {
         assert!(detected.iter().any(|s| (s.start, s.len) == (at, 2)), "the exponents alone take the pair: {detected:?}");
         let ctx = context("disks", N, d, LX, LY, Some(spec), true);
         let phase = phase(N, LX, LY, &mut rng);
-        let pat = km::mode_patterns(ModeKind::T, &single(2, 0), &phase, LX, LY);
-        let h = 2 * N;
-        let cols: Vec<Vec<f64>> = (0..2).map(|j| tangent(&pat[j * h..(j + 1) * h], 0.5).0).collect();
+        let cols = mode_vectors(ModeKind::T, 2, &phase, 0.5, &[0, 1]);
         let random = random_set(d, &mut rng);
         let mut g = random.clone();
         plant(&mut g, d, at, &cols);
@@ -1108,9 +1108,7 @@ mod tests {
         let mut rng = Rng::new(8);
         let ctx = context("disks", N, d, LX, LY, Some(spectrum(N, 2)), true);
         let phase = phase(N, LX, LY, &mut rng);
-        let pat = km::mode_patterns(ModeKind::LP, &single(1, 0), &phase, LX, LY);
-        let h = 2 * N;
-        let cols: Vec<Vec<f64>> = [0, 2].iter().map(|&j| tangent(&pat[j * h..(j + 1) * h], 0.5).0).collect();
+        let cols = mode_vectors(ModeKind::LP, 1, &phase, 0.5, &[0, 2]);
         let mut g = random_set(d, &mut rng);
         plant(&mut g, d, 2 * N - 5, &cols);
         let (out, _) = run(&ctx, &[frame(3, phase, g.clone(), Some(g))], "smooth-pair");
