@@ -105,6 +105,12 @@ fn disk_modes_and_transversality() {
     eprintln!("min Theta for i - j = 1: {min1:.3e} rad; for i - j = {}: {:.3e}", theta_min.last().unwrap()["separation"], num(theta_min.last().unwrap(), "min_theta"));
     assert!(theta_min.iter().all(|r| num(r, "min_theta") >= 0.0 && num(r, "min_theta") <= std::f64::consts::FRAC_PI_2));
 
+    // F^(J) of Figs. 16-17 and the last selected j of Figs. 4 and 13 (the paper's 370) are
+    // the last unstable vector before the mode region: J = 2N-9, just before LP(1,0).
+    let index = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(index.contains(&format!("F^({})", 2 * n - 9)), "F^(J) should end before LP(1,0)");
+    assert!(index.contains(&format!("selected covariant vectors j = 1, 39, {}, and", 2 * n - 9)), "Fig. 13's default j (the paper's 1, 200, 370 scaled)");
+
     let t_stem = format!("fig10_T1_i{}", t1["last"]);
     let mut stems = vec!["fig15_transversality".to_string(), "fig16_theta_distributions".into(), "fig17_theta_min".into(), "modes_dispersion".into()];
     if t1["side"] == "+" {
@@ -113,7 +119,6 @@ fn disk_modes_and_transversality() {
     for stem in &stems {
         check_figure(&report, stem);
     }
-    let index = std::fs::read_to_string(report.join("index.html")).unwrap();
     for table in ["modes.csv", "modes.json", "modes_dispersion.csv", "transversality.csv", "theta_histograms.csv", "theta_min.csv"] {
         assert!(index.contains(&format!("href=\"{table}\"")), "index.html does not link {table}");
     }

@@ -18,7 +18,7 @@ pub struct AnalyzeArgs {
     #[arg(long)]
     pub every: Option<u64>,
     /// Lyapunov indices (1-based) for the overlap figures, e.g. 1,200,370 (default: the
-    /// paper's choice scaled to this system's D).
+    /// paper's choice scaled to this system's D, the last ending before the mode steps).
     #[arg(long, value_delimiter = ',')]
     pub j: Option<Vec<usize>>,
     /// Window lengths Delta (steps) for finite-time exponents, e.g. 1,10,100 (default: 1, 2,

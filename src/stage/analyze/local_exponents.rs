@@ -17,21 +17,28 @@
 //! Needs every frame. Frames arrive newest first (the backward pass); windows are consecutive
 //! blocks of Delta frames counted from the newest frame (window sums do not depend on the
 //! order), and the time series are sorted by step before they are written. Memory: the few
-//! plotted series plus the streaming [`DominationTest`].
+//! plotted series plus the streaming [`DominationTest`], and the local exponents of the
+//! frames before the first sampled one, on which the selected j are settled
+//! ([`Context::settle`]).
 
 use super::kernels::local::{finite_time_exponents, DominationTest};
 use super::{save_figure, write_csv, Analysis, Context, Produced};
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
-use crate::stage::frame::Frame;
+use crate::stage::frame::{on_stride, Frame};
 use std::path::Path;
 
 pub struct LocalExponents {
     ctx: Context,
-    /// 0-based indices whose series are kept, ascending.
+    /// 0-based indices whose series are kept, ascending, from the first sampled frame on.
     idx: Vec<usize>,
     /// 0-based selected indices j (pairs (j, j+1) of the domination figure).
     js: Vec<usize>,
+    /// The local exponents of the frames before the first sampled one, whose series wait for
+    /// the indices ([`LocalExponents::choose`]).
+    pending: Vec<Vec<f64>>,
+    /// `idx` and `js` are chosen.
+    chosen: bool,
     deltas: Vec<usize>,
     test: DominationTest,
     /// In arrival order (newest first).
@@ -57,17 +64,15 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     if ctx.k == 0 {
         return None;
     }
-    let js: Vec<usize> = ctx.options.j.iter().map(|j| j - 1).filter(|&j| j < ctx.k).collect();
-    let mut idx: Vec<usize> = std::iter::once(0).chain(js.iter().copied()).chain(smallest_positive(ctx)).collect();
-    idx.sort_unstable();
-    idx.dedup();
     // Windows of Delta steps need consecutive frames: a file of every m-th step has none.
     let deltas: Vec<usize> = if ctx.saved_every > 1 { Vec::new() } else { ctx.options.deltas.iter().map(|&d| d as usize).filter(|&d| d > 0).collect() };
     Some(Box::new(LocalExponents {
         ctx: ctx.clone(),
-        series: vec![Vec::new(); idx.len()],
-        idx,
-        js,
+        series: Vec::new(),
+        idx: Vec::new(),
+        js: Vec::new(),
+        pending: Vec::new(),
+        chosen: false,
         test: DominationTest::new(ctx.k, &deltas),
         deltas,
         steps: Vec::new(),
@@ -95,7 +100,27 @@ fn finite_mean(x: impl IntoIterator<Item = f64>) -> f64 {
     if n == 0 { f64::NAN } else { s / n as f64 }
 }
 
+/// Frames whose local exponents are held at most before the indices are chosen without a
+/// sampled frame.
+const PENDING_MAX: usize = 4096;
+
 impl LocalExponents {
+    /// The indices of the series: 1, the selected j of the context settled at the first
+    /// sampled frame (`frame`; None: the default j as it is), the smallest positive exponent.
+    fn choose(&mut self, frame: Option<&Frame>) {
+        if let Some(frame) = frame {
+            self.ctx.settle(frame);
+        }
+        let ctx = &self.ctx;
+        self.js = ctx.options.j.iter().map(|j| j - 1).filter(|&j| j < ctx.k).collect();
+        self.idx = std::iter::once(0).chain(self.js.iter().copied()).chain(smallest_positive(ctx)).collect();
+        self.idx.sort_unstable();
+        self.idx.dedup();
+        self.series = self.idx.iter().map(|&i| self.pending.iter().map(|local| local[i]).collect()).collect();
+        self.pending = Vec::new();
+        self.chosen = true;
+    }
+
     /// The 0-based pairs (i, i+1) with both indices in the null space (disks only).
     fn in_null(&self, i: usize) -> bool {
         if !self.ctx.is_disks() || self.ctx.n < 2 {
@@ -138,13 +163,26 @@ impl Analysis for LocalExponents {
         self.test.push(&frame.local);
         self.steps.push(frame.step);
         self.times.push(frame.time);
+        if !self.chosen {
+            if on_stride(frame.step, self.ctx.options.every) && !frame.v.is_empty() {
+                self.choose(Some(frame));
+            } else if self.pending.len() < PENDING_MAX {
+                self.pending.push(frame.local.clone());
+                return Ok(());
+            } else {
+                self.choose(None);
+            }
+        }
         for (s, &i) in self.series.iter_mut().zip(&self.idx) {
             s.push(frame.local[i]);
         }
         Ok(())
     }
 
-    fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
+    fn finish(mut self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
+        if !self.chosen {
+            self.choose(None);
+        }
         let ctx = &self.ctx;
         if self.steps.is_empty() {
             return Ok(Vec::new());
@@ -364,6 +402,27 @@ mod tests {
     fn frame(step: u64, local: Vec<f64>) -> Frame {
         let k = local.len();
         Frame { step, time: 0.6 * step as f64, d: k, k, phase: vec![0.0; k], v: vec![0.0; k * k], local, gs_local: Vec::new(), g: None }
+    }
+
+    /// The indices are settled at the first sampled frame (step 14 of every 7th, from 19
+    /// down), yet the series start at the newest frame: the frames before it, which carry no
+    /// vectors, are held until then.
+    #[test]
+    fn frames_before_the_first_sampled_one_keep_their_series() {
+        let ctx = context(3, vec![5], vec![1]);
+        let mut a = new(&ctx).unwrap();
+        for step in (0..20u64).rev() {
+            let mut f = frame(step, (0..12).map(|i| step as f64 + 0.01 * i as f64).collect());
+            if step % 7 != 0 {
+                f.v.clear();
+            }
+            a.consume(&f).unwrap();
+        }
+        let out = scratch("held");
+        a.finish(&out, 20).unwrap();
+        let t = read_csv(&out.join("local_exponents.csv"));
+        assert_eq!(column(&t, "step"), (0..20).map(|s| s as f64).collect::<Vec<_>>());
+        assert_eq!(column(&t, "lambda_5"), (0..20).map(|s| s as f64 + 0.01 * 4.0).collect::<Vec<_>>());
     }
 
     #[test]

@@ -93,6 +93,11 @@ pub struct Context {
     /// The stream holds the frames of the steps on this stride (a frame file's
     /// `--save-every`; 1 for a stream, which carries every step).
     pub saved_every: u64,
+    /// The mode steps ([`mode_steps::resolve`]) or why there are none, from
+    /// [`Context::settle`] on.
+    pub modes: mode_steps::Resolved,
+    /// `options.j` is the default, which [`Context::settle`] moves before the mode steps.
+    pub j_default: bool,
 }
 
 /// How often the analyses that apply to this run read V_n, for the backward stage's
@@ -103,6 +108,15 @@ pub fn vectors_every_for(meta: &RunMeta) -> u64 {
         crate::config::SystemConfig::Henon { .. } | crate::config::SystemConfig::Lorenz { .. } => 1,
         crate::config::SystemConfig::Disks { .. } => default_every(meta.store.clv_steps, 1),
     }
+}
+
+/// Why a context has no mode steps before [`Context::settle`].
+const UNSETTLED: &str = "no frame with covariant vectors was analysed";
+
+/// The paper's index `j` of its N = 198 system, among 393 positive exponents, scaled to a
+/// system with `positive` positive exponents.
+pub fn paper_index(j: usize, positive: usize) -> usize {
+    (j as f64 * positive as f64 / 393.0).round() as usize
 }
 
 /// The least common multiple of two strides: the steps on both.
@@ -141,18 +155,7 @@ impl Context {
             }
             None => return Err(Error::Other(format!("{source}: the frame stream carries no run description (clv.run metadata); was it written by clv backward?"))),
         };
-        let d = first.d;
-        // The paper's selections (Figs. 4, 13, 14) for N = 198 are j = 1, 200, 370 among the
-        // 2N - 3 = 393 positive exponents: scale them to this system's positive part, so that
-        // e.g. 370 stays an unstable vector just above the mode region.
-        let positive = if n > 1 { 2 * n - 3 } else { d };
-        let scale = |j: usize| ((j as f64 * positive as f64 / 393.0).round() as usize).clamp(1, first.k);
-        let j = j.unwrap_or_else(|| {
-            let mut v: Vec<usize> = [1, 200, 370].iter().map(|&j| scale(j)).collect();
-            v.dedup();
-            v
-        });
-        if let Some(bad) = j.iter().find(|&&j| j == 0 || j > first.k) {
+        if let Some(bad) = j.iter().flatten().find(|&&j| j == 0 || j > first.k) {
             return Err(Error::param("j", format!("index {bad} is outside 1..={}", first.k)));
         }
         // Streams written before 2026-11-24 carry no backward options: V in every frame.
@@ -197,22 +200,49 @@ impl Context {
                 format!("{source} holds the frames of steps {oldest}..{newest}, and no step among them is a multiple of {every}: the vector statistics would have no frame; give a smaller m (by default about 400 frames are sampled)"),
             ));
         }
-        Ok(Context {
+        let mut ctx = Context {
             gs,
             system,
-            d,
+            d: first.d,
             k: first.k,
             n,
             lx,
             ly,
             tau,
             with_gs,
-            options: Options { every, j, deltas },
+            options: Options { every, j: Vec::new(), deltas },
             saved_every,
             source: source.to_string(),
             frame_steps,
             run,
-        })
+            modes: Err(UNSETTLED.into()),
+            j_default: j.is_none(),
+        };
+        ctx.options.j = j.unwrap_or_else(|| ctx.default_j());
+        Ok(ctx)
+    }
+
+    /// Completes the context at the first frame the vector statistics sample (on the stride
+    /// `every`: the same frame in every analysis, and the same in a stream written with
+    /// `--vectors-every`): the mode steps are resolved on it, and the default j's last index
+    /// ends before them. Analyses that use the mode steps or j call it before anything else.
+    pub fn settle(&mut self, frame: &Frame) {
+        self.modes = mode_steps::resolve(self, frame);
+        if self.j_default {
+            self.options.j = self.default_j();
+        }
+    }
+
+    /// The paper's selections of Figs. 4, 13 and 14 for N = 198, j = 1, 200 and 370 among
+    /// its 2N - 3 = 393 positive exponents, scaled to this system's positive part; for hard
+    /// disks the last is J of F^(J), the last unstable vector before the mode region
+    /// ([`transversality::f_size`]), as 370 is in the paper's run.
+    fn default_j(&self) -> Vec<usize> {
+        let positive = if self.n > 1 { 2 * self.n - 3 } else { self.d };
+        let last = if self.is_disks() && self.n > 1 { transversality::f_size(self.d, &mode_steps::positive(&self.modes, self.d)) } else { paper_index(370, positive) };
+        let mut v: Vec<usize> = [1, paper_index(200, positive), last].iter().map(|&j| j.clamp(1, self.k.max(1))).collect();
+        v.dedup();
+        v
     }
 
     /// What a person must know about a stream that covers less than the whole window: its

@@ -50,6 +50,27 @@ pub fn detect_steps(ctx: &Context) -> std::result::Result<Vec<Step>, String> {
     Ok(km::mode_steps(&gs.exponents, &gs.stderr, STEP_TOL, step_window(ctx.d, &candidates(ctx)), &candidates(ctx).step_lengths()))
 }
 
+/// The resolved mode steps with how each was found, or why there are none.
+pub type Resolved = std::result::Result<Vec<(Step, Found)>, String>;
+
+/// The mode steps of a stream, both sides of the null space, resolved once at `frame` (the
+/// first frame with covariant vectors, [`super::Context::new`]) from the steps of the
+/// exponents ([`detect_steps`], [`resolve_steps`]); or why there are none. Every analysis
+/// that names steps takes them from its context, so that all find the same ones.
+pub fn resolve(ctx: &Context, frame: &Frame) -> Resolved {
+    let detected = detect_steps(ctx)?;
+    if frame.v.len() != frame.d * frame.k || frame.k != ctx.d {
+        return Err("the stream has no frame with all covariant vectors to classify the steps by".into());
+    }
+    let exponents = ctx.gs.as_ref().map(|g| g.exponents.as_slice()).unwrap_or_default();
+    Ok(resolve_steps(&detected, frame, &candidates(ctx), exponents))
+}
+
+/// The steps of `modes` on the positive side (unstable modes), in index order.
+pub fn positive(modes: &Resolved, d: usize) -> Vec<Step> {
+    modes.as_ref().map(|m| m.iter().map(|(s, _)| *s).filter(|s| is_positive(s, d)).collect()).unwrap_or_default()
+}
+
 /// How a step of [`resolve_steps`] was found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Found {

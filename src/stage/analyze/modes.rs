@@ -14,7 +14,9 @@
 //!    region found so far, a block of a mode's size that stands apart from its neighbours
 //!    (its range below both gaps) is a step if its vectors are that mode at the first frame:
 //!    a small system's LP exponents spread like the smooth spectrum's (N = 40). Both in
-//!    [`resolve_steps`](super::mode_steps::resolve_steps). The table says which rule found each step.
+//!    [`resolve_steps`](super::mode_steps::resolve_steps), which every analysis that names
+//!    steps reaches through [`Context::settle`] at the first sampled frame, so that all
+//!    find the same steps. The table says which rule found each step.
 //! 2. Every step is classified in every (sampled) frame by projecting the position part of
 //!    its GS vectors (the paper classifies with GS vectors; CLVs when the frames carry no GS
 //!    vectors) onto the orthonormalised Table IV bases T, L, P, LP of every candidate wave
@@ -35,7 +37,7 @@
 
 use super::kernels::modes::{self as km, Candidates, Family, ModeKind, Part, SineFit, Step, Wave};
 use super::kernels::vecset;
-use super::mode_steps::{candidates, classify_step, detect_steps, excess, group, is_positive, matches_degeneracy, resolve_steps, step_window, Found, MAX_N, MIN_FRACTION, STEP_TOL};
+use super::mode_steps::{candidates, classify_step, excess, group, is_positive, matches_degeneracy, step_window, Found, MAX_N, MIN_FRACTION, STEP_TOL};
 use super::{save_figure, write_csv, write_text_csv, Analysis, Context, Mean, Produced};
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
@@ -59,7 +61,7 @@ fn candidate_of(c: usize) -> (ModeKind, usize) {
 
 struct StepAcc {
     step: Step,
-    /// How [`resolve_steps`] found it.
+    /// How [`resolve_steps`](super::mode_steps::resolve_steps) found it.
     found: Found,
     /// Mean fractions of every candidate (order of `candidate`) for the GS and CLV groups.
     gs: Mean,
@@ -74,9 +76,7 @@ struct StepAcc {
 pub struct Modes {
     ctx: Context,
     candidates: Candidates,
-    /// The detected steps, or why there are none.
-    detected: std::result::Result<Vec<Step>, String>,
-    /// The resolved steps with their accumulators, from the first frame on.
+    /// The context's mode steps (from the first frame on) with their accumulators.
     steps: Vec<StepAcc>,
     /// The frame of the pattern figures (the first one consumed).
     shown: Option<Frame>,
@@ -86,7 +86,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     if !ctx.is_disks() {
         return None;
     }
-    Some(Box::new(Modes { ctx: ctx.clone(), candidates: candidates(ctx), detected: detect_steps(ctx), steps: Vec::new(), shown: None }))
+    Some(Box::new(Modes { ctx: ctx.clone(), candidates: candidates(ctx), steps: Vec::new(), shown: None }))
 }
 
 /// The row of the mode table (modes.csv, modes.json).
@@ -101,8 +101,8 @@ pub struct ModeRow {
     pub degeneracy: usize,
     /// "degenerate" (equal exponents within the tolerance), "separated" (set apart from
     /// its neighbours, [`km::SEPARATION`]), "widened" (a shorter step classified L/P/LP,
-    /// widened to its LP mode's size by [`resolve_steps`]) or "vectors" (a block next to the
-    /// mode region that stands apart and whose vectors are that mode, [`resolve_steps`]).
+    /// widened to its LP mode's size by [`resolve_steps`](super::mode_steps::resolve_steps)) or "vectors" (a block next to the
+    /// mode region that stands apart and whose vectors are that mode, [`resolve_steps`](super::mode_steps::resolve_steps)).
     pub detection: String,
     /// Mean forward GS exponent of the step.
     pub lambda: f64,
@@ -148,18 +148,17 @@ impl Analysis for Modes {
     }
 
     fn consume(&mut self, frame: &Frame) -> Result<()> {
-        let Ok(detected) = self.detected.as_ref() else {
-            return Ok(());
-        };
-        let (d, cands) = (frame.d, &self.candidates);
-        let families = cands.families.len();
+        let (d, families) = (frame.d, self.candidates.families.len());
         if self.shown.is_none() {
             self.shown = Some(frame.clone());
-            let exponents = self.ctx.gs.as_ref().map(|g| g.exponents.as_slice()).unwrap_or_default();
+            self.ctx.settle(frame);
             let candidates = families * KINDS.len();
-            self.steps = resolve_steps(detected, frame, cands, exponents)
-                .into_iter()
-                .map(|(step, found)| StepAcc {
+            self.steps = self
+                .ctx
+                .modes
+                .iter()
+                .flatten()
+                .map(|&(step, found)| StepAcc {
                     step,
                     found,
                     gs: Mean::new(candidates),
@@ -169,6 +168,7 @@ impl Analysis for Modes {
                 })
                 .collect();
         }
+        let cands = &self.candidates;
         let steps = &mut self.steps;
         let fractions = |set: &[f64]| km::mode_fractions(set, &frame.phase, cands, Part::Position).into_iter().map(|m| m.fraction).collect::<Vec<_>>();
         for acc in steps.iter_mut() {
@@ -206,7 +206,7 @@ impl Analysis for Modes {
         let ctx = &self.ctx;
         let cands = &self.candidates;
         let d = ctx.d;
-        let why = self.detected.as_ref().err().cloned();
+        let why = self.ctx.modes.as_ref().err().cloned();
         let steps = &self.steps;
         let source = if ctx.with_gs { "GS vectors" } else { "covariant vectors (the frames carry no GS vectors)" };
         let mut rows = Vec::new();

@@ -8,7 +8,7 @@
 //! * Fig. 13: <|v^j . v^i|> against i (i != j) for the selected j (CLVs only).
 //! * Fig. 14: the same for j in the mode region, restricted to the central part of the
 //!   spectrum: the last index of each of the two positive mode steps nearest the null space
-//!   ([`super::mode_steps::resolve_steps`] at the first frame, as the mode table finds them;
+//!   (the mode table's, [`Context::settle`] at the first frame;
 //!   2N-3 of T(1,0) and 2N-5 of LP(1,0) in the paper's box), or 2N-5 and 2N-3 where fewer
 //!   than two are found.
 //!
@@ -26,14 +26,14 @@ pub struct Overlaps {
     ctx: Context,
     /// <|g^i . v^i|> (Fig. 3), with GS vectors.
     gv: Option<Mean>,
-    /// Selected indices j (0-based) of Figs. 4 and 13.
+    /// Selected indices j (0-based) of Figs. 4 and 13, from the first frame on.
     js: Vec<usize>,
     /// Mode indices j (0-based) of Fig. 14, from the first frame on.
     mode_js: Vec<usize>,
     /// `mode_js` end the two mode steps found nearest the null space (else, with fewer, they
     /// are the fixed 2N-5, 2N-3).
     mode_js_from_steps: bool,
-    /// The mode steps are resolved at the first frame ([`Overlaps::settle`]).
+    /// The indices are chosen ([`Overlaps::settle`]).
     settled: bool,
     /// The conjugate partners 4N+1-j of `js` (0-based), Fig. 13's second plot.
     conjugate_js: Vec<usize>,
@@ -49,45 +49,42 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     if ctx.k == 0 {
         return None;
     }
-    let js: Vec<usize> = ctx.options.j.iter().map(|j| j - 1).filter(|&j| j < ctx.k).collect();
-    // The paper's Fig. 13 has a second panel, the conjugate partners j* = 4N+1-j in the
-    // stable subspace.
-    let conjugate_js: Vec<usize> = if ctx.is_disks() && ctx.k == ctx.d { js.iter().map(|&j| ctx.d - 1 - j).filter(|j| !js.contains(j)).collect() } else { Vec::new() };
     Some(Box::new(Overlaps {
         ctx: ctx.clone(),
         gv: ctx.with_gs.then(|| Mean::new(ctx.k)),
-        vg: ctx.with_gs.then(|| js.iter().map(|_| Mean::new(ctx.k)).collect()),
+        vg: None,
         vv: Vec::new(),
-        js,
+        js: Vec::new(),
         mode_js: Vec::new(),
         mode_js_from_steps: false,
         settled: false,
-        conjugate_js,
+        conjugate_js: Vec::new(),
         vv_js: Vec::new(),
     }))
 }
 
 impl Overlaps {
-    /// Fig. 14's j at the first frame: a vector of each of the two slowest modes, the
-    /// positive steps nearest the null space (T(1,0) and LP(1,0) in the paper's box,
-    /// T(1,0)+T(0,1) first in a square), found as the mode table finds them.
+    /// The indices j, from the context settled at the first frame ([`Context::settle`]).
     fn settle(&mut self, frame: &Frame) {
+        self.ctx.settle(frame);
         let ctx = &self.ctx;
-        let mut step_ends: Vec<usize> = match (super::mode_steps::detect_steps(ctx), &ctx.gs) {
-            (Ok(detected), Some(gs)) => super::mode_steps::resolve_steps(&detected, frame, &super::mode_steps::candidates(ctx), &gs.exponents)
-                .into_iter()
-                .filter(|(s, _)| super::mode_steps::is_positive(s, ctx.d))
-                .map(|(s, _)| s.start + s.len - 1)
-                .collect(),
-            _ => Vec::new(),
-        };
-        step_ends.sort_unstable();
+        self.js = ctx.options.j.iter().map(|j| j - 1).filter(|&j| j < ctx.k).collect();
+        // The paper's Fig. 13 has a second panel, the conjugate partners j* = 4N+1-j in the
+        // stable subspace.
+        if ctx.is_disks() && ctx.k == ctx.d {
+            self.conjugate_js = self.js.iter().map(|&j| ctx.d - 1 - j).filter(|j| !self.js.contains(j)).collect();
+        }
+        // Fig. 14's j: a vector of each of the two slowest modes, the positive steps nearest
+        // the null space (T(1,0) and LP(1,0) in the paper's box, T(1,0)+T(0,1) first in a
+        // square).
+        let step_ends: Vec<usize> = super::mode_steps::positive(&ctx.modes, ctx.d).iter().map(|s| s.start + s.len - 1).collect();
         self.mode_js_from_steps = step_ends.len() >= 2;
         self.mode_js = match ctx.central_range() {
-            Some(_) if self.mode_js_from_steps => step_ends.into_iter().rev().take(2).rev().collect(),
+            Some(_) if self.mode_js_from_steps => step_ends[step_ends.len() - 2..].to_vec(),
             Some(_) if ctx.n >= 3 => vec![2 * ctx.n - 6, 2 * ctx.n - 4],
             _ => Vec::new(),
         };
+        self.vg = ctx.with_gs.then(|| self.js.iter().map(|_| Mean::new(ctx.k)).collect());
         self.vv_js = self.js.iter().chain(&self.mode_js).chain(&self.conjugate_js).copied().collect();
         self.vv_js.sort_unstable();
         self.vv_js.dedup();
@@ -393,26 +390,34 @@ mod tests {
     #[test]
     fn the_mode_figure_follows_the_detected_steps() {
         let (n, d) = (10, 40);
-        let caption = |gs: crate::report::SpectrumSummary| {
+        // The captions of Figs. 14 and 13, with the default j.
+        let captions = |gs: crate::report::SpectrumSummary| {
             let mut ctx = context("disks", n, d, false, vec![1]);
             ctx.gs = Some(gs);
+            ctx.j_default = true;
             let mut a = new(&ctx).unwrap();
             a.consume(&frame(0, d, identity(d), None)).unwrap();
             let out = scratch(&format!("overlaps-steps-{}", ctx.gs.as_ref().unwrap().exponents[9]));
             let produced = a.finish(&out, 1).unwrap();
-            produced.into_iter().find(|p| p.figures.iter().any(|f| f == "fig14_mode_overlap")).expect("Fig. 14").caption
+            let caption = |stem: &str| produced.iter().find(|p| p.figures.iter().any(|f| f == stem)).unwrap_or_else(|| panic!("{stem}")).caption.clone();
+            (caption("fig14_mode_overlap"), caption("fig13_clv_overlap"))
         };
-        // A T step at 16..17 (paper indices) only: the paper's pair.
+        // A T step at 16..17 (paper indices) only: the paper's pair. The paper's j = 1, 200,
+        // 370 of 393 scale to 1, 9 and 16 of 2N-3 = 17, and 16 moves before the step.
         let one = testing::spectrum(n, 2);
-        assert!(caption(one.clone()).contains("j = 15, 17 (2N-5 and 2N-3"), "{}", caption(one.clone()));
-        // and a four-fold step at 10..13 besides: its end, 13, and 17.
+        let (fig14, fig13) = captions(one.clone());
+        assert!(fig14.contains("j = 15, 17 (2N-5 and 2N-3"), "{fig14}");
+        assert!(fig13.contains("selected covariant vectors j = 1, 9, 15, and"), "{fig13}");
+        // and a four-fold step at 10..13 besides: its end, 13, and 17; the default j end
+        // before it.
         let mut two = one;
         let m = 2 * n - 3;
         for i in 9..13 {
             two.exponents[i] = 0.6;
             two.exponents[d - 1 - i] = -0.6;
         }
-        let text = caption(two);
-        assert!(text.contains("j = 13, 17 (the last index of each of the two positive mode steps"), "{text} (m = {m})");
+        let (fig14, fig13) = captions(two);
+        assert!(fig14.contains("j = 13, 17 (the last index of each of the two positive mode steps"), "{fig14} (m = {m})");
+        assert!(fig13.contains("selected covariant vectors j = 1, 9, and"), "{fig13}");
     }
 }

@@ -2,8 +2,7 @@
 //!
 //! * Fig. 15: distributions over frames of the smallest principal angle Phi between every
 //!   mode subspace E^(X) (the 2- and 4-fold steps next to the null space found by
-//!   [`super::mode_steps::detect_steps`] and [`super::mode_steps::resolve_steps`] at the first frame,
-//!   positive side) and its conjugate subspace E^(X)*, and of
+//!   [`super::Context::settle`] at the first frame, positive side) and its conjugate subspace E^(X)*, and of
 //!   the smallest principal angle Psi between E^u = v^1 + ... + v^(2N-3) and
 //!   E^s = v^(2N+4) + ... + v^(4N) (m = 2N-3 CLVs each). Psi > 0 in every frame is the
 //!   (partial) hyperbolicity of the paper's conclusion.
@@ -35,11 +34,11 @@ pub const THETA_BINS: usize = 90;
 /// dot product near 1 loses digits).
 const SMALL: f64 = 1e-3;
 
-/// J of F^(J): the paper's 370 of D = 792 scaled to D, at most 2N-3 and ending before the
-/// first positive mode step.
+/// J of F^(J): the paper's 370 of 2N - 3 = 393 positive exponents scaled to this system's
+/// 2N - 3 = D/2 - 3, ending before the first positive mode step.
 pub fn f_size(d: usize, steps: &[Step]) -> usize {
     let m = (d / 2).saturating_sub(3);
-    let scaled = (370.0 * d as f64 / 792.0).round() as usize;
+    let scaled = super::paper_index(370, m);
     let before_modes = steps.iter().filter(|s| mode_steps::is_positive(s, d)).map(|s| s.start).min().unwrap_or(m);
     scaled.min(m).min(before_modes)
 }
@@ -152,9 +151,8 @@ pub struct Transversality {
     ctx: Context,
     /// m = 2N-3: dimension of E^u and E^s.
     m: usize,
-    /// All detected mode steps (both sides), resolved at the first frame into the
-    /// positive-side `steps`, labelled by the first frame's classification.
-    detected: Vec<Step>,
+    /// The context's mode steps on the positive side (from the first frame on), labelled by
+    /// the first frame's classification.
     steps: Vec<Step>,
     labels: Vec<String>,
     frame_steps: Vec<u64>,
@@ -172,7 +170,6 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     Some(Box::new(Transversality {
         ctx: ctx.clone(),
         m: ctx.d / 2 - 3,
-        detected: mode_steps::detect_steps(ctx).unwrap_or_default(),
         steps: Vec::new(),
         labels: Vec::new(),
         frame_steps: Vec::new(),
@@ -198,9 +195,9 @@ impl Analysis for Transversality {
     fn consume(&mut self, frame: &Frame) -> Result<()> {
         let d = frame.d;
         if self.theta.is_none() {
-            let exponents = self.ctx.gs.as_ref().map(|g| g.exponents.as_slice()).unwrap_or_default();
+            self.ctx.settle(frame);
+            self.steps = mode_steps::positive(&self.ctx.modes, d);
             let candidates = mode_steps::candidates(&self.ctx);
-            self.steps = mode_steps::resolve_steps(&self.detected, frame, &candidates, exponents).into_iter().map(|(s, _)| s).filter(|s| mode_steps::is_positive(s, d)).collect();
             self.phi = vec![Vec::new(); self.steps.len()];
             let j = f_size(d, &self.steps);
             self.theta = Some(ThetaStats::new(j, separations(d, j)));
