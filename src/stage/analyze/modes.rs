@@ -639,6 +639,8 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
     let mut columns = Columns(vec![(axes.x_label.split(' ').next().unwrap_or("x").into(), x.clone())]);
     let (a, t) = (axes.along_name, axes.across_name);
     let mut figs = Vec::new();
+    // rms of δq across over rms of δq along, per source: 0 for an ideal L pattern.
+    let mut across = Vec::new();
     // Fig. 11 from the position part (sine patterns), Fig. 12 from the momentum part (cosine).
     for (fig_no, part, c, pattern) in [(11, Part::Position, 'q', "sin"), (12, Part::Momentum, 'p', "cos")] {
         let (mut l_points, mut p_points, mut l_fits, mut p_fits) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -668,8 +670,12 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
             columns.push(format!("fig{fig_no}_L_d{c}{a}_{s}"), &l_x);
             columns.push(format!("fig{fig_no}_L_d{c}{t}_{s}"), &l_y);
             columns.push(format!("fig{fig_no}_P_d{c}_over_p_{s}"), &p_f);
+            if part == Part::Position {
+                let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+                across.push(format!("{src} {:.2}", rms(&l_y) / rms(&l_x)));
+            }
             l_points.push((format!("{src} δ{c}_{a}"), l_x));
-            l_points.push((format!("{src} δ{c}_{t} (vanishes)"), l_y));
+            l_points.push((format!("{src} δ{c}_{t} (0 for an ideal L)"), l_y));
             p_points.push((format!("{src} (δ{c}·p)/p²"), p_f));
             l_fits.push((format!("{src} fit: A = {:.3}", lfit.amplitude), lfit));
             p_fits.push((format!("{src} fit: A = {:.3}", pfit.amplitude), pfit));
@@ -693,12 +699,13 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
         Produced {
             title: format!("Longitudinal-momentum mode {name} (Figs. 11, 12)"),
             caption: format!(
-                "Pure L and P vectors reconstructed at step {} inside the four-dimensional {} of {name} (i = {}..{}) by least squares against the Table IV patterns, against {}: Fig. 11 from the position perturbations (sine patterns: δq_{a} of L, with δq_{t} as a check that it vanishes, and (δq·p)/p² of P, the momenta divided out), Fig. 12 likewise from the momentum perturbations (cosine patterns). Overlaps and sine fits are in modes_lp.csv.",
+                "Pure L and P vectors reconstructed at step {} inside the four-dimensional {} of {name} (i = {}..{}) by least squares against the Table IV patterns, against {}: Fig. 11 from the position perturbations (sine patterns: δq_{a} of L, with δq_{t}, which vanishes for an ideal L pattern, as a check, here rms δq_{t} / rms δq_{a} = {}, and (δq·p)/p² of P, the momenta divided out), Fig. 12 likewise from the momentum perturbations (cosine patterns). Overlaps and sine fits are in modes_lp.csv.",
                 frame.step,
                 if frame.g.is_some() { "GS and covariant subspaces" } else { "covariant subspace" },
                 step.start + 1,
                 step.start + step.len,
-                axes.x_label
+                axes.x_label,
+                across.join(", ")
             ),
             figures: figs,
             tables: vec![format!("{stem}.csv"), "modes_lp.csv".into()],

@@ -3,14 +3,16 @@
 //!
 //! * Fig. 3: <|g^i . v^i|> against i, GS and covariant vector of the same exponent (needs GS
 //!   vectors in the frames); 1 for i = 1 and for i = 2N-2, where v^i = g^i.
-//! * Fig. 4: <|v^j . g^i|> against i for the selected j (needs GS vectors). V_n = G_n C_n with
-//!   upper-triangular C_n puts v^j into span{g^1..g^j}: the curve vanishes for i > j.
+//! * Fig. 4: <|v^j . g^i|> against i (needs GS vectors) for the selected j, or by default for
+//!   hard disks the paper's four kinds (its j = 370, 393, 400, 700): the last unstable vector
+//!   before the mode region, the unstable and stable mode vectors next to the null space, and
+//!   a stable vector that is no mode. V_n = G_n C_n with upper-triangular C_n puts v^j into
+//!   span{g^1..g^j}: the curve vanishes for i > j.
 //! * Fig. 13: <|v^j . v^i|> against i (i != j) for the selected j (CLVs only).
 //! * Fig. 14: the same for j in the mode region, restricted to the central part of the
-//!   spectrum: the last index of each of the two positive mode steps nearest the null space
-//!   (the mode table's, [`Context::settle`] at the first frame;
-//!   2N-3 of T(1,0) and 2N-5 of LP(1,0) in the paper's box), or 2N-5 and 2N-3 where fewer
-//!   than two are found.
+//!   spectrum: the last index of each positive mode step (the mode table's,
+//!   [`Context::settle`] at the first frame; the paper shows T and LP for n_x = 1, 2, 3), or
+//!   2N-5 and 2N-3 where fewer than two are found.
 //!
 //! The absolute value is taken because only the direction of a tangent vector matters (the
 //! paper, Sec. 5.1). Averages run over the consumed frames (those of every m-th step, `--every`).
@@ -26,18 +28,21 @@ pub struct Overlaps {
     ctx: Context,
     /// <|g^i . v^i|> (Fig. 3), with GS vectors.
     gv: Option<Mean>,
-    /// Selected indices j (0-based) of Figs. 4 and 13, from the first frame on.
+    /// Selected indices j (0-based) of Fig. 13, from the first frame on.
     js: Vec<usize>,
+    /// Those of Fig. 4: the selected ones, or by default for hard disks the paper's four
+    /// kinds (an unstable and a stable vector, each a mode and not).
+    fig4_js: Vec<usize>,
     /// Mode indices j (0-based) of Fig. 14, from the first frame on.
     mode_js: Vec<usize>,
-    /// `mode_js` end the two mode steps found nearest the null space (else, with fewer, they
-    /// are the fixed 2N-5, 2N-3).
+    /// `mode_js` end the positive mode steps found, at least two (else they are the fixed
+    /// 2N-5, 2N-3).
     mode_js_from_steps: bool,
     /// The indices are chosen ([`Overlaps::settle`]).
     settled: bool,
     /// The conjugate partners 4N+1-j of `js` (0-based), Fig. 13's second plot.
     conjugate_js: Vec<usize>,
-    /// <|v^j . g^i|> per selected j (Fig. 4), with GS vectors.
+    /// <|v^j . g^i|> per j of `fig4_js`, with GS vectors.
     vg: Option<Vec<Mean>>,
     /// Indices j with a CLV-CLV average: the union of `js`, `mode_js` and `conjugate_js`.
     vv_js: Vec<usize>,
@@ -55,6 +60,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
         vg: None,
         vv: Vec::new(),
         js: Vec::new(),
+        fig4_js: Vec::new(),
         mode_js: Vec::new(),
         mode_js_from_steps: false,
         settled: false,
@@ -74,17 +80,20 @@ impl Overlaps {
         if ctx.is_disks() && ctx.k == ctx.d {
             self.conjugate_js = self.js.iter().map(|&j| ctx.d - 1 - j).filter(|j| !self.js.contains(j)).collect();
         }
-        // Fig. 14's j: a vector of each of the two slowest modes, the positive steps nearest
-        // the null space (T(1,0) and LP(1,0) in the paper's box, T(1,0)+T(0,1) first in a
-        // square).
+        // Fig. 14's j: a vector of each unstable mode (the paper's six panels: T and LP for
+        // n_x = 1, 2, 3).
         let step_ends: Vec<usize> = super::mode_steps::positive(&ctx.modes, ctx.d).iter().map(|s| s.start + s.len - 1).collect();
         self.mode_js_from_steps = step_ends.len() >= 2;
         self.mode_js = match ctx.central_range() {
-            Some(_) if self.mode_js_from_steps => step_ends[step_ends.len() - 2..].to_vec(),
+            Some(_) if self.mode_js_from_steps => step_ends,
             Some(_) if ctx.n >= 3 => vec![2 * ctx.n - 6, 2 * ctx.n - 4],
             _ => Vec::new(),
         };
-        self.vg = ctx.with_gs.then(|| self.js.iter().map(|_| Mean::new(ctx.k)).collect());
+        self.fig4_js = match (ctx.j_default && ctx.is_disks() && ctx.k == ctx.d && ctx.n >= 4, self.js.last()) {
+            (true, Some(&last)) => vec![last, 2 * ctx.n - 4, 2 * ctx.n + 3, ctx.d - super::paper_index(93, 2 * ctx.n - 3)],
+            _ => self.js.clone(),
+        };
+        self.vg = ctx.with_gs.then(|| self.fig4_js.iter().map(|_| Mean::new(ctx.k)).collect());
         self.vv_js = self.js.iter().chain(&self.mode_js).chain(&self.conjugate_js).copied().collect();
         self.vv_js.sort_unstable();
         self.vv_js.dedup();
@@ -138,7 +147,7 @@ impl Analysis for Overlaps {
             gv.add(abs_dots_pairwise(g, &frame.v, d));
         }
         if let (Some(vg), Some(g)) = (self.vg.as_mut(), frame.g.as_ref()) {
-            for (acc, &j) in vg.iter_mut().zip(&self.js) {
+            for (acc, &j) in vg.iter_mut().zip(&self.fig4_js) {
                 acc.add(abs_dots_with(frame.v(j), g));
             }
         }
@@ -180,10 +189,22 @@ impl Analysis for Overlaps {
                     "Time average of |g^i · v^i| for the GS and covariant vectors of the same exponent λ_i against i, {avg}{}.{}",
                     central.map(|(a, b)| format!("; the second plot enlarges the central (mode and null-space) part, i = {}..{}", a + 1, b + 1)).unwrap_or_default(),
                     if central.is_some() {
+                        let n = ctx.n;
+                        let kept = (2 * n - 2..2 * n).all(|i| (mean[i] - 1.0).abs() < 1e-9);
                         format!(
-                            " It vanishes at i = {}..{}: those covariant vectors are E_(k+3) - s E_k after a backward time s (see Fig. 2), turned towards the position shifts E_k, while those GS vectors are the momentum shifts E_(k+3).",
-                            2 * ctx.n + 1,
-                            2 * ctx.n + 3
+                            " It is 1 at i = 1 and i = 2N-2 = {}, where v^i = g^i for any start (the paper).{} It vanishes at i = {}..{}: those covariant vectors are E_(k+3) - s E_k after a backward time s (see Fig. 2), turned towards the position shifts E_k, while those GS vectors are the momentum shifts E_(k+3).",
+                            2 * n - 2,
+                            if kept {
+                                format!(
+                                    " It is 1 at i = {}, {} too, by the backward stage's start: the null space's exponents are equal, so the backward iteration does not turn its covariant vectors within it, and with C = identity (`--c-init identity`, the default) they keep the GS directions (`--c-init random` gives others).",
+                                    2 * n - 1,
+                                    2 * n
+                                )
+                            } else {
+                                String::new()
+                            },
+                            2 * n + 1,
+                            2 * n + 3
                         )
                     } else {
                         String::new()
@@ -194,20 +215,28 @@ impl Analysis for Overlaps {
             });
         }
 
-        if let (Some(vg), false) = (&self.vg, self.js.is_empty()) {
+        if let (Some(vg), false) = (&self.vg, self.fig4_js.is_empty()) {
             let means: Vec<&Mean> = vg.iter().collect();
-            let (header, rows) = per_j_table(ctx, &self.js, &means, "abs_v");
+            let (header, rows) = per_j_table(ctx, &self.fig4_js, &means, "abs_v");
             csv(out, "overlap_clv_gs.csv", &header, rows)?;
             let mut fig = Figure::new("Covariant vector v^j against all GS vectors: <|v^j · g^i|>").x_label("i").y_label("<|v^j · g^i|>");
-            for (m, j) in vg.iter().zip(&self.js) {
+            for (m, j) in vg.iter().zip(&self.fig4_js) {
                 fig.series(&format!("j = {}", j + 1), &idx, &m.mean(), line);
             }
             save_figure(&fig, out, "fig4_clv_gs_overlap")?;
+            let which = if self.fig4_js == self.js {
+                "the selected covariant vectors".to_string()
+            } else {
+                format!(
+                    "the covariant vectors of the paper's j = 370, 393, 400 and 700: the last unstable vector before the mode region, the unstable and the stable mode vector next to the null space (2N-3, 2N+4), and a stable vector that is no mode, the conjugate 4N+1-j of the paper's 93 scaled (its curve may step at i = {})",
+                    ctx.d - self.fig4_js[3]
+                )
+            };
             produced.push(Produced {
                 title: "Covariant vectors in the GS basis (Fig. 4)".into(),
                 caption: format!(
-                    "Time average of |v^j · g^i| against i for the selected covariant vectors j = {}, {avg}. Since V = G C with upper-triangular C, v^j lies in span{{g^1..g^j}}: the curves vanish for i > j.",
-                    list(&self.js)
+                    "Time average of |v^j · g^i| against i for {which}, j = {}, {avg}. Since V = G C with upper-triangular C, v^j lies in span{{g^1..g^j}}: the curves vanish for i > j.",
+                    list(&self.fig4_js)
                 ),
                 figures: vec!["fig4_clv_gs_overlap".into()],
                 tables: vec!["overlap_clv_gs.csv".into()],
@@ -261,7 +290,7 @@ impl Analysis for Overlaps {
                         "Time average of |v^j · v^i| for j = {} ({}) against i = {}..{} (i != j), {avg}. Mode vectors overlap with the vectors of the same degenerate exponent and, less, with the conjugate ones.",
                         list(&self.mode_js),
                         if self.mode_js_from_steps {
-                            "the last index of each of the two positive mode steps nearest the null space, found as the mode table finds them, which says what they are"
+                            "the last index of each positive mode step, found as the mode table finds them, which says what they are"
                         } else {
                             "2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any; fewer than two mode steps were found to choose by"
                         },
@@ -384,6 +413,33 @@ mod tests {
         assert!(!out.join("overlap_gs_clv.csv").exists());
     }
 
+    /// Fig. 4 shows by default the paper's four kinds of vector (its j = 370, 393, 400,
+    /// 700: the last unstable one before the modes, the unstable and stable mode vectors next
+    /// to the null space, a stable one that is no mode), scaled; a given j replaces them.
+    #[test]
+    fn fig4_takes_the_papers_four_kinds_by_default() {
+        let (n, d) = (10, 40);
+        let fig4 = |default: bool| {
+            let mut ctx = context("disks", n, d, true, vec![1, 9, 16]);
+            ctx.gs = Some(testing::spectrum(n, 2));
+            ctx.j_default = default;
+            let mut a = new(&ctx).unwrap();
+            a.consume(&frame(0, d, identity(d), Some(identity(d)))).unwrap();
+            let out = scratch(&format!("overlaps-fig4-{default}"));
+            let produced = a.finish(&out, 1).unwrap();
+            let header = std::fs::read_to_string(out.join("overlap_clv_gs.csv")).unwrap().lines().next().unwrap().to_string();
+            (produced.into_iter().find(|p| p.title.contains("Fig. 4")).expect("Fig. 4").caption, header)
+        };
+        // 2N-3 = 17 positive exponents, a T step at 16..17: the last before it is 15; the
+        // paper's 93 of 393 scales to 4, whose conjugate is 37.
+        let (caption, header) = fig4(true);
+        assert!(caption.contains("paper's j = 370, 393, 400 and 700") && caption.contains("j = 15, 17, 24, 37,") && caption.contains("step at i = 4)"), "{caption}");
+        assert!(header.contains("abs_v15_mean,abs_v15_std,abs_v17_mean,abs_v17_std,abs_v24_mean,abs_v24_std,abs_v37_mean"), "{header}");
+        let (caption, header) = fig4(false);
+        assert!(caption.contains("the selected covariant vectors, j = 1, 9, 16,"), "{caption}");
+        assert!(header.contains("abs_v1_mean,abs_v1_std,abs_v9_mean,abs_v9_std,abs_v16_mean"), "{header}");
+    }
+
     /// Fig. 14 takes the last index of each of the two positive mode steps nearest the null
     /// space when two are found, wherever they are; with fewer it keeps the paper's 2N-5 and
     /// 2N-3.
@@ -417,7 +473,7 @@ mod tests {
             two.exponents[d - 1 - i] = -0.6;
         }
         let (fig14, fig13) = captions(two);
-        assert!(fig14.contains("j = 13, 17 (the last index of each of the two positive mode steps"), "{fig14} (m = {m})");
+        assert!(fig14.contains("j = 13, 17 (the last index of each positive mode step"), "{fig14} (m = {m})");
         assert!(fig13.contains("selected covariant vectors j = 1, 9, and"), "{fig13}");
     }
 }
