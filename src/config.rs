@@ -35,7 +35,7 @@ impl SystemConfig {
     /// Disks from N, density and aspect ratio Ly/Lx.
     pub fn disks(n: usize, density: f64, aspect: f64) -> Result<Self> {
         if !(density > 0.0 && density.is_finite()) {
-            return Err(Error::param("density", format!("must be positive, got {density}")));
+            return Err(Error::param("density", format!("must be a positive finite number, got {density}")));
         }
         // Hexagonal close packing of unit disks: 2/sqrt(3) disks per unit area.
         let close_packed = 2.0 / 3f64.sqrt();
@@ -43,7 +43,7 @@ impl SystemConfig {
             return Err(Error::param("density", format!("{density} is at or above the close packing of disks, 2/sqrt(3) = {close_packed:.4}: no box holds disks that dense")));
         }
         if !(aspect > 0.0 && aspect.is_finite()) {
-            return Err(Error::param("aspect", format!("must be positive, got {aspect}")));
+            return Err(Error::param("aspect", format!("must be a positive finite number, got {aspect}")));
         }
         let (lx, ly) = box_sides(n, density, aspect);
         Ok(SystemConfig::Disks { n, lx, ly, density, aspect })

@@ -47,7 +47,7 @@ impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Error::Param { name, msg } => write!(f, "invalid --{name}: {msg}"),
-            Error::Io { path, source } if source.is_disk_full() => write!(f, "{}: disk full ({source}); every file finished before it is intact: free space, then give the command again", path.display()),
+            Error::Io { path, source } if source.is_disk_full() => write!(f, "{}: {} ({source}); every file finished before it is intact: {}, then give the command again", path.display(), source.no_room(), source.remedy()),
             Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
             Error::Dynamics(msg) => write!(f, "dynamics: {msg}"),
             Error::Corrupt { path, msg } => write!(f, "{}: corrupt or unreadable: {msg}", path.display()),
@@ -65,13 +65,32 @@ impl fmt::Display for Error {
     }
 }
 
+/// No room for a write: a full disk (ENOSPC), a quota (EDQUOT) or a file-size limit (EFBIG,
+/// `ulimit -f`). The same way out for all: make room, then continue.
 trait DiskFull {
     fn is_disk_full(&self) -> bool;
+    /// What ran out, for the message.
+    fn no_room(&self) -> &'static str;
+    fn remedy(&self) -> &'static str;
 }
 
 impl DiskFull for std::io::Error {
     fn is_disk_full(&self) -> bool {
-        self.kind() == std::io::ErrorKind::StorageFull || self.raw_os_error() == Some(28)
+        self.kind() == std::io::ErrorKind::StorageFull || matches!(self.raw_os_error(), Some(libc::ENOSPC | libc::EDQUOT | libc::EFBIG))
+    }
+    fn no_room(&self) -> &'static str {
+        match self.raw_os_error() {
+            Some(libc::EDQUOT) => "disk quota exceeded",
+            Some(libc::EFBIG) => "file-size limit reached",
+            _ => "disk full",
+        }
+    }
+    fn remedy(&self) -> &'static str {
+        match self.raw_os_error() {
+            Some(libc::EDQUOT) => "free space within the quota (or have it raised)",
+            Some(libc::EFBIG) => "raise the limit (`ulimit -f`, or the batch system's)",
+            _ => "free space",
+        }
     }
 }
 
@@ -81,7 +100,7 @@ impl Error {
     pub fn on_full_disk(self, then: impl FnOnce() -> String) -> Self {
         match self {
             Error::Io { path, source } if source.is_disk_full() => {
-                Error::Other(format!("{}: disk full ({source}); every file finished before it is intact: free space, then {}", path.display(), then()))
+                Error::Other(format!("{}: {} ({source}); every file finished before it is intact: {}, then {}", path.display(), source.no_room(), source.remedy(), then()))
             }
             other => other,
         }

@@ -41,8 +41,17 @@ fn large_allocations_from_mmap() {
     mallopt(M_MMAP_THRESHOLD, 1 << 20);
 }
 
+/// A file-size limit (`ulimit -f`, a batch system's) reached is an error of the write that
+/// reaches it (EFBIG, named with its file, and the run resumes like after a full disk), not
+/// SIGXFSZ, which kills the process without a word.
+fn file_size_limit_as_an_error() {
+    // SAFETY: setting a signal's disposition to ignore, before any other thread exists.
+    unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
+}
+
 fn main() {
     one_malloc_arena();
+    file_size_limit_as_an_error();
     let result = cli::parse(std::env::args().collect()).and_then(|(cli, matches)| {
         if matches!(cli.command, cli::Command::Forward(_)) {
             large_allocations_from_mmap();

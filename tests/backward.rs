@@ -635,6 +635,35 @@ fn analyze_run_dir_reads_only_the_last_sweeps_own_file() {
     ok(analyze("no-record").0);
 }
 
+/// `clv analyze RUN_DIR` reads the frame file the last sweep recorded only if it holds that
+/// run's frames from that sweep: another run's file copied over it, or an earlier sweep's
+/// restored over it, is refused, naming what differs; by its name either is read.
+#[test]
+fn analyze_run_dir_refuses_a_file_of_another_run_or_sweep() {
+    let flags = ["--n", "8", "--steps", "600", "--relax-steps", "50", "--clv-steps", "100"];
+    let (one, two) = (forward("foreign-frames-1", &flags), forward("foreign-frames-2", &[&flags[..], &["--seed", "2"]].concat()));
+    for dir in [&one, &two] {
+        ok(clv(&["backward", dir.to_str().unwrap(), "--quiet"]));
+    }
+    let analyze = |source: &Path, name: &str| {
+        let rep = one.parent().unwrap().join(name);
+        (clv(&["analyze", source.to_str().unwrap(), "--out", rep.to_str().unwrap(), "--only", "spectrum", "--quiet"]), rep)
+    };
+    let refused = |(out, rep): (std::process::Output, PathBuf), what: &str| {
+        let err = common::stderr(&out);
+        assert!(!out.status.success() && err.contains(what) && err.contains("analyse the file by name"), "{err}");
+        assert!(!rep.exists(), "a refused analysis wrote {}", rep.display());
+    };
+    std::fs::copy(one.join("frames.mcap"), two.join("frames.mcap")).unwrap();
+    refused(analyze(&two, "foreign-run"), "holds another run's frames (--seed 2 in run.json, 1 in the file)");
+    ok(analyze(&two.join("frames.mcap"), "foreign-run-by-name").0);
+    let other = one.join("other.mcap");
+    ok(clv(&["backward", one.to_str().unwrap(), "--out", other.to_str().unwrap(), "--transient", "20", "--quiet"]));
+    ok(analyze(&one, "last-sweep").0);
+    std::fs::copy(one.join("frames.mcap"), &other).unwrap();
+    refused(analyze(&one, "earlier-sweep"), "but another sweep wrote it");
+}
+
 fn read_text(path: &Path) -> String {
     std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }

@@ -171,6 +171,15 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
         ok(clv(&["forward", "--resume", dir.to_str().unwrap(), "--quiet"]));
         assert!(contents(&dir) == want, "limit {limit}: resumed run differs");
     }
+    // A file-size limit (`ulimit -f` of 100 kB, below a segment's 200 kB) is met the same way,
+    // not by SIGXFSZ killing the process without a word.
+    let dir = scratch("faults", "file-size-limit").join("run");
+    let args = forward_args(&dir).join(" ");
+    let out = Command::new("bash").args(["-c", &format!("ulimit -f 100 && exec {} {args}", env!("CARGO_BIN_EXE_clv"))]).output().unwrap();
+    let err = stderr(&out);
+    assert!(out.status.code() == Some(1) && err.contains("file-size limit reached") && err.contains(&format!("clv forward --resume {}", dir.display())), "{:?}: {err}", out.status);
+    ok(clv(&["forward", "--resume", dir.to_str().unwrap(), "--quiet"]));
+    assert!(contents(&dir) == want, "resumed after the file-size limit, the run differs");
     // The backward stage on a full disk: same promise.
     let (dir, _) = reference("full-bwd");
     let d = dir.to_str().unwrap();
@@ -926,7 +935,7 @@ fn damaged_or_edited_records_are_refused_not_continued_from() {
     for name in ["clv_spectrum.json", "backward.tmp", "seg-000000000000-000000000050.mcap", "notes", "previous-3000-steps/frames.mcap"] {
         let out = dir.join(name);
         let refused = clv(&["backward", d, "--quiet", "--out", out.to_str().unwrap()]);
-        assert!(!refused.status.success() && stderr(&refused).contains("a name the run's own files use"), "{name}: {}", stderr(&refused));
+        assert!(!refused.status.success() && stderr(&refused).contains("where only frame files ending in .mcap"), "{name}: {}", stderr(&refused));
     }
     // Nor is a report written into the run directory.
     let refused = clv(&["analyze", want.to_str().unwrap(), "--out", d, "--overwrite", "--quiet"]);
@@ -1131,4 +1140,38 @@ fn finite_time_windows_longer_than_the_stream_are_refused() {
     assert!(!out.status.success() && err.contains("invalid --deltas") && err.contains("give lengths up to"), "{err}");
     assert!(!rep.join("index.html").exists(), "a refused report was written");
     ok(clv(&["analyze", f, "--out", rep.to_str().unwrap(), "--deltas", "100000,5", "--only", "local_exponents", "--quiet"]));
+}
+
+/// A finished sweep's frame file cut short: `clv inspect RUN` names it (by its end, without
+/// reading the frames), `clv inspect FILE` and `clv analyze` give the command that writes it
+/// whole, `--resume` says the sweep finished and recomputes nothing, and that command,
+/// given once the file is moved aside, writes the same frames again.
+#[test]
+fn a_cut_frame_file_is_named_and_written_whole_again() {
+    let (dir, _) = reference("cut-frames");
+    let d = dir.to_str().unwrap();
+    let file = dir.join("frames.mcap");
+    ok(clv(&["backward", d, "--save-every", "5", "--transient", "100", "--quiet"]));
+    let whole = frames(&file);
+    let len = std::fs::metadata(&file).unwrap().len();
+    std::fs::OpenOptions::new().write(true).open(&file).unwrap().set_len(len / 2).unwrap();
+    let seen = clv(&["inspect", d]);
+    let text = String::from_utf8_lossy(&seen.stdout).to_string();
+    assert!(!seen.status.success() && text.contains("frames.mcap, the frame file of the last backward sweep, is cut short"), "{text}");
+    let report = dir.parent().unwrap().join("cut-report");
+    for out in [clv(&["inspect", file.to_str().unwrap()]), clv(&["analyze", d, "--out", report.to_str().unwrap(), "--only", "spectrum", "--quiet"])] {
+        let err = stderr(&out);
+        assert!(!out.status.success() && err.contains(&format!("move {} aside and give its sweep again", file.display())), "{err}");
+    }
+    let err = stderr(&clv(&["inspect", file.to_str().unwrap()]));
+    let command = err.split('`').nth(1).expect("a command in backquotes").to_string();
+    assert!(command.starts_with(&format!("clv backward {d} --out {} --save-every 5", file.display())) && command.contains("--transient 100"), "{command}");
+    let resumed = ok(clv(&["backward", d, "--resume"]));
+    assert!(stderr(&resumed).contains("finished earlier: nothing was recomputed"), "{}", stderr(&resumed));
+    assert_eq!(std::fs::metadata(&file).unwrap().len(), len / 2);
+    std::fs::rename(&file, dir.join("frames.cut.mcap")).unwrap();
+    let args: Vec<&str> = command.split_whitespace().skip(1).chain(["--quiet"]).collect();
+    ok(clv(&args));
+    assert!(frames(&file) == whole, "the frames written again differ");
+    ok(clv(&["inspect", d]));
 }

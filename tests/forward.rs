@@ -189,7 +189,7 @@ fn cli_refuses_bad_input_with_a_clear_message() {
         (vec!["forward", "--aspect", "2/0"], "--aspect"),
         (vec!["forward", "--n", "4", "--density", "5"], "close packing"),
         (vec!["forward", "--tau", "-1"], "--tau: must be a positive number, got -1"),
-        (vec!["forward", "--density", "-0.5"], "--density: must be positive"),
+        (vec!["forward", "--density", "-0.5"], "--density: must be a positive finite number"),
         (vec!["forward", "--system", "henon", "--n", "40"], "--n: sets up hard disks"),
     ] {
         let out = clv(&args);

@@ -648,4 +648,14 @@ fn clv_run_writes_no_report_over_another_runs() {
     let err = common::stderr(&inside);
     assert!(!inside.status.success() && err.contains("is a run directory (it holds run.json)") && err.contains("--out"), "{err}");
     assert!(!n.join("run/run").exists() && !n.join("run/report").exists());
+    // A file where the run or the report goes.
+    for part in ["run", "report"] {
+        let o = n.parent().unwrap().join(format!("file-as-{part}"));
+        std::fs::create_dir_all(&o).unwrap();
+        std::fs::write(o.join(part), "mine").unwrap();
+        let out = run(&o, &[]);
+        let err = common::stderr(&out);
+        assert!(!out.status.success() && err.contains(&format!("{} is a file, where `clv run` keeps the {part}", o.join(part).display())), "{err}");
+        assert_eq!(read(&o.join(part)), "mine");
+    }
 }

@@ -257,6 +257,21 @@ fn an_edited_run_json_is_refused_and_restored_from_the_segments_copy() {
         std::fs::rename(dir.join("run.json.from-segments"), &meta).unwrap();
     }
     assert!(!dir.join("spectrum.json").exists(), "nothing computed from an edited run.json");
+    // Nor does removing the checksum with the edit pass: a run.json without one (an earlier
+    // build's) must agree with the newest segment's copy.
+    let mut v: serde_json::Value = serde_json::from_str(&restored).unwrap();
+    v.as_object_mut().unwrap().remove("crc32");
+    v["config"]["steps"] = 1500.into();
+    std::fs::write(&meta, serde_json::to_vec_pretty(&v).unwrap()).unwrap();
+    for args in [vec!["forward", "--resume", d, "--quiet"], vec!["backward", d, "--quiet"], vec!["inspect", d]] {
+        let out = clv(&args);
+        let text = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(!out.status.success() && text.contains("carries no checksum") && text.contains("run.json.from-segments"), "{args:?}: {text}");
+    }
+    v["config"]["steps"] = 3000.into();
+    std::fs::write(&meta, serde_json::to_vec_pretty(&v).unwrap()).unwrap();
+    ok(clv(&["inspect", d]));
+    std::fs::rename(dir.join("run.json.from-segments"), &meta).unwrap();
     // Deleted, it is restored the same way.
     std::fs::remove_file(&meta).unwrap();
     let out = clv(&["forward", "--resume", d, "--quiet"]);

@@ -104,7 +104,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
                 let in_previous = recorded.is_relative() && recorded.components().next().is_some_and(|c| c.as_os_str().to_string_lossy().starts_with("previous-"));
                 if in_previous || (recorded.components().count() == 1 && (!name.ends_with(".mcap") || name.starts_with("seg-"))) {
                     return Err(Error::param("out", format!(
-                        "{} would be {name} in the run directory, a name the run's own files use; give a name ending in .mcap (frames.mcap is the default), or a path outside the run directory",
+                        "{} would be {name} in the run directory, where only frame files ending in .mcap (other than the run's seg-*.mcap) may go, beside the run's own files; give such a name (frames.mcap is the default), or a path outside the run directory",
                         path.display()
                     )));
                 }

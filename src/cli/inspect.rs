@@ -33,17 +33,21 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
                 args.dir.display(),
                 found.frames
             ))),
-            Some(_) => Err(Error::Other(format!("{}: damaged or cut short; its {} complete frames can still be analysed, and {resume}", args.dir.display(), found.frames))),
+            Some(_) => {
+                let options: Option<clv::stage::backward::BackwardOptions> = found.backward.clone().and_then(|b| serde_json::from_value(b).ok());
+                let rewrite = clv::stage::backward::rewrite_advice(&args.dir, options.as_ref(), found.run_dir.as_deref());
+                Err(Error::Other(format!("{}: damaged or cut short; its {} complete frames can still be analysed; {rewrite}", args.dir.display(), found.frames)))
+            }
         };
     }
     let found = inspect::inspect(&args.dir)?;
     print_inspection(&found, found.text(), args.json)?;
-    // Segments, gaps and run.json are repaired by a forward resume; each damaged record's
-    // line says what repairs it.
-    let only_records = found.segments.iter().all(|s| s.damage.is_none()) && found.gaps.is_empty() && found.meta_mismatch.is_none();
+    // Damaged segments and gaps are repaired by a forward resume; each damaged record's line,
+    // and a run.json that disagrees with the segments, says what repairs it.
+    let only_records = found.segments.iter().all(|s| s.damage.is_none()) && found.gaps.is_empty();
     match (found.intact, only_records) {
         (true, _) => Ok(()),
-        (false, true) => Err(Error::Other(format!("{}: damaged records found; each DAMAGE line above says how to repair it", args.dir.display()))),
+        (false, true) => Err(Error::Other(format!("{}: damage found; each DAMAGE line above says how to repair it", args.dir.display()))),
         (false, false) => Err(Error::Other(format!("{}: damaged files found (see above); repair them with `clv forward --resume {}`", args.dir.display(), args.dir.display()))),
     }
 }

@@ -196,12 +196,46 @@ fn backward_sweep(dir: &RunDir) -> Option<String> {
     Some(if v["done"].as_bool().unwrap_or(false) {
         format!("finished, {frames} frames ({out})")
     } else {
+        // Its frames so far are kept in FILE.tmp, which a sweep with other options would strand.
+        let kept = opts.frames_file(&dir.path).map(|f| crate::store::frames::tmp_path(&f)).filter(|t| t.exists());
         format!(
-            "interrupted after {frames} frames ({out}), C recorded at step {}: `clv backward {} --resume` continues it; a sweep with other options is refused until then",
+            "interrupted after {frames} frames ({out}), C recorded at step {}: `clv backward {} --resume` continues it{}",
             v["at"].as_u64().unwrap_or(0),
-            dir.path.display()
+            dir.path.display(),
+            kept.map(|t| format!("; a sweep with other options is refused until then (it would strand the frames in {})", t.display())).unwrap_or_default()
         )
     })
+}
+
+/// How to compute a damaged CLV spectrum again: the recorded sweep again (its frames too), or
+/// a sweep without frames, which then is the last sweep `clv analyze RUN_DIR` reads.
+fn clv_spectrum_advice(dir: &RunDir) -> String {
+    let run = dir.path.display();
+    let alone = format!("`clv backward {run} --save-every 0` computes the spectrum alone, but then records a sweep without frames, so `clv analyze` needs the frame file by name");
+    match crate::stage::backward::last_sweep(&dir.path) {
+        Ok(Some(last)) if last.options.frames_file(&dir.path).is_some() && last.options.save_every > 0 => {
+            let file = last.options.frames_file(&dir.path).unwrap_or_default();
+            let flags = crate::stage::backward::BackwardOptions { frames_path: Some(file.clone()), ..last.options }.as_flags();
+            format!("give the last sweep again, `clv backward {run} {flags}` (move {} aside first: it writes the frames again too); or {alone}", file.display())
+        }
+        _ => alone,
+    }
+}
+
+/// The last finished sweep's frame file, where it is recorded and cut short (checked by its
+/// end only: `clv inspect FILE` reads every frame).
+fn damaged_frame_file(dir: &RunDir) -> Option<String> {
+    let last = crate::stage::backward::last_sweep(&dir.path).ok()??;
+    let file = last.options.frames_file(&dir.path).filter(|f| last.done && last.options.save_every > 0 && f.exists())?;
+    if crate::store::frames::ends_whole(&file).unwrap_or(false) {
+        return None;
+    }
+    Some(format!(
+        "{}, the frame file of the last backward sweep, is cut short (it does not end as a whole MCAP file); `clv inspect {}` counts its complete frames; {}",
+        file.display(),
+        file.display(),
+        crate::stage::backward::rewrite_advice(&file, Some(&last.options), Some(&dir.path))
+    ))
 }
 
 /// The run's checksummed records that exist and fail their check ([`crate::store::checked_json`]).
@@ -210,7 +244,7 @@ fn damaged_records(dir: &RunDir) -> Vec<String> {
     let records = [
         ("spectrum.json", format!("`clv forward --resume {run}` rewrites it from the run's last checkpoint")),
         ("backward.json", format!("the backward sweep it records cannot be resumed: delete it (and the sweep's FRAMES.mcap.tmp, if one is left; move a finished FRAMES.mcap aside), then `clv backward {run}` without --resume starts the sweep over")),
-        ("clv_spectrum.json", format!("`clv backward {run} --save-every 0` computes it again (without writing frames)")),
+        ("clv_spectrum.json", clv_spectrum_advice(dir)),
     ];
     // The CLV spectra of earlier sweeps kept beside it: a damaged one is reported only.
     let kept: Vec<(String, String)> = std::fs::read_dir(&dir.path)
@@ -230,6 +264,7 @@ fn damaged_records(dir: &RunDir) -> Vec<String> {
             let e = crate::store::checked_json::read::<serde_json::Value>(&path).err().filter(|_| path.exists())?;
             Some(format!("{e}; {what_to_do}"))
         })
+        .chain(damaged_frame_file(dir))
         .collect()
 }
 
@@ -363,16 +398,9 @@ pub fn inspect_frames(path: &Path) -> Result<FrameFileInspection> {
     }
     found.backward = backward_json.and_then(|j| serde_json::from_str::<serde_json::Value>(&j).ok());
     found.damage = damage;
-    // FILE (or FILE.tmp) is RUN_DIR/<recorded path> when that path is relative.
-    let recorded = found.backward.as_ref().and_then(|b| b["frames_path"].as_str()).map(std::path::PathBuf::from).filter(|p| p.is_relative());
+    let recorded = found.backward.as_ref().and_then(|b| b["frames_path"].as_str()).map(std::path::PathBuf::from);
     let file = if unfinished { path.with_extension("") } else { path.to_path_buf() };
-    found.run_dir = recorded.and_then(|r| {
-        let mut dir = file.clone();
-        for _ in r.components() {
-            dir.pop();
-        }
-        (dir.join(&r) == file).then_some(dir)
-    });
+    found.run_dir = recorded.and_then(|r| crate::store::frames::run_dir_of(&file, &r));
     Ok(found)
 }
 

@@ -296,6 +296,17 @@ pub fn last_sweep(run: &Path) -> Result<Option<LastSweep>> {
     Ok(Some(LastSweep { options: p.options, done: p.done, frames: p.stats.frames }))
 }
 
+/// How to get a damaged frame file `file` whole again: move it aside and give its sweep again,
+/// with the options recorded in it and its run directory where known.
+pub fn rewrite_advice(file: &Path, options: Option<&BackwardOptions>, run: Option<&Path>) -> String {
+    let run = run.map_or("RUN_DIR".to_string(), |d| d.display().to_string());
+    let flags = match options {
+        Some(o) => BackwardOptions { frames_path: Some(file.to_path_buf()), no_frames: false, ..o.clone() }.as_flags(),
+        None => format!("--out {}", file.display()),
+    };
+    format!("to write it whole, move {} aside and give its sweep again: `clv backward {run} {flags}`", file.display())
+}
+
 pub fn report_path(dir: &RunDir) -> PathBuf {
     dir.path.join("clv_spectrum.json")
 }
@@ -316,6 +327,13 @@ impl Window {
         let (config, store) = (&meta.config, &meta.store);
         let total = config.relax_steps + config.steps;
         let kept = store.clv_steps + store.transient;
+        if store.clv_steps == 0 {
+            return Err(Error::Other(format!(
+                "the forward run kept no CLV window (--clv-steps 0: the Gram-Schmidt spectrum only), so there is nothing for a backward sweep; \
+                 to get covariant vectors, extend it with `clv forward --resume RUN_DIR --steps MORE --clv-steps N`, which keeps the R matrices of the last N steps (plus the transient {})",
+                store.transient
+            )));
+        }
         if opts.transient >= kept {
             return Err(Error::param("transient", format!("must be below the {kept} steps the run kept for the backward stage (--clv-steps + --transient of the forward run)")));
         }
@@ -666,6 +684,12 @@ pub fn run(
                  start it again without --resume for the frames",
                 dir.path.display()
             ));
+        } else {
+            let frames = match &frames_path {
+                Some(f) => format!("its frames are in {}; to write them again (a damaged file), move it aside and give the command without --resume", f.display()),
+                None => "it wrote no frame file".into(),
+            };
+            report.notes.push(format!("the backward sweep of {} finished earlier: nothing was recomputed, and this is its CLV spectrum; {frames}", dir.path.display()));
         }
         return Ok(report);
     }

@@ -41,6 +41,11 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
             ),
         ));
     }
+    for (dir, what) in [(&run_dir, "the run"), (&report_dir, "the report")] {
+        if dir.exists() && !dir.is_dir() {
+            return Err(Error::param("out", format!("{} is a file, where `clv run` keeps {what} (OUT/run and OUT/report are its directories): move it, or give another --out", dir.display())));
+        }
+    }
     let stored = match run_dir.join("run.json").exists() {
         true => Some(RunDir::open(&run_dir)?.1),
         false => None,
@@ -156,7 +161,7 @@ fn extension(stored: &RunMeta, config: &RunConfig, store: &StoreConfig) -> Optio
 
 /// The settings in which two runs differ, as the flags that set them, each side named by its
 /// label: "--steps 10000 in the run, 5000 asked for" (the thread count is no setting of a run).
-fn differences((run, run_store, here): (&RunConfig, &StoreConfig, &str), (asked, asked_store, there): (&RunConfig, &StoreConfig, &str)) -> Vec<String> {
+pub(crate) fn differences((run, run_store, here): (&RunConfig, &StoreConfig, &str), (asked, asked_store, there): (&RunConfig, &StoreConfig, &str)) -> Vec<String> {
     fn leaves(prefix: &str, v: &serde_json::Value, out: &mut Vec<(String, String)>) {
         match v {
             serde_json::Value::Object(map) => map.iter().for_each(|(k, v)| leaves(k, v, out)),

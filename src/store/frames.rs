@@ -241,8 +241,15 @@ impl FrameFile {
         super::fault::crash_point("salvage-moved");
         let mut file = FrameFile::create(path, metadata)?;
         if old.exists() {
+            let options = metadata.get("backward.json").and_then(|j| serde_json::from_str::<crate::stage::backward::BackwardOptions>(j).ok());
+            let run = options.as_ref().and_then(|o| run_dir_of(path, o.frames_path.as_deref()?)).map_or("RUN_DIR".to_string(), |d| d.display().to_string());
+            let flags = match options {
+                Some(o) => crate::stage::backward::BackwardOptions { frames_path: Some(path.to_path_buf()), ..o }.as_flags(),
+                None => format!("--out {}", path.display()),
+            };
             let give_up = format!(
-                "it cannot be continued: delete {} (and {}, if it exists) and give the command without --resume, which starts the sweep over",
+                "it cannot be continued: delete {} (and {}, if it exists) and give the sweep again without --resume, which starts it over (`clv backward {run} {flags}`; \
+                 the frames before the damage would be recomputed on the way in any case)",
                 old.display(),
                 tmp.display()
             );
@@ -373,6 +380,33 @@ impl StreamInfo {
             .filter_map(|(key, value)| value.clone().map(|v| (key.to_string(), v)))
             .collect()
     }
+}
+
+/// Whether the file ends as a whole MCAP file does, with the closing magic: a cheap check
+/// for a file cut short, without reading its frames (`clv inspect FILE` checks those).
+pub fn ends_whole(path: &Path) -> std::io::Result<bool> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut f = std::fs::File::open(path)?;
+    let mut tail = [0u8; 8];
+    if f.metadata()?.len() < 16 {
+        return Ok(false);
+    }
+    f.seek(SeekFrom::End(-8))?;
+    f.read_exact(&mut tail)?;
+    Ok(&tail == b"\x89MCAP0\r\n")
+}
+
+/// The run directory of a frame file `file` whose sweep recorded it as `recorded`: FILE is
+/// RUN_DIR/<recorded> when that path is relative (the run's own --out names).
+pub fn run_dir_of(file: &Path, recorded: &Path) -> Option<std::path::PathBuf> {
+    if !recorded.is_relative() {
+        return None;
+    }
+    let mut dir = file.to_path_buf();
+    for _ in recorded.components() {
+        dir.pop();
+    }
+    (dir.join(recorded) == file).then_some(dir)
 }
 
 /// Read frames from a file, or from standard input when `source` is "-". `on_info` is

@@ -377,7 +377,15 @@ impl RunDir {
         // Damaged or edited (its checksum), a run.json can no longer be trusted with any
         // field: the build it names as much as the trajectory.
         let meta: RunMeta = match super::checked_json::from_slice(&meta_path, &bytes) {
-            Ok((meta, _)) => meta,
+            Ok((meta, super::checked_json::Seal::Checked)) => meta,
+            // Without its checksum (an earlier build's, or the field removed by an edit), it
+            // must at least say what the newest segment's copy says.
+            Ok((meta, super::checked_json::Seal::Absent)) => match dir.newest_segment_meta() {
+                Some(theirs) if !(theirs.config.same_but_threads(&meta.config) && theirs.store == meta.store) => {
+                    return Err(dir.unreadable_meta("it carries no checksum (crc32), and it differs from the copy in the newest segment: the field was removed by an edit".into()));
+                }
+                _ => meta,
+            },
             Err(Error::Corrupt { msg, .. }) => return Err(dir.unreadable_meta(msg)),
             Err(e) => return Err(dir.unreadable_meta(e.to_string())),
         };
@@ -387,14 +395,16 @@ impl RunDir {
         Ok((dir, meta))
     }
 
+    /// The run.json the newest segment with a readable copy was written with.
+    fn newest_segment_meta(&self) -> Option<RunMeta> {
+        self.segments().ok()?.iter().rev().find_map(|s| serde_json::from_str::<RunMeta>(&segment::embedded_run_json(&s.path)?).ok())
+    }
+
     /// A run.json that does not parse (cut short, damaged): the newest segment's copy is put
     /// beside it, to restore it from, where there is one.
     fn unreadable_meta(&self, why: String) -> Error {
         let copy = self.path.join("run.json.from-segments");
-        let restored = self.segments().ok().and_then(|segs| {
-            let theirs = segs.iter().rev().find_map(|s| serde_json::from_str::<RunMeta>(&segment::embedded_run_json(&s.path)?).ok())?;
-            write_atomic(&copy, &super::checked_json::to_vec(&theirs).ok()?).ok()
-        });
+        let restored = self.newest_segment_meta().and_then(|theirs| write_atomic(&copy, &super::checked_json::to_vec(&theirs).ok()?).ok());
         let way_out = match restored {
             Some(()) => format!("every segment holds a copy of it, and the newest one's is now in {}: move it over run.json to continue this run", copy.display()),
             None => "no segment holds a readable copy of it (the run wrote none yet): start the run again".into(),

@@ -37,7 +37,8 @@ use std::path::Path;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Rgb(u8, u8, u8);
 
-/// Okabe-Ito colour-blind-safe palette (yellow last: weak on white).
+/// Okabe-Ito colour-blind-safe palette, its yellow darkened to olive (the original, #F0E442,
+/// all but vanished on white in thin dashed curves).
 const PALETTE: [Rgb; 8] = [
     Rgb(0x00, 0x72, 0xB2), // blue
     Rgb(0xD5, 0x5E, 0x00), // vermillion
@@ -46,7 +47,7 @@ const PALETTE: [Rgb; 8] = [
     Rgb(0xE6, 0x9F, 0x00), // orange
     Rgb(0x56, 0xB4, 0xE9), // sky blue
     Rgb(0x00, 0x00, 0x00), // black
-    Rgb(0xF0, 0xE4, 0x42), // yellow
+    Rgb(0x9A, 0x8C, 0x00), // olive (a darkened yellow)
 ];
 const INK: Rgb = Rgb(0x20, 0x20, 0x20);
 const GREY: Rgb = Rgb(0x99, 0x99, 0x99);

@@ -864,10 +864,14 @@ impl Mean {
 /// file is gone, the run is refused, naming the sweep: a frames.mcap left by an earlier sweep
 /// is not this one's frames. A run without a sweep record (or one of a build before them)
 /// stands for the frames.mcap in it.
-fn frame_source(source: &Path) -> Result<PathBuf> {
+fn frame_source(source: &Path) -> Result<(PathBuf, Option<Expected>)> {
     if !source.is_dir() {
-        return Ok(source.to_path_buf());
+        return Ok((source.to_path_buf(), None));
     }
+    let expect = |options: Option<BackwardOptions>| -> Result<Option<Expected>> {
+        let (_, meta) = crate::store::RunDir::open(source)?;
+        Ok(Some(Expected { dir: source.to_path_buf(), meta, options }))
+    };
     let d = source.display();
     let frames = crate::store::RunDir { path: source.to_path_buf() }.frames_path();
     let record = source.join("backward.json");
@@ -876,7 +880,7 @@ fn frame_source(source: &Path) -> Result<PathBuf> {
     })?;
     let Some(last) = last else {
         if frames.exists() {
-            return Ok(frames);
+            return Ok((frames, expect(None)?));
         }
         return Err(Error::Other(format!(
             "{d} is a directory without a frame file ({}); analyse a run with `clv backward {d} --out - | clv analyze - --out REPORT`, or write {} with `clv backward {d}` first",
@@ -887,7 +891,7 @@ fn frame_source(source: &Path) -> Result<PathBuf> {
     let opts = &last.options;
     let file = opts.frames_file(source);
     if let Some(file) = file.as_ref().filter(|f| last.done && f.exists()) {
-        return Ok(file.clone());
+        return Ok((file.clone(), expect(Some(last.options.clone()))?));
     }
     let flags = format!("recorded in {}: {}", record.display(), opts.as_flags());
     if let Some(f) = file.as_ref().filter(|_| !last.done) {
@@ -910,6 +914,41 @@ fn frame_source(source: &Path) -> Result<PathBuf> {
     Err(Error::Other(format!(
         "{d}: the run's last backward sweep ({flags}) {what}, so there are no frames of it to analyse; write a frame file with `clv backward {d} --out {write}` and analyse the run again{other}"
     )))
+}
+
+/// What the frame file that stands for a run directory must hold: the frames of that run
+/// (run.json) from its last backward sweep (backward.json's options, where one is recorded).
+/// A file copied or restored over it from another run or sweep would otherwise be
+/// analysed under the run's name.
+struct Expected {
+    dir: PathBuf,
+    meta: RunMeta,
+    options: Option<BackwardOptions>,
+}
+
+impl Expected {
+    fn check(&self, info: &StreamInfo, file: &Path) -> Result<()> {
+        let (d, f) = (self.dir.display(), file.display());
+        let fix = format!("analyse the file by name if you mean its frames (`clv analyze {f} --out REPORT`), or write this run's with `clv backward {d} --out FILE.mcap` and analyse that");
+        let run: Option<RunMeta> = info.run_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
+        if let Some(run) = run.filter(|r| !(r.config.same_but_threads(&self.meta.config) && r.store == self.meta.store)) {
+            let differ = crate::stage::pipeline::differences((&self.meta.config, &self.meta.store, "in run.json"), (&run.config, &run.store, "in the file")).join(", ");
+            return Err(Error::Other(format!("{f} stands for the frames of {d}, but it holds another run's frames ({differ}): {fix}")));
+        }
+        let sweep: Option<BackwardOptions> = info.backward_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
+        let unnamed = |o: &BackwardOptions| BackwardOptions { frames_path: None, ..o.clone() };
+        if let (Some(want), Some(have)) = (&self.options, sweep)
+            && unnamed(want) != unnamed(&have)
+        {
+            return Err(Error::Other(format!(
+                "{f} stands for the frames of {d}'s last backward sweep ({}, recorded in {}), but another sweep wrote it ({}): {fix}",
+                want.as_flags(),
+                self.dir.join("backward.json").display(),
+                have.as_flags()
+            )));
+        }
+        Ok(())
+    }
 }
 
 /// Whether `path` holds the checkpoints of a run segment (read only to explain an error).
@@ -935,13 +974,17 @@ pub fn analyze_source(
     only: &[String],
     on_frame: &mut dyn FnMut(u64),
 ) -> Result<Analysed> {
-    let source = &frame_source(source)?;
+    let (source, expected) = frame_source(source)?;
+    let source = &source;
     let info = std::cell::RefCell::new(StreamInfo::default());
     let mut analyzer: Option<Analyzer> = None;
     let name = if source == Path::new("-") { "<stdin>".to_string() } else { source.display().to_string() };
     let damage = crate::store::frames::read_frames_with(
         source,
         |i| {
+            if let Some(expected) = &expected {
+                expected.check(&i, source)?;
+            }
             *info.borrow_mut() = i;
             Ok(())
         },
@@ -970,9 +1013,16 @@ pub fn analyze_source(
     };
     let analysed = analyzer.finish(damage.as_deref())?;
     if let Some(d) = damage {
+        let rewrite = if source == Path::new("-") {
+            String::new()
+        } else {
+            let options: Option<BackwardOptions> = info.borrow().backward_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
+            let run = expected.as_ref().map(|e| e.dir.clone()).or_else(|| options.as_ref()?.frames_path.as_deref().and_then(|r| crate::store::frames::run_dir_of(source, r)));
+            format!("; {}", super::backward::rewrite_advice(source, options.as_ref(), run.as_deref()))
+        };
         return Err(Error::corrupt(
             &name,
-            format!("the stream ends early or is damaged ({d}); the {} complete frames before it were analysed into {}, but the results are incomplete", analysed.frames, out.display()),
+            format!("the stream ends early or is damaged ({d}); the {} complete frames before it were analysed into {}, but the results are incomplete{rewrite}", analysed.frames, out.display()),
         ));
     }
     Ok(analysed)

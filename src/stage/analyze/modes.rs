@@ -436,6 +436,8 @@ fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Prod
     kinds.dedup();
     let mut fig = Figure::new("Dispersion of the Lyapunov modes").x_label("k = |k|, k = 2π (n_x/L_x, n_y/L_y)").y_label("λ");
     let mut fits = Vec::new();
+    let mut lines = Vec::new();
+    // The points first: the first series get the largest markers.
     for kind in kinds {
         let of_kind: Vec<&&ModeRow> = modes.iter().filter(|r| r.kind == kind).collect();
         let k: Vec<f64> = of_kind.iter().map(|r| wave_number(r)).collect();
@@ -443,10 +445,13 @@ fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Prod
         let (c, se) = fit_through_origin(&k, &lambda);
         fig.series(&format!("{kind} modes"), &k, &lambda, Marker::Points);
         let k_max = k.iter().copied().fold(0.0, f64::max);
-        fig.series(&format!("{kind}: λ = {c:.4} k"), &[0.0, k_max], &[0.0, c * k_max], Marker::Line);
+        lines.push((format!("{kind}: λ = {c:.4} k"), k_max, c));
         let ratios: Vec<String> = of_kind.iter().map(|r| format!("{:.4}", r.lambda / wave_number(r))).collect();
         let error = if se.is_finite() { format!(" ± {se:.1e}") } else { String::new() };
         fits.push(format!("{kind}: c = {c:.4}{error} from {} step(s), λ/k = {} for {}", k.len(), ratios.join(", "), of_kind.iter().map(|r| r.name.as_str()).collect::<Vec<_>>().join(", ")));
+    }
+    for (label, k_max, c) in lines {
+        fig.series(&label, &[0.0, k_max], &[0.0, c * k_max], Marker::Line);
     }
     save_figure(&fig, out, "modes_dispersion")?;
     Ok(Some(Produced {

@@ -151,7 +151,7 @@ impl Analysis for NullSpace {
 
         let t: Vec<f64> = self.rows.iter().map(|r| r.time).collect();
         let dev = |norms: &[f64; 6]| norms.iter().map(|x| (x - 1.0).abs()).fold(0.0, f64::max);
-        let mut fig = Figure::new("Null space: deviation from span{e_1..e_6}").x_label("t").y_label("log10 of angle (rad) or |1 - row norm|");
+        let mut fig = Figure::new("Null space: deviation from span{e_1..e_6}").x_label("t").y_label("log10 angle (rad) or |1 - norm|");
         let max_angle = |f: fn(&Row) -> f64| self.rows.iter().map(f).fold(0.0, f64::max);
         fig.series("CLV: largest principal angle", &t, &self.rows.iter().map(|r| log10_floor(r.angle_clv)).collect::<Vec<_>>(), Marker::Line);
         fig.series("CLV: max |1 - row norm of β|", &t, &self.rows.iter().map(|r| log10_floor(dev(&r.norms_beta))).collect::<Vec<_>>(), Marker::Line);
@@ -177,7 +177,11 @@ impl Analysis for NullSpace {
             max_angle(|r| r.angle_clv),
         );
         if with_gs {
-            caption += &format!(", GS angle {:.2e}, GS-CLV angle {:.2e}", max_angle(|r| r.angle_gs), max_angle(|r| r.angle_gs_clv));
+            caption += &format!(
+                ", GS angle {:.2e}, GS-CLV angle {:.2e} (the GS-CLV curve, dashed, runs on the CLV one wherever the GS null span is span{{e_1..e_6}} far more closely than the CLV one)",
+                max_angle(|r| r.angle_gs),
+                max_angle(|r| r.angle_gs_clv)
+            );
         }
         caption += ".";
         Ok(vec![Produced { title: "Null space (Tables II, III)".into(), caption, figures: vec!["nullspace_angle".into()], tables }])

@@ -301,11 +301,19 @@ impl Analysis for Transversality {
         produced.push(Produced {
             title: "Angles between covariant vectors (Fig. 16)".into(),
             caption: format!(
-                "Distributions of Θ = arccos|v^i·v^j| over {frames} frames for pairs of covariant vectors in F^({}) = v^1..v^{} (the unstable subspace without the mode directions) with index separations i - j = {} (the paper's 1, 2, 4, 20, 50, 100, 200, 300 for D = 792; the larger ones scaled to D = {}, dropped where they fall on a smaller one or reach beyond F).",
+                "Distributions of Θ = arccos|v^i·v^j| over {frames} frames for pairs of covariant vectors in F^({}) = v^1..v^{} (the unstable subspace without the mode directions) with index separations i - j = {} (the paper's 1, 2, 4, 20, 50, 100, 200, 300 for D = 792; the larger ones scaled to D = {}, dropped where they fall on a smaller one or reach beyond F).{}",
                 th.j,
                 th.j,
                 th.seps.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(", "),
-                ctx.d
+                ctx.d,
+                match (th.seps.first(), dens.first()) {
+                    (Some(1), Some(d)) => format!(
+                        " For i - j = 1 the density in the first bin (Θ < {:.1}°) is {:.3}: the paper's, for N = 198, goes to zero as Θ → 0, which in smaller systems it need not (Fig. 17 gives the smallest Θ).",
+                        w.to_degrees(),
+                        d[0]
+                    ),
+                    _ => String::new(),
+                }
             ),
             figures: vec!["fig16_theta_distributions".into()],
             tables: vec!["theta_histograms.csv".into()],
