@@ -215,7 +215,7 @@ fn clv_spectrum_advice(dir: &RunDir) -> String {
     match crate::stage::backward::last_sweep(&dir.path) {
         Ok(Some(last)) if last.options.frames_file(&dir.path).is_some() && last.options.save_every > 0 => {
             let file = last.options.frames_file(&dir.path).unwrap_or_default();
-            let flags = crate::stage::backward::BackwardOptions { frames_path: Some(file.clone()), ..last.options }.as_flags();
+            let flags = last.options.flags_into(&file);
             format!("give the last sweep again, `clv backward {run} {flags}` (move {} aside first: it writes the frames again too); or {alone}", file.display())
         }
         _ => alone,

@@ -119,6 +119,12 @@ impl BackwardOptions {
         format!("{out}--save-every {} --vectors-every {} --transient {} --c-init {c_init}{gs}", self.save_every, self.vectors_every, self.transient)
     }
 
+    /// [`BackwardOptions::as_flags`] of the same sweep into `file` (its path as a user gives
+    /// it, where the record holds it relative to the run directory).
+    pub fn flags_into(&self, file: &Path) -> String {
+        BackwardOptions { frames_path: Some(file.to_path_buf()), no_frames: false, ..self.clone() }.as_flags()
+    }
+
     pub fn for_run(meta: &RunMeta) -> Self {
         BackwardOptions { transient: meta.store.transient, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1, no_frames: false }
     }
@@ -301,7 +307,7 @@ pub fn last_sweep(run: &Path) -> Result<Option<LastSweep>> {
 pub fn rewrite_advice(file: &Path, options: Option<&BackwardOptions>, run: Option<&Path>) -> String {
     let run = run.map_or("RUN_DIR".to_string(), |d| d.display().to_string());
     let flags = match options {
-        Some(o) => BackwardOptions { frames_path: Some(file.to_path_buf()), no_frames: false, ..o.clone() }.as_flags(),
+        Some(o) => o.flags_into(file),
         None => format!("--out {}", file.display()),
     };
     format!("to write it whole, move {} aside and give its sweep again: `clv backward {run} {flags}`", file.display())

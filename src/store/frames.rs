@@ -244,7 +244,7 @@ impl FrameFile {
             let options = metadata.get("backward.json").and_then(|j| serde_json::from_str::<crate::stage::backward::BackwardOptions>(j).ok());
             let run = options.as_ref().and_then(|o| run_dir_of(path, o.frames_path.as_deref()?)).map_or("RUN_DIR".to_string(), |d| d.display().to_string());
             let flags = match options {
-                Some(o) => crate::stage::backward::BackwardOptions { frames_path: Some(path.to_path_buf()), ..o }.as_flags(),
+                Some(o) => o.flags_into(path),
                 None => format!("--out {}", path.display()),
             };
             let give_up = format!(
