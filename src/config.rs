@@ -1,7 +1,7 @@
 //! The configuration of a run: which system, how long, how many vectors.
 //!
 //! One serialisable value that says everything needed to redo a run (it is printed with
-//! `--json` and, from the storage stage on, kept with the run's files).
+//! `--json` and kept with the run's files, in run.json).
 
 use crate::error::{Error, Result};
 use crate::rng::Rng;
@@ -98,8 +98,9 @@ pub struct RunConfig {
     /// Number k of tangent vectors (k <= D).
     pub vectors: usize,
     pub seed: u64,
-    /// Worker threads of the linear algebra; part of the run because results differ in the
-    /// last bits between settings.
+    /// Worker threads of the linear algebra. Not a setting of the results: any thread count
+    /// gives the same bits (the QR's chunk grid is fixed, src/linalg), so a run may be
+    /// continued on other threads ([`RunConfig::same_but_threads`]).
     pub threads: usize,
     /// Number of blocks for the standard error of the exponents.
     pub blocks: usize,

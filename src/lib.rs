@@ -5,7 +5,8 @@
 //! The folders follow the data flow: [`system`] (what evolves), [`stage`] (the forward
 //! Gram-Schmidt pass, the backward Ginelli pass, the analyses and the pipeline of all three),
 //! [`store`] (how runs and frames live on disk), [`linalg`] (the QR step and the Ginelli
-//! step's kernels), [`report`] (what a person sees); [`machine`] says what memory there is.
+//! step's kernels), [`report`] (what a person sees); [`statistics`] holds the time averages
+//! and their errors all of them share, and [`machine`] says what memory there is.
 
 pub mod bench;
 pub mod config;
@@ -15,6 +16,7 @@ pub mod machine;
 pub mod report;
 pub mod rng;
 pub mod stage;
+pub mod statistics;
 pub mod store;
 pub mod system;
 

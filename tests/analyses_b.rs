@@ -24,7 +24,7 @@ fn pipeline(name: &str, flags: &[&str]) -> PathBuf {
     report
 }
 
-use clv::stage::analyze::csv_cells as split_csv;
+use clv::report::dir::csv_cells as split_csv;
 
 fn read_csv(path: &Path) -> Vec<BTreeMap<String, String>> {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));

@@ -364,10 +364,10 @@ fn killed_between_the_finished_file_and_its_record_resumes() {
     }
     let interim = interim.expect("no kill landed after a finished segment");
     let shown = String::from_utf8(clv(&["inspect", &d]).stdout).unwrap();
-    assert!(shown.contains("backward sweep: interrupted after ") && shown.contains("(frames to part.mcap)") && shown.contains("--resume` continues it"), "{shown}");
+    assert!(shown.contains("backward sweep: interrupted after ") && shown.contains(&format!("(frames to {o})")) && shown.contains("--resume` continues it"), "{shown}");
     ok(clv(&["backward", &d, "--quiet", "--out", o, "--resume"]));
     let shown = String::from_utf8(clv(&["inspect", &d]).stdout).unwrap();
-    assert!(shown.contains(&format!("backward sweep: finished, {} frames (frames to part.mcap)", want.len())), "{shown}");
+    assert!(shown.contains(&format!("backward sweep: finished, {} frames (frames to {o})", want.len())), "{shown}");
     assert!(frames(&out) == want);
     // Finished file in place, record not yet done.
     std::fs::write(&record, &interim).unwrap();
@@ -637,7 +637,8 @@ fn analyze_run_dir_reads_only_the_last_sweeps_own_file() {
 
 /// `clv analyze RUN_DIR` reads the frame file the last sweep recorded only if it holds that
 /// run's frames from that sweep: another run's file copied over it, or an earlier sweep's
-/// restored over it, is refused, naming what differs; by its name either is read.
+/// restored over it, is refused, naming what differs (and `clv inspect RUN_DIR` finds it);
+/// by its name either is read.
 #[test]
 fn analyze_run_dir_refuses_a_file_of_another_run_or_sweep() {
     let flags = ["--n", "8", "--steps", "600", "--relax-steps", "50", "--clv-steps", "100"];
@@ -656,12 +657,15 @@ fn analyze_run_dir_refuses_a_file_of_another_run_or_sweep() {
     };
     std::fs::copy(one.join("frames.mcap"), two.join("frames.mcap")).unwrap();
     refused(analyze(&two, "foreign-run"), "holds another run's frames (--seed 2 in run.json, 1 in the file)");
+    let seen = clv(&["inspect", two.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&seen.stdout).to_string();
+    assert!(!seen.status.success() && text.contains("is not its file: it holds another run's frames"), "{text}");
     ok(analyze(&two.join("frames.mcap"), "foreign-run-by-name").0);
     let other = one.join("other.mcap");
     ok(clv(&["backward", one.to_str().unwrap(), "--out", other.to_str().unwrap(), "--transient", "20", "--quiet"]));
     ok(analyze(&one, "last-sweep").0);
     std::fs::copy(one.join("frames.mcap"), &other).unwrap();
-    refused(analyze(&one, "earlier-sweep"), "but another sweep wrote it");
+    refused(analyze(&one, "earlier-sweep"), "did not write it: another sweep did");
 }
 
 fn read_text(path: &Path) -> String {

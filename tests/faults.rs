@@ -1121,7 +1121,7 @@ fn an_interrupted_overwrite_says_so_and_the_command_again_gives_a_clean_report()
     ok(clv(&["run", "--preset", "henon", "--steps", "3000", "--out", o, "--quiet"]));
     let report = out.join("report");
     let before = report_contents(&report, &[]);
-    clv::stage::analyze::begin_report(&report, "a killed clv run", None).unwrap();
+    clv::report::dir::begin_report(&report, "a killed clv run", None).unwrap();
     assert!(!report.join("summary.json").exists() && !report.join("fig1_henon.png").exists());
     ok(clv(&["run", "--preset", "henon", "--steps", "3000", "--out", o, "--quiet"]));
     assert!(report_contents(&report, &[]) == before, "clv run did not write its report again");

@@ -2,7 +2,8 @@
 //! hard-disk spectra, determinism and exact continuation, and the command line.
 
 use clv::config::{RunConfig, SystemConfig};
-use clv::stage::forward::{block_len, kaplan_yorke_dimension, Forward};
+use clv::stage::forward::Forward;
+use clv::statistics::{block_len, kaplan_yorke_dimension};
 use std::process::Command;
 
 fn config(system: SystemConfig, tau: f64, relax: u64, steps: u64, seed: u64) -> RunConfig {

@@ -637,11 +637,11 @@ fn clv_run_writes_no_report_over_another_runs() {
     // This run's report killed midway (its page names the run): written anew.
     std::fs::remove_dir_all(m.join("report")).unwrap();
     let (_, meta) = clv::store::RunDir::open(&m.join("run")).unwrap();
-    clv::stage::analyze::begin_report(&m.join("report"), "a killed clv run", Some(&meta.config)).unwrap();
+    clv::report::dir::begin_report(&m.join("report"), "a killed clv run", Some(&meta.config)).unwrap();
     ok(run(&m, &[]));
     assert!(m.join("report/summary.json").exists());
     // Another run's report killed midway is not this run's.
-    clv::stage::analyze::begin_report(&m.join("report"), "a killed clv run", Some(&clv::store::RunDir::open(&n.join("run")).unwrap().1.config)).unwrap();
+    clv::report::dir::begin_report(&m.join("report"), "a killed clv run", Some(&clv::store::RunDir::open(&n.join("run")).unwrap().1.config)).unwrap();
     refused(&run(&m, &[]), &m.join("report"), "the report of another run");
     // A run directory as --out.
     let inside = run(&n.join("run"), &["--seed", "7"]);

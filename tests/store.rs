@@ -4,7 +4,8 @@
 mod common;
 use clv::config::{RunConfig, SystemConfig};
 use clv::rng::Rng;
-use clv::stage::forward::{block_len, Forward};
+use clv::stage::forward::Forward;
+use clv::statistics::block_len;
 use clv::store::records::Checkpoint;
 use clv::store::RunDir;
 use common::{clv, contents, copy_dir, kill_after, kill_landing, ok, Contents};

@@ -55,9 +55,9 @@ pub fn analyze(args: &AnalyzeArgs) -> Result<()> {
     // Asked before the report's lock is taken, so that a refusal writes nothing into a
     // directory of other files, and again under it, where the answer holds.
     let refuse_files = || {
-        let holds_files = std::fs::read_dir(&args.out).is_ok_and(|entries| entries.flatten().any(|e| e.file_name() != clv::stage::analyze::LOCK));
+        let holds_files = std::fs::read_dir(&args.out).is_ok_and(|entries| entries.flatten().any(|e| e.file_name() != clv::report::dir::LOCK));
         if holds_files && !args.overwrite {
-            clv::stage::analyze::refuse_if_being_written(&args.out)?;
+            clv::report::dir::refuse_if_being_written(&args.out)?;
             return Err(Error::param(
                 "out",
                 format!("{} already holds files (an earlier report?); choose another --out, or add --overwrite to replace them", args.out.display()),
@@ -66,7 +66,7 @@ pub fn analyze(args: &AnalyzeArgs) -> Result<()> {
         Ok(())
     };
     refuse_files()?;
-    let _lock = clv::stage::analyze::lock_report(&args.out)?;
+    let _lock = clv::report::dir::lock_report(&args.out)?;
     refuse_files()?;
     // --overwrite replaces the report: the earlier one's files go when the first frame
     // arrives (analyze::begin_report; a stream that brings none leaves the report as it

@@ -148,7 +148,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         let recompute = multi.add(progress("recompute", false).expect("not quiet"));
         recompute.set_length(meta.store.clv_steps + meta.store.transient);
         let sweep = multi.add(progress("sweep (frames)", false).expect("not quiet"));
-        sweep.set_length(meta.store.clv_steps.saturating_sub(opts.transient.saturating_sub(meta.store.transient)) + 1);
+        sweep.set_length(backward::Window::of(&meta, &opts).map_or(0, |w| w.last + 1 - w.first));
         (multi, recompute, sweep)
     });
     let mut consumer = |frame: std::sync::Arc<clv::stage::frame::Frame>| -> Result<Flow> {
@@ -169,7 +169,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         format!("its progress up to its last finished segment is recorded in {}: give the same command with --resume to continue", args.dir.display())
     };
     let _signals = clv::stage::signals::ExplainOnSignals::install(&format!("\nclv backward: stopped by a signal; {explain}"));
-    let report = backward::run(&args.dir, &opts, args.resume, args.memory << 20, args.threads, &mut consumer, &mut on_progress)?;
+    let report = backward::run(&args.dir, &opts, args.resume, args.memory.saturating_mul(1 << 20), args.threads, &mut consumer, &mut on_progress)?;
     if let Some((multi, recompute, sweep)) = &bars {
         recompute.finish_and_clear();
         sweep.finish_and_clear();
@@ -208,7 +208,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
                 at(Some(&report.gs_stderr), i)
             );
         }
-        use clv::stage::forward::Estimate;
+        use clv::statistics::Estimate;
         let _ = writeln!(
             table,
             "KS entropy (sum of the positive exponents): {} (CLV), {} (GS over the same steps), {} (GS over the run)",

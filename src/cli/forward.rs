@@ -168,7 +168,7 @@ impl ForwardArgs {
         };
         if let Some(c) = self.clv_steps {
             store.clv_steps = c;
-            store.transient = (c / 2).max(1);
+            store.transient = StoreConfig::transient_for(c);
         }
         if let Some(t) = self.transient {
             store.transient = t;
@@ -337,10 +337,11 @@ fn spectrum(config: RunConfig, json: bool, quiet: bool) -> Result<()> {
     if let Some(bar) = &bar {
         bar.set_length(total);
     }
+    // As often as a stored run checks it (at its checkpoints, by default), and at the end.
+    let check_every = StoreConfig::for_run(&config).checkpoint_every;
     while fwd.step < total {
         fwd.step()?;
-        // As often as a stored run checks it (at its checkpoints), and at the end.
-        if fwd.step % 100 == 0 || fwd.step == total {
+        if fwd.step % check_every == 0 || fwd.step == total {
             forward_run::check_energy(fwd.step, start.energy, fwd.system.invariants().energy)?;
         }
         if let Some(bar) = &bar {

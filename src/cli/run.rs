@@ -168,7 +168,7 @@ pub fn run(args: &RunArgs, matches: &ArgMatches) -> Result<()> {
         bar.finish_and_clear();
     }
     let clv_report = &result.clv;
-    use clv::stage::forward::Estimate;
+    use clv::statistics::Estimate;
     let first = |v: &[f64], e: &[f64]| Estimate::or_unknown(v.first().zip(e.first()).map(|(&value, &stderr)| Estimate { value, stderr }));
     let window = clv_report.gs_window.as_ref();
     say(format!(
@@ -180,7 +180,7 @@ pub fn run(args: &RunArgs, matches: &ArgMatches) -> Result<()> {
         Estimate::or_unknown(clv_report.ks_entropy),
         Estimate::or_unknown(window.and_then(|w| w.ks_entropy))
     ));
-    let gs = clv::report::SpectrumSummary::read(&result.run_dir.join("spectrum.json")).ok();
+    let gs = clv::report::SpectrumSummary::read(&clv::store::RunDir { path: result.run_dir.clone() }.spectrum_path()).ok();
     if let Some(d) = gs.and_then(|g| g.blocks).and_then(|b| clv::stage::analyze::kernels::convergence::diagnose(&b.exponents, config.system.neutral())) {
         say(format!("convergence of the GS spectrum ({} blocks): {}", d.blocks, d.verdict()));
     }

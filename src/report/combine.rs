@@ -13,7 +13,7 @@
 
 use crate::config::RunConfig;
 use crate::error::{Error, Result};
-use crate::stage::forward::{ks_entropy, Estimate};
+use crate::statistics::{ks_entropy, Estimate};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};

@@ -72,7 +72,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     let mut segments = Vec::new();
     // Segments whose embedded run.json agrees with run.json, and those that describe another.
     let (mut agreeing, mut disagreeing) = (0, Vec::new());
-    let mut newest: Option<(Stats, Option<crate::stage::forward::Accumulator>)> = None;
+    let mut newest: Option<(Stats, Option<crate::statistics::Accumulator>)> = None;
     for seg in dir.segments()? {
         let (mut checkpoints, mut rs) = (0, 0);
         let (mut last_stats, mut last_acc) = (None, None);
@@ -185,22 +185,22 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
 /// The last backward sweep as its progress record tells it: finished, or interrupted (which
 /// blocks a sweep with other options until it is resumed or given up).
 fn backward_sweep(dir: &RunDir) -> Option<String> {
-    let (v, _): (serde_json::Value, _) = crate::store::checked_json::read(&dir.path.join("backward.json")).ok()?;
-    let frames = v["stats"]["frames"].as_u64().unwrap_or(0);
-    let opts: crate::stage::backward::BackwardOptions = serde_json::from_value(v["options"].clone()).ok()?;
-    let out = match (&opts.frames_path, opts.streams()) {
+    let last = crate::stage::backward::last_sweep(&dir.path).ok()??;
+    let opts = &last.options;
+    let out = match (opts.frames_file(&dir.path), opts.streams()) {
         (_, true) => "frames to a stream".to_string(),
-        (Some(p), false) if opts.save_every > 0 => format!("frames to {}", p.display()),
-        _ => "no frame file".to_string(),
+        (Some(p), false) => format!("frames to {}", p.display()),
+        (None, false) => "no frame file".to_string(),
     };
-    Some(if v["done"].as_bool().unwrap_or(false) {
-        format!("finished, {frames} frames ({out})")
+    Some(if last.done {
+        format!("finished, {} frames ({out})", last.frames)
     } else {
         // Its frames so far are kept in FILE.tmp, which a sweep with other options would strand.
         let kept = opts.frames_file(&dir.path).map(|f| crate::store::frames::tmp_path(&f)).filter(|t| t.exists());
         format!(
-            "interrupted after {frames} frames ({out}), C recorded at step {}: `clv backward {} --resume` continues it{}",
-            v["at"].as_u64().unwrap_or(0),
+            "interrupted after {} frames ({out}), C recorded at step {}: `clv backward {} --resume` continues it{}",
+            last.frames,
+            last.at,
             dir.path.display(),
             kept.map(|t| format!("; a sweep with other options is refused until then (it would strand the frames in {})", t.display())).unwrap_or_default()
         )
@@ -213,7 +213,7 @@ fn clv_spectrum_advice(dir: &RunDir) -> String {
     let run = dir.path.display();
     let alone = format!("`clv backward {run} --save-every 0` computes the spectrum alone, but then records a sweep without frames, so `clv analyze` needs the frame file by name");
     match crate::stage::backward::last_sweep(&dir.path) {
-        Ok(Some(last)) if last.options.frames_file(&dir.path).is_some() && last.options.save_every > 0 => {
+        Ok(Some(last)) if last.options.frames_file(&dir.path).is_some() => {
             let file = last.options.frames_file(&dir.path).unwrap_or_default();
             let flags = last.options.flags_into(&file);
             format!("give the last sweep again, `clv backward {run} {flags}` (move {} aside first: it writes the frames again too); or {alone}", file.display())
@@ -222,49 +222,49 @@ fn clv_spectrum_advice(dir: &RunDir) -> String {
     }
 }
 
-/// The last finished sweep's frame file, where it is recorded and cut short (checked by its
-/// end only: `clv inspect FILE` reads every frame).
-fn damaged_frame_file(dir: &RunDir) -> Option<String> {
+/// What is wrong with the last finished sweep's frame file, if anything: cut short (checked
+/// by its end only: `clv inspect FILE` reads every frame), or another run's or sweep's
+/// (its metadata against the run's records).
+fn frame_file_problem(dir: &RunDir) -> Option<String> {
     let last = crate::stage::backward::last_sweep(&dir.path).ok()??;
-    let file = last.options.frames_file(&dir.path).filter(|f| last.done && last.options.save_every > 0 && f.exists())?;
-    if crate::store::frames::ends_whole(&file).unwrap_or(false) {
-        return None;
+    let file = last.options.frames_file(&dir.path).filter(|f| last.done && f.exists())?;
+    let rewrite = crate::stage::backward::rewrite_advice(&file, Some(&last.options), Some(&dir.path));
+    if !crate::store::frames::ends_whole(&file).unwrap_or(false) {
+        return Some(format!(
+            "{}, the frame file of the last backward sweep, is cut short (it does not end as a whole MCAP file); `clv inspect {}` counts its complete frames; to write it whole, {rewrite}",
+            file.display(),
+            file.display()
+        ));
     }
-    Some(format!(
-        "{}, the frame file of the last backward sweep, is cut short (it does not end as a whole MCAP file); `clv inspect {}` counts its complete frames; {}",
-        file.display(),
-        file.display(),
-        crate::stage::backward::rewrite_advice(&file, Some(&last.options), Some(&dir.path))
-    ))
+    let mut info = crate::store::frames::StreamInfo::default();
+    crate::store::frames::read_frames_with(&file, |i| {
+        info = i;
+        Ok(())
+    }, |_| Ok(crate::store::frames::Flow::Stop))
+    .ok()?;
+    let (_, meta) = RunDir::open(&dir.path).ok()?;
+    let why = crate::stage::backward::SweepFile { dir: dir.path.clone(), meta, options: Some(last.options.clone()) }.check(&info).err()?;
+    Some(format!("{}, the frame file of the last backward sweep, is not its file: {why}; `clv analyze` reads it only by name; to write the sweep's own, {rewrite}", file.display()))
 }
 
 /// The run's checksummed records that exist and fail their check ([`crate::store::checked_json`]).
 fn damaged_records(dir: &RunDir) -> Vec<String> {
     let run = dir.path.display();
     let records = [
-        ("spectrum.json", format!("`clv forward --resume {run}` rewrites it from the run's last checkpoint")),
-        ("backward.json", format!("the backward sweep it records cannot be resumed: delete it (and the sweep's FRAMES.mcap.tmp, if one is left; move a finished FRAMES.mcap aside), then `clv backward {run}` without --resume starts the sweep over")),
-        ("clv_spectrum.json", clv_spectrum_advice(dir)),
+        (dir.spectrum_path(), format!("`clv forward --resume {run}` rewrites it from the run's last checkpoint")),
+        (dir.progress_path(), format!("the backward sweep it records cannot be resumed: delete it (and the sweep's FRAMES.mcap.tmp, if one is left; move a finished FRAMES.mcap aside), then `clv backward {run}` without --resume starts the sweep over")),
+        (dir.clv_spectrum_path(), clv_spectrum_advice(dir)),
     ];
     // The CLV spectra of earlier sweeps kept beside it: a damaged one is reported only.
-    let kept: Vec<(String, String)> = std::fs::read_dir(&dir.path)
-        .into_iter()
-        .flatten()
-        .flatten()
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.starts_with("clv_spectrum-") && n.ends_with(".json"))
-        .map(|n| (n, "the CLV spectrum of an earlier sweep, kept for reference: nothing recomputes it but that sweep again".to_string()))
-        .collect();
+    let kept = dir.earlier_clv_spectra().into_iter().map(|p| (p, "the CLV spectrum of an earlier sweep, kept for reference: nothing recomputes it but that sweep again".to_string()));
     records
         .into_iter()
-        .map(|(name, what)| (name.to_string(), what))
         .chain(kept)
-        .filter_map(|(name, what_to_do)| {
-            let path = dir.path.join(name);
+        .filter_map(|(path, what_to_do)| {
             let e = crate::store::checked_json::read::<serde_json::Value>(&path).err().filter(|_| path.exists())?;
             Some(format!("{e}; {what_to_do}"))
         })
-        .chain(damaged_frame_file(dir))
+        .chain(frame_file_problem(dir))
         .collect()
 }
 
@@ -308,10 +308,10 @@ impl Inspection {
             let show: Vec<String> = self.exponents.iter().take(4).map(|x| format!("{x:.5}")).collect();
             let _ = writeln!(s, "spectrum so far: lambda_1.. = {} ... lambda_k = {:.5}", show.join(", "), self.exponents.last().unwrap_or(&f64::NAN));
             let mut sums = Vec::new();
-            if let Some(h) = crate::stage::forward::ks_entropy(&self.exponents, self.run.config.system.neutral()) {
+            if let Some(h) = crate::statistics::ks_entropy(&self.exponents, self.run.config.system.neutral()) {
                 sums.push(format!("h_KS = {h:.5}"));
             }
-            if let Some(d) = crate::stage::forward::kaplan_yorke_dimension(&self.exponents, self.run.config.system.dim()) {
+            if let Some(d) = crate::statistics::kaplan_yorke_dimension(&self.exponents, self.run.config.system.dim()) {
                 sums.push(format!("D_KY = {d:.5}"));
             }
             if !sums.is_empty() {

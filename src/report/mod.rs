@@ -1,12 +1,13 @@
 //! What a person sees: the spectrum table and the JSON summary of a run.
 
 pub mod combine;
+pub mod dir;
 pub mod inspect;
 pub mod plot;
 pub mod progress;
 
 use crate::config::RunConfig;
-use crate::stage::forward::{kaplan_yorke_dimension, Accumulator, BlockAverages, Estimate};
+use crate::statistics::{kaplan_yorke_dimension, Accumulator, BlockAverages, Estimate};
 use crate::system::Invariants;
 use serde::Serialize;
 use std::fmt::Write;
@@ -56,7 +57,7 @@ pub struct SpectrumReport {
     /// Standard error of each exponent (block averages).
     pub stderr: Vec<f64>,
     /// h_KS, the sum of the positive exponents outside those that vanish by symmetry
-    /// (Pesin's identity, [`crate::stage::forward::ks_entropy`]); None when all k are positive.
+    /// (Pesin's identity, [`crate::statistics::ks_entropy`]); None when all k are positive.
     pub ks_entropy: Option<Estimate>,
     /// D_KY (Kaplan-Yorke); None when the k exponents do not decide it.
     pub kaplan_yorke_dimension: Option<f64>,

@@ -21,7 +21,8 @@
 //!   older end, the accumulated exponents, frames written) is saved: `--resume` continues
 //!   bit for bit from there.
 
-use super::forward::{block_len, Accumulator, Estimate, Forward, ForwardState};
+use super::forward::{Forward, ForwardState};
+use crate::statistics::{block_len, Accumulator, Estimate};
 use super::frame::{on_stride, Frame};
 use crate::config::RunConfig;
 use crate::error::{Error, Result};
@@ -117,6 +118,12 @@ impl BackwardOptions {
         };
         let gs = if self.with_gs { " --with-gs" } else { "" };
         format!("{out}--save-every {} --vectors-every {} --transient {} --c-init {c_init}{gs}", self.save_every, self.vectors_every, self.transient)
+    }
+
+    /// The options of the sweep that wrote a frame stream, from its metadata (None for a
+    /// stream of a build before they were written into it).
+    pub fn of_stream(info: &crate::store::frames::StreamInfo) -> Option<Self> {
+        info.backward_json.as_deref().and_then(|s| serde_json::from_str(s).ok())
     }
 
     /// [`BackwardOptions::as_flags`] of the same sweep into `file` (its path as a user gives
@@ -272,7 +279,7 @@ mod f64_hex {
 }
 
 fn progress_path(dir: &RunDir) -> PathBuf {
-    dir.path.join("backward.json")
+    dir.progress_path()
 }
 
 /// The options of the sweep recorded in the run's progress record, if there is one.
@@ -287,6 +294,8 @@ pub struct LastSweep {
     pub done: bool,
     /// Frames emitted up to its last finished segment, where `--resume` continues.
     pub frames: u64,
+    /// The step whose C the record holds (where an interrupted sweep continues).
+    pub at: u64,
 }
 
 /// The last backward sweep of the run in `run`: None without a progress record, an error
@@ -299,22 +308,54 @@ pub fn last_sweep(run: &Path) -> Result<Option<LastSweep>> {
         Err(e) => return Err(Error::io(&file, e)),
     };
     let p = Progress::read(run, &file, text.as_bytes())?;
-    Ok(Some(LastSweep { options: p.options, done: p.done, frames: p.stats.frames }))
+    Ok(Some(LastSweep { options: p.options, done: p.done, frames: p.stats.frames, at: p.at }))
 }
 
-/// How to get a damaged frame file `file` whole again: move it aside and give its sweep again,
-/// with the options recorded in it and its run directory where known.
+/// What a frame file that stands for the run in `dir` must hold: that run's frames (its
+/// run.json) from its last backward sweep (`options`, as backward.json records them). A file
+/// copied or restored over it from another run or sweep would otherwise be analysed under
+/// the run's name.
+pub struct SweepFile {
+    pub dir: PathBuf,
+    pub meta: RunMeta,
+    pub options: Option<BackwardOptions>,
+}
+
+impl SweepFile {
+    /// Why the frame stream described by `info` is not that sweep's, if it is not.
+    pub fn check(&self, info: &crate::store::frames::StreamInfo) -> std::result::Result<(), String> {
+        let run: Option<RunMeta> = info.run_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
+        if let Some(run) = run.filter(|r| !(r.config.same_but_threads(&self.meta.config) && r.store == self.meta.store)) {
+            let differ = crate::store::run::differences((&self.meta.config, &self.meta.store, "in run.json"), (&run.config, &run.store, "in the file")).join(", ");
+            return Err(format!("it holds another run's frames ({differ})"));
+        }
+        let sweep = BackwardOptions::of_stream(info);
+        let unnamed = |o: &BackwardOptions| BackwardOptions { frames_path: None, ..o.clone() };
+        match (&self.options, sweep) {
+            (Some(want), Some(have)) if unnamed(want) != unnamed(&have) => Err(format!(
+                "the run's last backward sweep ({}, recorded in {}) did not write it: another sweep did ({})",
+                want.as_flags(),
+                progress_path(&RunDir { path: self.dir.clone() }).display(),
+                have.as_flags()
+            )),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// How to write a frame file `file` anew: move it aside and give its sweep again, with the
+/// options recorded in it and its run directory where known.
 pub fn rewrite_advice(file: &Path, options: Option<&BackwardOptions>, run: Option<&Path>) -> String {
     let run = run.map_or("RUN_DIR".to_string(), |d| d.display().to_string());
     let flags = match options {
         Some(o) => o.flags_into(file),
         None => format!("--out {}", file.display()),
     };
-    format!("to write it whole, move {} aside and give its sweep again: `clv backward {run} {flags}`", file.display())
+    format!("move {} aside and give its sweep again: `clv backward {run} {flags}`", file.display())
 }
 
 pub fn report_path(dir: &RunDir) -> PathBuf {
-    dir.path.join("clv_spectrum.json")
+    dir.clv_spectrum_path()
 }
 
 /// The window of a run: frames at steps first..=last (C starts at the run's last step).
@@ -530,7 +571,6 @@ pub fn frame_file_bytes(meta: &RunMeta, opts: &BackwardOptions) -> u64 {
 /// interrupted sweep's frames, another sweep's record, an existing file.
 fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Option<Progress>> {
     let frames_path = opts.frames_file(&dir.path);
-    let saving = opts.save_every > 0 && frames_path.is_some();
     let progress_file = progress_path(dir);
     let record = match std::fs::read_to_string(&progress_file) {
         Ok(text) if resume => Some(text),
@@ -596,7 +636,7 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
             Some(p)
         }
         None => {
-            if let Some(f) = frames_path.as_ref().filter(|_| saving)
+            if let Some(f) = frames_path.as_ref()
                 && tmp_path(f).exists() {
                     return Err(Error::Other(format!(
                         "{} holds the frames of an interrupted backward sweep (of this run, or of another whose --out names the same file): \
@@ -608,7 +648,7 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
         }
     };
     // Refused before the new sweep records itself: a refusal leaves nothing behind.
-    if let (None, true, Some(f)) = (&prior, saving, frames_path.as_ref())
+    if let (None, Some(f)) = (&prior, frames_path.as_ref())
         && f.exists()
     {
         return Err(Error::param("out", format!("{} already exists; refusing to overwrite it: choose another --out (or delete it yourself, if it is a frame file you no longer need)", f.display())));
@@ -666,38 +706,20 @@ pub fn run(
     let d = config.system.dim();
     let tau = config.tau;
 
+    // Where its frames are saved, if anywhere (frames_file is None with --save-every 0).
     let frames_path = opts.frames_file(&dir.path);
-    let saving = opts.save_every > 0 && frames_path.is_some();
     let metadata = stream_info(&dir, &meta, opts).metadata();
     let progress_file = progress_path(&dir);
     let mut notes = Vec::new();
     // Before anything looks at the frame file or writes: another run's sweep may be writing
     // the same --out.
-    let _frames_lock = match (&frames_path, saving) {
-        (Some(f), true) => Some(crate::store::frames::lock(f)?),
-        _ => None,
+    let _frames_lock = match &frames_path {
+        Some(f) => Some(crate::store::frames::lock(f)?),
+        None => None,
     };
     let prior = prior_sweep(&dir, opts, resume)?;
     if prior.as_ref().is_some_and(|p| p.done) {
-        // The sweep finished earlier: its report is the answer.
-        let path = report_path(&dir);
-        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-        let (mut report, _): (BackwardReport, _) = checked_json::from_slice(&path, text.as_bytes())?;
-        report.notes = notes;
-        if opts.streams() {
-            report.notes.push(format!(
-                "the backward sweep of {} finished earlier and its frames went to the reader of that stream: this stream carries none; \
-                 start it again without --resume for the frames",
-                dir.path.display()
-            ));
-        } else {
-            let frames = match &frames_path {
-                Some(f) => format!("its frames are in {}; to write them again (a damaged file), move it aside and give the command without --resume", f.display()),
-                None => "it wrote no frame file".into(),
-            };
-            report.notes.push(format!("the backward sweep of {} finished earlier: nothing was recomputed, and this is its CLV spectrum; {frames}", dir.path.display()));
-        }
-        return Ok(report);
+        return finished_earlier(&dir, opts);
     }
 
     if let Some(p) = prior.as_ref().filter(|p| opts.streams() && p.stats.frames > 0) {
@@ -736,53 +758,31 @@ pub fn run(
         // frames).
         write_atomic(&progress_file, &checked_json::to_vec(&sweep.record(resume_at, false))?)?;
     }
-    let mut frame_file = match (&frames_path, saving, &prior) {
+    let mut frame_file = match (&frames_path, &prior) {
         // The frames saved before the record: those of the steps that are multiples of
         // --save-every among the ones the sweep had emitted, window.last down.
-        (Some(f), true, Some(p)) => {
+        (Some(f), Some(p)) => {
             let kept: Vec<u64> = ((window.last + 1).saturating_sub(p.stats.frames)..=window.last).rev().filter(|&m| on_stride(m, opts.save_every)).collect();
-            Some(FrameFile::salvage(f, &metadata, &kept)?)
+            Some(FrameFile::salvage(f, &metadata, &kept, &format!("clv backward {} {}", dir.path.display(), opts.flags_into(f)))?)
         }
-        (Some(f), true, None) => Some(FrameFile::create(f, &metadata)?),
+        (Some(f), None) => Some(FrameFile::create(f, &metadata)?),
         _ => None,
     };
 
     let segment_bytes = 8 * (Segment::g_slots(c_every as usize, opts.vectors_every) * d * k) as u64;
     let out_of_core = (3 * segment_bytes > memory_bytes).then(|| dir.path.clone());
-    let store_r_all = store.store_r == StoreR::All;
 
-    let (tx, rx) = crossbeam_channel::bounded::<Result<Segment>>(0);
-    let (free_tx, free_rx) = crossbeam_channel::bounded::<Segment>(2);
-    let producer_config = config.clone();
-    let segments = dir.segments()?;
-    let producer_todo = todo.clone();
     let (planned, swept_before) = (todo.len() as u64, sweep.stats.segments);
-    let producer_cores = cores.clone();
-    let vectors_every = opts.vectors_every;
-    let reads_g = move |n: u64| n >= window.first && n <= window.last && on_stride(n, vectors_every);
-    let producer = std::thread::Builder::new()
-        .name("clv-recompute".into())
-        .spawn(move || {
-            let mut cps = Checkpoints::new(segments);
-            let mut fwd = None;
-            let mut allocated = 0;
-            for (s0, s1) in producer_todo {
-                let buffer = match free_rx.try_recv() {
-                    Ok(b) => Ok(b),
-                    Err(_) if allocated < 2 => {
-                        allocated += 1;
-                        Segment::new(c_every as usize, d, k, vectors_every, out_of_core.as_deref())
-                    }
-                    Err(_) => free_rx.recv().map_err(|_| Error::Other("the sweep stopped".into())),
-                };
-                let seg = buffer.and_then(|mut b| recompute(&producer_config, store_r_all, &reads_g, &producer_cores, &mut cps, &mut fwd, s0, s1, &mut b).map(|_| b));
-                let failed = seg.is_err();
-                if tx.send(seg).is_err() || failed {
-                    break;
-                }
-            }
-        })
-        .map_err(|e| Error::Other(format!("cannot start the recomputation thread: {e}")))?;
+    let recomputation = Recomputation {
+        config: config.clone(),
+        store_r_all: store.store_r == StoreR::All,
+        window,
+        vectors_every: opts.vectors_every,
+        segment_steps: c_every as usize,
+        out_of_core,
+        cores: cores.clone(),
+    };
+    let (rx, free_tx, producer) = recomputation.spawn(dir.segments()?, todo)?;
 
     let mut stopped = false;
     let mut failure = None;
@@ -866,6 +866,78 @@ pub fn run(
     Ok(report)
 }
 
+/// The recomputation of the run's segments, newest first, on a thread of its own beside the
+/// sweep: G_n (for V_n = G_n C_n) and R_n of every step of a segment from its checkpoint.
+struct Recomputation {
+    config: RunConfig,
+    store_r_all: bool,
+    window: Window,
+    vectors_every: u64,
+    /// Steps per segment (the run's checkpoint interval).
+    segment_steps: usize,
+    /// Where segment buffers go when they do not fit in memory.
+    out_of_core: Option<PathBuf>,
+    cores: Arc<Cores>,
+}
+
+type Segments = (crossbeam_channel::Receiver<Result<Segment>>, crossbeam_channel::Sender<Segment>, std::thread::JoinHandle<()>);
+
+impl Recomputation {
+    /// Start recomputing the segments `todo` ((s0, s1) steps, newest first) of the run's
+    /// `segments`: each is sent when done (one at a time), into one of two buffers the sweep
+    /// hands back over the second channel when it has swept them. The first error is sent
+    /// and ends it.
+    fn spawn(self, segments: Vec<crate::store::run::SegmentFile>, todo: Vec<(u64, u64)>) -> Result<Segments> {
+        let (tx, rx) = crossbeam_channel::bounded::<Result<Segment>>(0);
+        let (free_tx, free_rx) = crossbeam_channel::bounded::<Segment>(2);
+        let (d, k) = (self.config.system.dim(), self.config.vectors);
+        let handle = std::thread::Builder::new()
+            .name("clv-recompute".into())
+            .spawn(move || {
+                let Recomputation { config, store_r_all, window, vectors_every, segment_steps, out_of_core, cores } = self;
+                let reads_g = move |n: u64| n >= window.first && n <= window.last && on_stride(n, vectors_every);
+                let mut cps = Checkpoints::new(segments);
+                let mut fwd = None;
+                let mut allocated = 0;
+                for (s0, s1) in todo {
+                    let buffer = match free_rx.try_recv() {
+                        Ok(b) => Ok(b),
+                        Err(_) if allocated < 2 => {
+                            allocated += 1;
+                            Segment::new(segment_steps, d, k, vectors_every, out_of_core.as_deref())
+                        }
+                        Err(_) => free_rx.recv().map_err(|_| Error::Other("the sweep stopped".into())),
+                    };
+                    let seg = buffer.and_then(|mut b| recompute(&config, store_r_all, &reads_g, &cores, &mut cps, &mut fwd, s0, s1, &mut b).map(|_| b));
+                    let failed = seg.is_err();
+                    if tx.send(seg).is_err() || failed {
+                        break;
+                    }
+                }
+            })
+            .map_err(|e| Error::Other(format!("cannot start the recomputation thread: {e}")))?;
+        Ok((rx, free_tx, handle))
+    }
+}
+
+/// `--resume` of a sweep that finished: its report is the answer, and nothing is recomputed.
+fn finished_earlier(dir: &RunDir, opts: &BackwardOptions) -> Result<BackwardReport> {
+    let path = report_path(dir);
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let (mut report, _): (BackwardReport, _) = checked_json::from_slice(&path, text.as_bytes())?;
+    let run = dir.path.display();
+    report.notes = vec![if opts.streams() {
+        format!("the backward sweep of {run} finished earlier and its frames went to the reader of that stream: this stream carries none; start it again without --resume for the frames")
+    } else {
+        let frames = match opts.frames_file(&dir.path) {
+            Some(f) => format!("its frames are in {}; to write them again (a damaged file), move it aside and give the command without --resume", f.display()),
+            None => "it wrote no frame file".into(),
+        };
+        format!("the backward sweep of {run} finished earlier: nothing was recomputed, and this is its CLV spectrum; {frames}")
+    }];
+    Ok(report)
+}
+
 /// RUN_DIR/clv_spectrum.json. The CLV spectrum of an earlier sweep with other options
 /// (another C, transient, file) can be hours of work: kept beside the new one
 /// (clv_spectrum-N.json), not replaced, and the report notes where.
@@ -876,10 +948,10 @@ fn write_report(dir: &RunDir, report: &mut BackwardReport) -> Result<()> {
         && earlier.options != report.options
     {
         let mut i = 1;
-        while dir.path.join(format!("clv_spectrum-{i}.json")).exists() {
+        while dir.earlier_clv_spectrum_path(i).exists() {
             i += 1;
         }
-        let kept = dir.path.join(format!("clv_spectrum-{i}.json"));
+        let kept = dir.earlier_clv_spectrum_path(i);
         std::fs::rename(&path, &kept).map_err(|e| Error::io(&path, e))?;
         report.notes.push(format!("the CLV spectrum of the earlier sweep, made with {}, is kept as {}", earlier.options.as_flags(), kept.display()));
     }

@@ -27,8 +27,13 @@ pub const ENERGY_TOLERANCE: f64 = 1e-8;
 /// Stop at step `n` if the energy drifted from `energy0` by more than [`ENERGY_TOLERANCE`]
 /// (relative): the dynamics has lost its accuracy, and no number from it may be reported.
 pub fn check_energy(n: u64, energy0: f64, energy: f64) -> Result<()> {
+    // Maps and dissipative flows conserve no energy: their invariant is NaN.
+    if !energy0.is_finite() {
+        return Ok(());
+    }
     let drift = ((energy - energy0) / energy0).abs();
-    if drift > ENERGY_TOLERANCE {
+    // A non-finite energy (a blown-up trajectory) is no accuracy either.
+    if !(drift <= ENERGY_TOLERANCE) {
         return Err(Error::Dynamics(format!(
             "step {n}: the energy drifted by {drift:.2e} (relative) from its start value {energy0}; \
              the dynamics has lost its accuracy, so the run stops here rather than report wrong numbers"
@@ -120,7 +125,7 @@ pub struct Extension {
 /// Continue the run in `path` past the length it was made for, finished or not. The
 /// trajectory, G_n and the exponent sums are those of a run made that long from the start,
 /// bit for bit; only the blocks of the standard error differ (they double in length as the
-/// run outgrows them, [`crate::stage::forward::Accumulator::limit_blocks`]). What was
+/// run outgrows them, [`crate::statistics::Accumulator::limit_blocks`]). What was
 /// computed for the shorter run and no longer describes this one (spectrum.json, and the
 /// covariant vectors of the old window: clv_spectrum.json, backward.json, frames.mcap) is
 /// moved into `path/previous-STEPS-steps/`, never overwritten, and so are the files or
@@ -190,15 +195,10 @@ pub fn previous_results(run: &Path, steps: u64) -> PathBuf {
 /// finished by the next call (each file is renamed whole); a file that would replace one
 /// already there stops it.
 fn archive_results(dir: &RunDir, to: &Path, also: &[&Path]) -> Result<Option<PathBuf>> {
-    let names = ["spectrum.json", "clv_spectrum.json", "backward.json", "frames.mcap", "frames.mcap.tmp"];
-    // The CLV spectra of earlier sweeps with other options (clv_spectrum-N.json) describe the
-    // shorter run too.
-    let earlier_sweeps: Vec<PathBuf> = std::fs::read_dir(&dir.path)
-        .map_err(|e| Error::io(&dir.path, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with("clv_spectrum-") && n.ends_with(".json")))
-        .collect();
-    let present: Vec<PathBuf> = names.iter().map(|n| dir.path.join(n)).chain(earlier_sweeps).chain(also.iter().map(|p| p.to_path_buf())).filter(|p| p.exists()).collect();
+    let frames = dir.frames_path();
+    let names = [dir.spectrum_path(), dir.clv_spectrum_path(), dir.progress_path(), crate::store::frames::tmp_path(&frames), frames];
+    // The CLV spectra of earlier sweeps with other options describe the shorter run too.
+    let present: Vec<PathBuf> = names.into_iter().chain(dir.earlier_clv_spectra()).chain(also.iter().map(|p| p.to_path_buf())).filter(|p| p.exists()).collect();
     if !present.is_empty() {
         std::fs::create_dir_all(to).map_err(|e| Error::io(to, e))?;
     }
@@ -454,6 +454,8 @@ mod tests {
     #[test]
     fn an_energy_drift_beyond_the_tolerance_stops_the_run_naming_the_step() {
         assert!(check_energy(100, 16.0, 16.0 * (1.0 + 0.5 * ENERGY_TOLERANCE)).is_ok());
+        assert!(check_energy(100, 16.0, f64::NAN).is_err() && check_energy(100, 16.0, f64::INFINITY).is_err(), "a blown-up trajectory stops the run");
+        assert!(check_energy(100, f64::NAN, 3.0).is_ok(), "a map has no energy to conserve");
         let err = check_energy(300, 16.0, 16.0 * (1.0 + 2.0 * ENERGY_TOLERANCE)).unwrap_err().to_string();
         assert!(err.contains("step 300") && err.contains("energy drifted"), "{err}");
     }

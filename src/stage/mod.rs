@@ -1,5 +1,5 @@
-//! The stages of the pipeline: forward Gram-Schmidt pass (and, in later stages, the backward
-//! Ginelli pass and the analyses that consume its frames).
+//! The stages of the pipeline: the forward Gram-Schmidt pass, the backward Ginelli pass over
+//! the run it stored, and the analyses that consume the backward pass's frames.
 
 pub mod backward;
 pub mod forward;

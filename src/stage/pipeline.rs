@@ -62,7 +62,7 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
                 format!(
                     "{} holds a run of another configuration: {}; choose another --out, or ask for that run's configuration to continue it (or for more --steps to extend it)",
                     run_dir.display(),
-                    differences((&stored.config, &stored.store, "in the run"), (config, store, "asked for")).join(", ")
+                    crate::store::run::differences((&stored.config, &stored.store, "in the run"), (config, store, "asked for")).join(", ")
                 ),
             ));
         } else {
@@ -83,7 +83,7 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
     }
     let (dir, meta) = RunDir::open(&run_dir)?;
     // Taken after the forward pass, which may move an earlier report aside (extend).
-    let _report_lock = super::analyze::lock_report(&report_dir)?;
+    let _report_lock = crate::report::dir::lock_report(&report_dir)?;
     let mut opts = BackwardOptions::for_run(&meta);
     opts.with_gs = true;
     opts.save_every = 0;
@@ -124,7 +124,7 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
 /// run is new): a report can be all that is left of a long run. A report of this run,
 /// finished or killed midway (`clv run` given again after an interruption), is written anew.
 fn check_report(report_dir: &Path, run_dir: &Path, stored: Option<&RunMeta>) -> Result<()> {
-    use super::analyze::{report_in, ReportDir};
+    use crate::report::dir::{report_in, ReportDir};
     let found = report_in(report_dir);
     let what = match (&found, stored) {
         (ReportDir::Empty, _) => return Ok(()),
@@ -135,7 +135,7 @@ fn check_report(report_dir: &Path, run_dir: &Path, stored: Option<&RunMeta>) -> 
         (ReportDir::Report { run: Some(run), .. }, Some(stored)) => format!(
             "the report of another run than the one in {} ({})",
             run_dir.display(),
-            differences((run, &stored.store, "in the report"), (&stored.config, &stored.store, "in the run")).join(", ")
+            crate::store::run::differences((run, &stored.store, "in the report"), (&stored.config, &stored.store, "in the run")).join(", ")
         ),
         (ReportDir::Report { run: None, .. }, Some(_)) => format!("a report that names no run, not one of the run in {}", run_dir.display()),
         (ReportDir::Other, _) => "files that are not a report of clv (no index.html of one)".to_string(),
@@ -159,33 +159,3 @@ fn extension(stored: &RunMeta, config: &RunConfig, store: &StoreConfig) -> Optio
         .then_some(forward_run::Extension { steps: config.steps, clv_steps: Some(store.clv_steps), transient: Some(store.transient) })
 }
 
-/// The settings in which two runs differ, as the flags that set them, each side named by its
-/// label: "--steps 10000 in the run, 5000 asked for" (the thread count is no setting of a run).
-pub(crate) fn differences((run, run_store, here): (&RunConfig, &StoreConfig, &str), (asked, asked_store, there): (&RunConfig, &StoreConfig, &str)) -> Vec<String> {
-    fn leaves(prefix: &str, v: &serde_json::Value, out: &mut Vec<(String, String)>) {
-        match v {
-            serde_json::Value::Object(map) => map.iter().for_each(|(k, v)| leaves(k, v, out)),
-            _ => out.push((prefix.replace('_', "-"), v.to_string())),
-        }
-    }
-    let flat = |c: &RunConfig, s: &StoreConfig| {
-        let mut out = Vec::new();
-        leaves("", &serde_json::to_value(c).unwrap_or_default(), &mut out);
-        leaves("", &serde_json::to_value(s).unwrap_or_default(), &mut out);
-        out
-    };
-    let (ours, theirs) = (flat(run, run_store), flat(asked, asked_store));
-    let mut out: Vec<String> = theirs
-        .iter()
-        .filter(|(k, _)| k != "threads")
-        .filter_map(|(k, want)| match ours.iter().find(|(o, _)| o == k) {
-            Some((_, have)) if have == want => None,
-            Some((_, have)) => Some(format!("--{k} {have} {here}, {want} {there}")),
-            None => Some(format!("--{k} {want} {there}, none {here}")),
-        })
-        .collect();
-    if out.is_empty() {
-        out.push("settings that flags do not show".into());
-    }
-    out
-}

@@ -182,7 +182,8 @@ impl FrameFile {
     ///
     /// A sweep killed after it renamed the finished FILE, before its progress record said
     /// so, left no FILE.tmp: FILE itself is then the interrupted file, if this sweep wrote it.
-    pub fn salvage(path: &Path, metadata: &BTreeMap<String, String>, keep: &[u64]) -> Result<Self> {
+    /// `restart` is the command that starts the sweep over, for a file that cannot be continued.
+    pub fn salvage(path: &Path, metadata: &BTreeMap<String, String>, keep: &[u64], restart: &str) -> Result<Self> {
         let tmp = tmp_path(path);
         let old = tmp.with_extension("tmp.old");
         if !old.exists() && !tmp.exists() && path.exists() {
@@ -241,14 +242,8 @@ impl FrameFile {
         super::fault::crash_point("salvage-moved");
         let mut file = FrameFile::create(path, metadata)?;
         if old.exists() {
-            let options = metadata.get("backward.json").and_then(|j| serde_json::from_str::<crate::stage::backward::BackwardOptions>(j).ok());
-            let run = options.as_ref().and_then(|o| run_dir_of(path, o.frames_path.as_deref()?)).map_or("RUN_DIR".to_string(), |d| d.display().to_string());
-            let flags = match options {
-                Some(o) => o.flags_into(path),
-                None => format!("--out {}", path.display()),
-            };
             let give_up = format!(
-                "it cannot be continued: delete {} (and {}, if it exists) and give the sweep again without --resume, which starts it over (`clv backward {run} {flags}`; \
+                "it cannot be continued: delete {} (and {}, if it exists) and give the sweep again without --resume, which starts it over (`{restart}`; \
                  the frames before the damage would be recomputed on the way in any case)",
                 old.display(),
                 tmp.display()

@@ -6,6 +6,14 @@
 //! RUN_DIR/seg-FIRST.mcap.tmp        the segment being written (a leftover means a crash)
 //! RUN_DIR/spectrum.json             the final forward spectrum, once the run is complete
 //! RUN_DIR/.lock                     the write lock a stage holds while it writes the run (lock.rs)
+//! RUN_DIR/backward.json             the backward stage's record of its last sweep (resume)
+//! RUN_DIR/clv_spectrum.json         the CLV spectrum of the last sweep
+//! RUN_DIR/clv_spectrum-N.json       those of earlier sweeps with other options, kept
+//! RUN_DIR/frames.mcap[.tmp]         the default frame file of `clv backward` (frames.rs)
+//! RUN_DIR/previous-S-steps/         the stages' results of the run as it was with S steps,
+//!                                   moved aside when it was made longer
+//! RUN_DIR/run.json.from-segments    the newest segment's copy of an edited or damaged run.json
+//! RUN_DIR/*.corrupt, *.superseded   damaged segments set aside, and those a repair replaced
 //! ```
 //!
 //! Why this shape: the Ginelli backward pass needs, newest first, what the forward pass

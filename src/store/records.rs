@@ -1,7 +1,8 @@
 //! Typed messages of a run directory and their encoding through the schemas.
 
 use super::schema::{CHECKPOINT, R, STATS};
-use crate::stage::forward::{Accumulator, ForwardState};
+use crate::stage::forward::ForwardState;
+use crate::statistics::Accumulator;
 use crate::system::Snapshot;
 use faer::Mat;
 

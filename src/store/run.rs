@@ -18,6 +18,37 @@ pub enum StoreR {
     All,
 }
 
+/// The settings in which two runs differ, as the flags that set them, each side named by its
+/// label: "--steps 10000 in the run, 5000 asked for" (the thread count is no setting of a run).
+pub fn differences((run, run_store, here): (&RunConfig, &StoreConfig, &str), (asked, asked_store, there): (&RunConfig, &StoreConfig, &str)) -> Vec<String> {
+    fn leaves(prefix: &str, v: &serde_json::Value, out: &mut Vec<(String, String)>) {
+        match v {
+            serde_json::Value::Object(map) => map.iter().for_each(|(k, v)| leaves(k, v, out)),
+            _ => out.push((prefix.replace('_', "-"), v.to_string())),
+        }
+    }
+    let flat = |c: &RunConfig, s: &StoreConfig| {
+        let mut out = Vec::new();
+        leaves("", &serde_json::to_value(c).unwrap_or_default(), &mut out);
+        leaves("", &serde_json::to_value(s).unwrap_or_default(), &mut out);
+        out
+    };
+    let (ours, theirs) = (flat(run, run_store), flat(asked, asked_store));
+    let mut out: Vec<String> = theirs
+        .iter()
+        .filter(|(k, _)| k != "threads")
+        .filter_map(|(k, want)| match ours.iter().find(|(o, _)| o == k) {
+            Some((_, have)) if have == want => None,
+            Some((_, have)) => Some(format!("--{k} {have} {here}, {want} {there}")),
+            None => Some(format!("--{k} {want} {there}, none {here}")),
+        })
+        .collect();
+    if out.is_empty() {
+        out.push("settings that flags do not show".into());
+    }
+    out
+}
+
 /// How a run is laid out on disk and what is kept.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StoreConfig {
@@ -28,7 +59,9 @@ pub struct StoreConfig {
     /// A segment is also closed once it holds this many bytes of messages.
     pub segment_bytes: u64,
     pub store_r: StoreR,
-    /// The last steps of the run for which covariant vectors are wanted.
+    /// The length of the CLV window in steps: covariant vectors are wanted at its
+    /// clv_steps + 1 steps, both ends included ([`crate::stage::backward::Window`]), which end
+    /// `transient` steps before the run's last.
     pub clv_steps: u64,
     /// Steps of the backward sweep discarded as transient, before the CLV window.
     pub transient: u64,
@@ -40,8 +73,8 @@ impl StoreConfig {
     /// The defaults for a run: checkpoints every 100 steps, 10 per segment, the CLV window
     /// the last tenth of the accumulated steps (as in the paper), a transient of half that.
     pub fn for_run(config: &RunConfig) -> Self {
-        // The paper's window: the last tenth of the run (2.5e4 of 2.5e5 steps), with half as
-        // many backward steps again for C to converge, inside the accumulated steps.
+        // The paper's window: the last tenth of the run (2.5e4 of 2.5e5 steps), inside the
+        // accumulated steps.
         let clv_steps = ((config.relax_steps + config.steps) / 10).min(config.steps * 2 / 3).max(1);
         StoreConfig {
             checkpoint_every: 100,
@@ -49,9 +82,15 @@ impl StoreConfig {
             segment_bytes: 1 << 30,
             store_r: StoreR::Checkpoints,
             clv_steps,
-            transient: (clv_steps / 2).max(1),
+            transient: Self::transient_for(clv_steps),
             keep_segments: 2,
         }
+    }
+
+    /// The default backward transient of a CLV window of `clv_steps`: half as many steps again
+    /// for C to converge (the paper's 2.5e4 window with its transient, of 2.5e5 steps).
+    pub fn transient_for(clv_steps: u64) -> u64 {
+        (clv_steps / 2).max(1)
     }
 
     pub fn validate(&self, config: &RunConfig) -> Result<()> {
@@ -274,6 +313,30 @@ impl RunDir {
     pub fn spectrum_path(&self) -> PathBuf {
         self.path.join("spectrum.json")
     }
+    /// The backward stage's record of its last sweep: options, progress, C to resume from.
+    pub fn progress_path(&self) -> PathBuf {
+        self.path.join("backward.json")
+    }
+    /// The CLV spectrum of the last backward sweep.
+    pub fn clv_spectrum_path(&self) -> PathBuf {
+        self.path.join("clv_spectrum.json")
+    }
+    /// The CLV spectrum of the `i`-th earlier sweep with other options, kept beside it.
+    pub fn earlier_clv_spectrum_path(&self, i: usize) -> PathBuf {
+        self.path.join(format!("clv_spectrum-{i}.json"))
+    }
+    /// Those of [`RunDir::earlier_clv_spectrum_path`] that exist.
+    pub fn earlier_clv_spectra(&self) -> Vec<PathBuf> {
+        let mut found: Vec<PathBuf> = fs::read_dir(&self.path)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.strip_prefix("clv_spectrum-").and_then(|n| n.strip_suffix(".json")).is_some_and(|i| i.parse::<usize>().is_ok())))
+            .collect();
+        found.sort();
+        found
+    }
 
     /// Create a new run directory (it must not exist, or be empty) and lock it for the
     /// `what`: the lock is taken before run.json is written, so that of two processes
@@ -391,6 +454,11 @@ impl RunDir {
         };
         if meta.format != FORMAT {
             return Err(Error::corrupt(&meta_path, format!("format {:?}, this clv reads {FORMAT:?}", meta.format)));
+        }
+        // A run.json of an earlier build (without a checksum) is checked like a new run's
+        // settings: the stages' arithmetic assumes them (a window inside the run, say).
+        if let Err(e) = meta.config.validate().and_then(|()| meta.store.validate(&meta.config)) {
+            return Err(Error::corrupt(&meta_path, format!("its settings are not those of a run clv writes ({e}): it was edited or damaged")));
         }
         Ok((dir, meta))
     }

@@ -39,7 +39,7 @@ pub struct Invariants {
 
 /// A dynamical system with its tangent (linearised) dynamics.
 pub trait DynamicalSystem: Send {
-    /// Short name used in configurations and reports ("henon", "disks").
+    /// Short name used in configurations and reports ("henon", "lorenz", "disks").
     fn name(&self) -> &'static str;
 
     /// Phase-space dimension D.

@@ -8,7 +8,7 @@ use super::kernels::convergence::{diagnose, running, Diagnostics};
 use super::{save_figure, write_csv, Analysis, Context, Produced};
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
-use crate::stage::forward::{standard_error, Accumulator};
+use crate::statistics::{standard_error, Accumulator};
 use crate::stage::frame::Frame;
 use std::path::Path;
 
@@ -130,7 +130,7 @@ fn verdict(label: &str, d: &Diagnostics, block_steps: u64) -> String {
 mod tests {
     use super::*;
     use crate::stage::analyze::testing::{context, frame, out_dir, spectrum};
-    use crate::stage::forward::BlockAverages;
+    use crate::statistics::BlockAverages;
 
     /// The GS blocks of spectrum.json and the CLV blocks of the frames each give a running
     /// table whose last row is the plain mean, and a verdict; a settling GS run is told to

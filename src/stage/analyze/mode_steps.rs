@@ -196,6 +196,15 @@ pub fn resolve_steps(detected: &[Step], frame: &Frame, candidates: &Candidates, 
     out
 }
 
+/// J of F^(J): the paper's 370 of 2N - 3 = 393 positive exponents scaled to this system's
+/// 2N - 3 = D/2 - 3, ending before the first positive mode step.
+pub fn f_size(d: usize, steps: &[Step]) -> usize {
+    let m = (d / 2).saturating_sub(3);
+    let scaled = super::paper_index(370, m);
+    let before_modes = steps.iter().filter(|s| is_positive(s, d)).map(|s| s.start).min().unwrap_or(m);
+    scaled.min(m).min(before_modes)
+}
+
 /// True for a step on the positive side of the null space (an unstable mode).
 pub fn is_positive(step: &Step, d: usize) -> bool {
     step.start + step.len <= d / 2 - 3

@@ -5,7 +5,7 @@
 use super::{save_figure, write_csv, Analysis, Context, Produced};
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
-use crate::stage::forward::{ks_entropy, Accumulator, Estimate};
+use crate::statistics::{ks_entropy, Accumulator, Estimate};
 use crate::stage::frame::Frame;
 use std::path::Path;
 

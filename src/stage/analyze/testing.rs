@@ -89,7 +89,7 @@ impl Drop for OutDir {
     }
 }
 
-use super::csv_cells as split_csv;
+use crate::report::dir::csv_cells as split_csv;
 
 /// Rows of a CSV file as maps from header to cell.
 pub fn read_csv(path: &std::path::Path) -> Vec<std::collections::BTreeMap<String, String>> {

@@ -34,14 +34,6 @@ pub const THETA_BINS: usize = 90;
 /// dot product near 1 loses digits).
 const SMALL: f64 = 1e-3;
 
-/// J of F^(J): the paper's 370 of 2N - 3 = 393 positive exponents scaled to this system's
-/// 2N - 3 = D/2 - 3, ending before the first positive mode step.
-pub fn f_size(d: usize, steps: &[Step]) -> usize {
-    let m = (d / 2).saturating_sub(3);
-    let scaled = super::paper_index(370, m);
-    let before_modes = steps.iter().filter(|s| mode_steps::is_positive(s, d)).map(|s| s.start).min().unwrap_or(m);
-    scaled.min(m).min(before_modes)
-}
 
 /// The separations of Fig. 16 for this D within F^(J): 1, 2, 4 as they are, the paper's
 /// larger ones scaled by D/792 (at least 1), without duplicates, all < J.
@@ -199,7 +191,7 @@ impl Analysis for Transversality {
             self.steps = mode_steps::positive(&self.ctx.modes, d);
             let candidates = mode_steps::candidates(&self.ctx);
             self.phi = vec![Vec::new(); self.steps.len()];
-            let j = f_size(d, &self.steps);
+            let j = mode_steps::f_size(d, &self.steps);
             self.theta = Some(ThetaStats::new(j, separations(d, j)));
             self.labels = self
                 .steps
@@ -352,8 +344,8 @@ mod tests {
         assert_eq!(separations(160, 75), vec![1, 2, 4, 10, 20, 40, 61]); // 20 scales to 4
         assert_eq!(separations(24, 3), vec![1, 2]);
         let steps = [Step { start: 70, len: 2, mean: 0.1 }, Step { start: 84, len: 2, mean: -0.1 }];
-        assert_eq!(f_size(160, &steps), 70);
-        assert_eq!(f_size(792, &[]), 370);
+        assert_eq!(mode_steps::f_size(160, &steps), 70);
+        assert_eq!(mode_steps::f_size(792, &[]), 370);
     }
 
     /// The random baseline of Psi: two lines in the plane are apart by pi/4 on median

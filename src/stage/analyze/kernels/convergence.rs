@@ -22,7 +22,7 @@
 //! z and r_1 would measure round-off, or, for the covariant vectors of a null space, the
 //! drift that a finite backward window builds into them (e_(k+3) - s e_k).
 
-use crate::stage::forward::standard_error;
+use crate::statistics::standard_error;
 
 /// The drift and independence tests over the exponents that vary.
 #[derive(Clone, Debug, PartialEq)]

@@ -108,7 +108,7 @@ impl LocalizationAverage {
         (0..self.sum.len())
             .map(|i| {
                 let means: Vec<f64> = self.block_means.iter().map(|b| b[i]).filter(|m| m.is_finite()).collect();
-                crate::stage::forward::standard_error(&means)
+                crate::statistics::standard_error(&means)
             })
             .collect()
     }
