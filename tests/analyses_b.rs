@@ -110,6 +110,8 @@ fn disk_modes_and_transversality() {
     let index = std::fs::read_to_string(report.join("index.html")).unwrap();
     assert!(index.contains(&format!("F^({})", 2 * n - 9)), "F^(J) should end before LP(1,0)");
     assert!(index.contains(&format!("selected covariant vectors j = 1, 39, {}, and", 2 * n - 9)), "Fig. 13's default j (the paper's 1, 200, 370 scaled)");
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(report.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["options"]["j"], serde_json::json!([1, 39, 2 * n - 9]), "summary.json's options are the figures'");
 
     let t_stem = format!("fig10_T1_i{}", t1["last"]);
     let mut stems = vec!["fig15_transversality".to_string(), "fig16_theta_distributions".into(), "fig17_theta_min".into(), "modes_dispersion".into()];

@@ -527,13 +527,13 @@ fn configuration_files_round_trip_and_flags_override_them() {
     let refused = clv(&["run", "--config", small.to_str().unwrap(), "--out", changed.to_str().unwrap(), "--quiet", "--clv-steps", "90", "--seed", "5"]);
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success() && err.contains("another configuration: --clv-steps 80 in the run, 90 asked for;"), "{err}");
-    // A bad value in a file is reported as the file's, for forward and run alike.
+    // A bad value in a file is reported as the file's, with its line, for forward and run alike.
     let bad = base.join("bad.toml");
-    std::fs::write(&bad, "n = \"many\"\n").unwrap();
+    std::fs::write(&bad, "# a run\nseed = 3\nn = \"many\"\n").unwrap();
     for cmd in [vec!["forward", "--config", bad.to_str().unwrap()], vec!["run", "--config", bad.to_str().unwrap(), "--out", base.join("bad-out").to_str().unwrap()]] {
         let out = clv(&cmd);
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && err.contains("bad.toml: ") && err.contains("'many'") && err.contains("--n"), "{cmd:?}: {err}");
+        assert!(!out.status.success() && err.contains("bad.toml:3: ") && err.contains("'many'") && err.contains("--n"), "{cmd:?}: {err}");
     }
     // ... also where the value parses but the run refuses it; the same value given on the
     // command line is the flag's.

@@ -136,10 +136,13 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if stored.is_none() || given("vectors_every") {
         opts.vectors_every = args.vectors_every;
     }
-    if let Some(path) = &opts.frames_file(&args.dir)
-        && let Some(warning) = clv::store::run::space_warning(path, backward::frame_file_bytes(&meta, &opts)) {
-            eprintln!("clv: {warning} (--save-every m keeps one frame in m)");
-        }
+    // Only for a sweep that will write (--resume of none, or of a finished one, does not).
+    let writes = !args.resume || backward::last_sweep(&args.dir).ok().flatten().is_some_and(|last| !last.done);
+    if let Some(path) = opts.frames_file(&args.dir).filter(|_| writes)
+        && let Some(warning) = clv::store::run::space_warning(&path, backward::frame_file_bytes(&meta, &opts))
+    {
+        eprintln!("clv: {warning} (--save-every m keeps one frame in m)");
+    }
     let stream_meta = backward::stream_info(&dir, &meta, &opts).metadata();
     let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
     // Two bars: segments recomputed (from the checkpoints) and frames emitted by the sweep.

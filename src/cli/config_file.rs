@@ -48,6 +48,12 @@ pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
     Ok(args)
 }
 
+/// The line (1-based) of `path` that sets `key`, for an error about its value.
+pub fn line_of(path: &Path, key: &str) -> Option<usize> {
+    let text = std::fs::read_to_string(path).ok()?;
+    text.lines().position(|raw| strip_comment(raw).split_once('=').is_some_and(|(k, _)| k.trim().replace('_', "-") == key)).map(|i| i + 1)
+}
+
 fn strip_comment(line: &str) -> &str {
     let mut in_string = false;
     for (i, c) in line.char_indices() {

@@ -111,15 +111,24 @@ fn expand_config(raw: Vec<String>) -> Result<Vec<String>> {
     }
     let Some(file) = file else { return Ok(raw) };
     let mut argv = raw[..2].to_vec();
-    argv.extend(config_file::expand(std::path::Path::new(&file), &config_keys())?);
-    // A bad value in the file is the file's error, not the command line's.
-    if let Err(e) = Cli::try_parse_from(&argv) {
-        return Err(Error::Other(format!("{file}: {}", first_line(&e))));
-    }
+    argv.extend(forward_flags_of_file(std::path::Path::new(&file))?);
     argv.extend(rest);
     // Kept for the command, which names the file in errors of the values it gave.
     argv.extend(["--config".to_string(), file]);
     Ok(argv)
+}
+
+/// The flags of `clv forward` a configuration file gives. A value clap refuses is the
+/// file's error, named with its line, not the command line's.
+pub fn forward_flags_of_file(file: &std::path::Path) -> Result<Vec<String>> {
+    let flags = config_file::expand(file, &config_keys())?;
+    let parse = |flags: &[String]| Cli::try_parse_from(["clv".to_string(), "forward".to_string()].iter().chain(flags));
+    if let Err(e) = parse(&flags) {
+        let key = flags.iter().find(|f| parse(std::slice::from_ref(f)).is_err()).and_then(|f| f.strip_prefix("--")).and_then(|f| f.split('=').next());
+        let line = key.and_then(|k| config_file::line_of(file, k)).map(|l| format!(":{l}")).unwrap_or_default();
+        return Err(Error::Other(format!("{}{line}: {}", file.display(), first_line(&e))));
+    }
+    Ok(flags)
 }
 
 /// Whether `args` name the flag --`name` (alone, or as --`name`=VALUE).

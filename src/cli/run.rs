@@ -4,7 +4,7 @@
 use super::forward::{flag_values, no_disk_flags_for_henon};
 use super::{config_keys, first_line, progress, Cli, Command};
 use clap::parser::ValueSource;
-use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Parser};
+use clap::{ArgMatches, Args, CommandFactory, FromArgMatches};
 use clv::config::RunConfig;
 use clv::stage::forward_run::Feedback;
 use clv::store::run::{BuildInfo, RunMeta, StoreConfig, FORMAT};
@@ -55,11 +55,7 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
     let keys = config_keys();
     let mut argv = vec!["clv".to_string(), "forward".to_string()];
     match &args.config {
-        Some(path) => {
-            argv.extend(super::config_file::expand(path, &keys)?);
-            // A bad value in the file is the file's error, not the command line's.
-            Cli::try_parse_from(&argv).map_err(|e| Error::Other(format!("{}: {}", path.display(), first_line(&e))))?;
-        }
+        Some(path) => argv.extend(super::forward_flags_of_file(path)?),
         None => argv.extend(config_flags(&RunConfig::preset(&args.preset)?)),
     }
     for setting in &args.settings {

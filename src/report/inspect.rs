@@ -182,15 +182,17 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     })
 }
 
-/// The last backward sweep as its progress record tells it: finished, or interrupted (which
-/// blocks a sweep with other options until it is resumed or given up).
+/// The last backward sweep as its progress record tells it: finished, or interrupted (which,
+/// while its frame file is unfinished, blocks a sweep with other options until it is
+/// resumed or given up).
 fn backward_sweep(dir: &RunDir) -> Option<String> {
+    use crate::stage::backward::Destination;
     let last = crate::stage::backward::last_sweep(&dir.path).ok()??;
     let opts = &last.options;
-    let out = match (opts.frames_file(&dir.path), opts.streams()) {
-        (_, true) => "frames to a stream".to_string(),
-        (Some(p), false) => format!("frames to {}", p.display()),
-        (None, false) => "no frame file".to_string(),
+    let out = match opts.destination() {
+        Destination::Stream => "frames to a stream".to_string(),
+        Destination::File { path, .. } => format!("frames to {}", dir.path.join(path).display()),
+        Destination::Nowhere => "no frame file".to_string(),
     };
     Some(if last.done {
         format!("finished, {} frames ({out})", last.frames)

@@ -93,16 +93,29 @@ impl BackwardOptions {
         Ok(file.strip_prefix(&run).map_or(file.clone(), Path::to_path_buf))
     }
 
-    /// The frame file of a sweep of the run in `run`, if it writes one (a record of an
-    /// earlier build names one with --save-every 0 for a sweep that wrote none).
+    /// Where the frames go, as `frames_path`, `save_every` and `no_frames` say together (a
+    /// record of an earlier build names a file with --save-every 0 for a sweep that wrote
+    /// none).
+    pub fn destination(&self) -> Destination<'_> {
+        match (&self.frames_path, self.no_frames) {
+            (Some(path), _) if self.save_every > 0 => Destination::File { path, every: self.save_every },
+            (Some(_), _) | (None, true) => Destination::Nowhere,
+            (None, false) => Destination::Stream,
+        }
+    }
+
+    /// The frame file of a sweep of the run in `run`, if it writes one.
     pub fn frames_file(&self, run: &Path) -> Option<PathBuf> {
-        self.frames_path.as_ref().filter(|_| self.save_every > 0).map(|p| run.join(p))
+        match self.destination() {
+            Destination::File { path, .. } => Some(run.join(path)),
+            _ => None,
+        }
     }
 
     /// The sweep sends its frames to a reader (`--out -`, or `clv run`'s analyses in the
     /// same process) rather than to a file or nowhere.
     pub fn streams(&self) -> bool {
-        self.frames_path.is_none() && !self.no_frames
+        self.destination() == Destination::Stream
     }
 
     /// The options as the flags of `clv backward` that give them.
@@ -390,14 +403,11 @@ impl Window {
     /// The oldest and newest step of the frames a whole sweep with `opts` leaves: in its
     /// frame file the multiples of --save-every, on a stream every step.
     pub fn frame_steps(&self, opts: &BackwardOptions) -> Option<(u64, u64)> {
-        let m = match (&opts.frames_path, opts.no_frames) {
-            (Some(_), _) => opts.save_every,
-            (None, true) => 0,
-            (None, false) => 1,
+        let m = match opts.destination() {
+            Destination::File { every, .. } => every,
+            Destination::Stream => 1,
+            Destination::Nowhere => return None,
         };
-        if m == 0 {
-            return None;
-        }
         let (oldest, newest) = (self.first.div_ceil(m) * m, self.last / m * m);
         (oldest <= newest).then_some((oldest, newest))
     }
@@ -554,11 +564,23 @@ fn recompute(config: &RunConfig, store_r_all: bool, reads_g: &dyn Fn(u64) -> boo
     Ok(())
 }
 
+/// Where a sweep's frames go ([`BackwardOptions::destination`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Destination<'a> {
+    /// A frame file (its path as recorded, relative to the run directory where inside it)
+    /// that keeps the frames of the steps that are multiples of `every`.
+    File { path: &'a Path, every: u64 },
+    /// A reader of the stream (standard output, or `clv run`'s analyses): every frame.
+    Stream,
+    /// Nowhere: the sweep computes the CLV spectrum only.
+    Nowhere,
+}
+
 /// About how many bytes the frame file of a sweep with `opts` takes (nothing without one):
 /// 8 (D + k) a frame, and 8 D k more for V_n, and again for G_n, where they are formed.
 pub fn frame_file_bytes(meta: &RunMeta, opts: &BackwardOptions) -> u64 {
     let Ok(window) = Window::of(meta, opts) else { return 0 };
-    if opts.frames_path.is_none() || opts.save_every == 0 {
+    if !matches!(opts.destination(), Destination::File { .. }) {
         return 0;
     }
     let (d, k) = (meta.config.system.dim() as u64, meta.config.vectors as u64);

@@ -156,7 +156,10 @@ impl Context {
         let with_gs = backward.as_ref().map_or(first.g.is_some(), |o| o.with_gs);
         // A frame file keeps the frames of every --save-every-th step: the default stride lands
         // on those that carry V.
-        let saved_every = backward.as_ref().map_or(1, |o| if o.frames_path.is_some() { o.save_every.max(1) } else { 1 });
+        let saved_every = match backward.as_ref().map(BackwardOptions::destination) {
+            Some(super::backward::Destination::File { every, .. }) => every,
+            _ => 1,
+        };
         let every = every.unwrap_or_else(|| default_every(clv_steps, lcm(vectors_every, saved_every)));
         if every == 0 {
             return Err(Error::param("every", "must be at least 1"));
@@ -403,7 +406,13 @@ impl Analyzer {
             ));
         }
         self.frames += 1;
-        self.sampled += u64::from(on_stride(frame.step, self.ctx.options.every));
+        if on_stride(frame.step, self.ctx.options.every) {
+            // As every analysis settles its own context, for summary.json's options.
+            if self.sampled == 0 {
+                self.ctx.settle(&frame);
+            }
+            self.sampled += 1;
+        }
         self.first_step = self.first_step.min(frame.step);
         self.last_step = self.last_step.max(frame.step);
         for i in 0..self.workers.len() {
