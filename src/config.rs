@@ -131,6 +131,14 @@ impl RunConfig {
         if matches!(self.system, SystemConfig::Disks { n: 0 | 1, .. }) {
             return Err(Error::param("n", "must be at least 2 disks (one disk alone never collides)"));
         }
+        // The box as its N, density and aspect make it (a run.json may say otherwise only by
+        // an edit); sides too large for that to be computed are the system's to refuse.
+        if let SystemConfig::Disks { n, density, aspect, lx, ly } = self.system {
+            let (x, y) = box_sides(n, density, aspect);
+            if x.is_finite() && y.is_finite() && !((lx - x).abs() <= 1e-9 * x.abs() && (ly - y).abs() <= 1e-9 * y.abs()) {
+                return Err(Error::param("density", format!("the box {lx} x {ly} is not that of {n} disks at density {density} and aspect {aspect} ({x} x {y})")));
+            }
+        }
         let d = self.system.dim();
         if self.vectors == 0 || self.vectors > d {
             return Err(Error::param("vectors", format!("must be between 1 and D = {d}, got {}", self.vectors)));

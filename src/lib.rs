@@ -21,3 +21,13 @@ pub mod store;
 pub mod system;
 
 pub use error::{Error, Result};
+
+/// `eprintln!` that never panics: a notice that cannot be written (standard error closed,
+/// or its file on a full disk or at a file-size limit) is lost, not the run that gives it.
+#[macro_export]
+macro_rules! note {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}

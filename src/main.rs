@@ -60,10 +60,10 @@ fn main() {
     });
     if std::env::var_os("CLV_REPORT_PEAK_RSS").is_some()
         && let Some(kb) = clv::bench::peak_rss_kb() {
-            eprintln!("clv-peak-rss-kb: {kb}");
+            clv::note!("clv-peak-rss-kb: {kb}");
         }
     if let Err(e) = result {
-        eprintln!("clv: error: {e}");
+        clv::note!("clv: error: {e}");
         std::process::exit(e.exit_code());
     }
 }

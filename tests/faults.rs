@@ -180,6 +180,17 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
     assert!(out.status.code() == Some(1) && err.contains("file-size limit reached") && err.contains(&format!("clv forward --resume {}", dir.display())), "{:?}: {err}", out.status);
     ok(clv(&["forward", "--resume", dir.to_str().unwrap(), "--quiet"]));
     assert!(contents(&dir) == want, "resumed after the file-size limit, the run differs");
+    // Analyses that fail on it leave a report that says so (no summary.json, the failed
+    // analyses named in its page), which the same command with --overwrite writes whole.
+    ok(clv(&["backward", dir.to_str().unwrap(), "--quiet"]));
+    let report = dir.parent().unwrap().join("limited-report");
+    let analyze = format!("{} analyze {} --out {} --quiet", env!("CARGO_BIN_EXE_clv"), dir.display(), report.display());
+    let out = Command::new("bash").args(["-c", &format!("ulimit -f 20 && exec {analyze}")]).output().unwrap();
+    assert!(!out.status.success() && stderr(&out).contains("file-size limit reached"), "{}", stderr(&out));
+    let index = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(index.contains("<title>clv analyses: incomplete") && index.contains("Incomplete report.") && !report.join("summary.json").exists(), "{index:.300}");
+    ok(clv(&["analyze", dir.to_str().unwrap(), "--out", report.to_str().unwrap(), "--overwrite", "--quiet"]));
+    assert!(report.join("summary.json").exists());
     // The backward stage on a full disk: same promise.
     let (dir, _) = reference("full-bwd");
     let d = dir.to_str().unwrap();

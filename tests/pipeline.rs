@@ -648,6 +648,16 @@ fn clv_run_writes_no_report_over_another_runs() {
     let err = common::stderr(&inside);
     assert!(!inside.status.success() && err.contains("is a run directory (it holds run.json)") && err.contains("--out"), "{err}");
     assert!(!n.join("run/run").exists() && !n.join("run/report").exists());
+    // A run made longer by `clv forward --resume --steps` (with the window `clv run` asks
+    // for that length) since its report: that report is the run's result at its earlier
+    // length, kept beside that length's other results, and the report is written anew.
+    let e = base.join("e");
+    let longer = |steps: &str| clv(&["run", "--out", e.to_str().unwrap(), "--n", "8", "--steps", steps, "--relax-steps", "50", "--quiet"]);
+    ok(longer("600"));
+    ok(clv(&["forward", "--resume", e.join("run").to_str().unwrap(), "--steps", "800", "--clv-steps", "85", "--transient", "42", "--quiet"]));
+    ok(longer("800"));
+    assert!(e.join("run/previous-600-steps/report/summary.json").exists(), "the earlier report is kept");
+    assert!(read(&e.join("report/index.html")).contains("\"steps\":800"), "the report is the longer run's");
     // A file where the run or the report goes.
     for part in ["run", "report"] {
         let o = n.parent().unwrap().join(format!("file-as-{part}"));

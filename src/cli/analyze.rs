@@ -88,11 +88,11 @@ pub fn analyze(args: &AnalyzeArgs) -> Result<()> {
     }
     let clv::stage::analyze::Analysed { produced, frames, warnings } = result?;
     for w in &warnings {
-        eprintln!("clv analyze: warning: {w}");
+        clv::note!("clv analyze: warning: {w}");
     }
     if !args.quiet {
         let figures: usize = produced.iter().map(|p| p.figures.len()).sum();
-        eprintln!("clv analyze: {frames} frames, {} analyses, {figures} figures; open {}", produced.len(), args.out.join("index.html").display());
+        clv::note!("clv analyze: {frames} frames, {} analyses, {figures} figures; open {}", produced.len(), args.out.join("index.html").display());
     }
     Ok(())
 }

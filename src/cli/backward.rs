@@ -141,7 +141,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if let Some(path) = opts.frames_file(&args.dir).filter(|_| writes)
         && let Some(warning) = clv::store::run::space_warning(&path, backward::frame_file_bytes(&meta, &opts))
     {
-        eprintln!("clv: {warning} (--save-every m keeps one frame in m)");
+        clv::note!("clv: {warning} (--save-every m keeps one frame in m)");
     }
     let stream_meta = backward::stream_info(&dir, &meta, &opts).metadata();
     let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
@@ -182,7 +182,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         out.finish()?;
     }
     for note in report.notes.iter().filter(|_| !args.quiet) {
-        eprintln!("clv: {note}");
+        clv::note!("clv: {note}");
     }
     // Not a notice: the CLV spectrum of an unfinished sweep is not written.
     if report.statistics.stopped_early {

@@ -38,6 +38,6 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         collision_sizes: args.collision_sizes.clone(),
         exe: if args.no_rss { None } else { std::env::current_exe().ok() },
     };
-    let report = clv::bench::run(&opts, &mut |what| eprintln!("clv bench: {what}"))?;
+    let report = clv::bench::run(&opts, &mut |what| clv::note!("clv bench: {what}"))?;
     if args.json { print_json(&report) } else { emit(&report.table()) }
 }

@@ -292,7 +292,7 @@ fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
             bar.finish_and_clear();
         }
         if outcome.already_finished && !args.quiet {
-            eprintln!("clv: the run in {} is already complete; nothing to do", dir.display());
+            clv::note!("clv: the run in {} is already complete; nothing to do", dir.display());
         }
         return print_report(&outcome.report, args.json);
     }
@@ -303,11 +303,11 @@ fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
         }
         let meta = args.meta()?;
         if !args.quiet {
-            eprintln!("clv: configuration: {}", serde_json::to_string(&meta.config).unwrap_or_default());
-            eprintln!("clv: writing {}: {}", dir.display(), meta.store.footprint(&meta.config).1);
+            clv::note!("clv: configuration: {}", serde_json::to_string(&meta.config).unwrap_or_default());
+            clv::note!("clv: writing {}: {}", dir.display(), meta.store.footprint(&meta.config).1);
         }
         if let Some(warning) = clv::store::run::space_warning(dir, meta.store.footprint(&meta.config).0) {
-            eprintln!("clv: {warning}");
+            clv::note!("clv: {warning}");
         }
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
         let outcome = forward_run::create(dir, &meta, &mut feedback)?;
@@ -318,7 +318,7 @@ fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
     }
     let config = args.config()?;
     if !args.quiet {
-        eprintln!("clv: configuration: {}", serde_json::to_string(&config).unwrap_or_default());
+        clv::note!("clv: configuration: {}", serde_json::to_string(&config).unwrap_or_default());
     }
     spectrum(config, args.json, args.quiet)
 }

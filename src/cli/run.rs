@@ -139,7 +139,7 @@ pub fn run(args: &RunArgs, matches: &ArgMatches) -> Result<()> {
     let quiet = args.quiet;
     let mut say = |msg: String| {
         if !quiet {
-            eprintln!("clv run: {msg}");
+            clv::note!("clv run: {msg}");
         }
     };
     let origin = match &args.config {

@@ -116,8 +116,11 @@ pub struct Head<'a> {
 
 /// Write index.html (every entry of `produced` with its figures, caption and small tables)
 /// and then summary.json, which marks the report finished.
-pub fn write_index(head: &Head, out: &Path, produced: &[Produced], warnings: &[String], frames: u64, first: u64, last: u64) -> Result<()> {
-    let mut html = String::from("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>clv analyses</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em} figure{margin:2em 0} img{max-width:100%} code{background:#eee}</style></head><body>\n");
+/// `failed`: what the analyses that failed said; their sections are missing, and the report
+/// stays unfinished (no summary.json, the page says so).
+pub fn write_index(head: &Head, out: &Path, produced: &[Produced], warnings: &[String], failed: &[String], frames: u64, first: u64, last: u64) -> Result<()> {
+    let title = if failed.is_empty() { "clv analyses" } else { "clv analyses: incomplete" };
+    let mut html = String::from("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>") + title + "</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em} figure{margin:2em 0} img{max-width:100%} code{background:#eee}</style></head><body>\n";
     html += &format!(
         "<h1>Covariant Lyapunov vector analyses</h1>\n<p>Source: <code>{}</code>; {} frames (steps {}..{}), D = {}, k = {}{}; vector statistics use {}.</p>\n{}<p>Conventions: {}</p>\n",
         escape(head.source),
@@ -137,6 +140,9 @@ pub fn write_index(head: &Head, out: &Path, produced: &[Produced], warnings: &[S
     );
     for w in warnings {
         html += &format!("<p style=\"border:2px solid #c00;padding:0.5em\"><strong>Incomplete stream.</strong> {}</p>\n", escape(w));
+    }
+    for f in failed {
+        html += &format!("<p style=\"border:2px solid #c00;padding:0.5em\"><strong>Incomplete report.</strong> {}: its section is missing; give the command again with <code>--overwrite</code> once the cause is mended.</p>\n", escape(f));
     }
     let mut shown = std::collections::HashSet::new();
     for p in produced {
@@ -159,6 +165,9 @@ pub fn write_index(head: &Head, out: &Path, produced: &[Produced], warnings: &[S
     }
     html += "<p>Everything above as JSON: <a href=\"summary.json\">summary.json</a>.</p>\n</body></html>\n";
     write_report_file(&out.join("index.html"), html.as_bytes())?;
+    if !failed.is_empty() {
+        return Ok(());
+    }
     // Last: a report with a summary.json is finished.
     let summary = serde_json::json!({ "frames": frames, "first_step": first, "last_step": last, "options": head.options, "warnings": warnings, "produced": produced });
     write_report_file(&out.join("summary.json"), &serde_json::to_vec_pretty(&summary).unwrap_or_default())?;

@@ -191,11 +191,17 @@ fn backward_sweep(dir: &RunDir) -> Option<String> {
     let opts = &last.options;
     let out = match opts.destination() {
         Destination::Stream => "frames to a stream".to_string(),
-        Destination::File { path, .. } => format!("frames to {}", dir.path.join(path).display()),
+        Destination::File { path, .. } => {
+            let file = dir.path.join(path);
+            let gone = if last.done && !file.exists() { ", which is gone (moved or deleted): `clv analyze` of the run refuses until it is back or written anew" } else { "" };
+            format!("frames to {}{gone}", file.display())
+        }
         Destination::Nowhere => "no frame file".to_string(),
     };
     Some(if last.done {
         format!("finished, {} frames ({out})", last.frames)
+    } else if dir.is_being_written() {
+        format!("running now ({out}; {} frames at the last record, C at step {})", last.frames, last.at)
     } else {
         // Its frames so far are kept in FILE.tmp, which a sweep with other options would strand.
         let kept = opts.frames_file(&dir.path).map(|f| crate::store::frames::tmp_path(&f)).filter(|t| t.exists());
@@ -244,7 +250,9 @@ fn frame_file_problem(dir: &RunDir) -> Option<String> {
         Ok(())
     }, |_| Ok(crate::store::frames::Flow::Stop))
     .ok()?;
+    // Against a run.json that describes the run (else that is the damage to name).
     let (_, meta) = RunDir::open(&dir.path).ok()?;
+    dir.check_meta(&meta).ok()?;
     let why = crate::stage::backward::SweepFile { dir: dir.path.clone(), meta, options: Some(last.options.clone()) }.check(&info).err()?;
     Some(format!("{}, the frame file of the last backward sweep, is not its file: {why}; `clv analyze` reads it only by name; to write the sweep's own, {rewrite}", file.display()))
 }

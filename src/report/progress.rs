@@ -54,7 +54,7 @@ fn log_interval() -> Duration {
         let seconds = match std::env::var("CLV_LOG_SECONDS") {
             Err(_) => 300,
             Ok(v) => v.trim().parse().unwrap_or_else(|_| {
-                eprintln!("clv: warning: CLV_LOG_SECONDS={v:?} is not a whole number of seconds; logging progress every 300 s");
+                crate::note!("clv: warning: CLV_LOG_SECONDS={v:?} is not a whole number of seconds; logging progress every 300 s");
                 300
             }),
         };

@@ -390,8 +390,8 @@ impl Window {
         if store.clv_steps == 0 {
             return Err(Error::Other(format!(
                 "the forward run kept no CLV window (--clv-steps 0: the Gram-Schmidt spectrum only), so there is nothing for a backward sweep; \
-                 to get covariant vectors, extend it with `clv forward --resume RUN_DIR --steps MORE --clv-steps N`, which keeps the R matrices of the last N steps (plus the transient {})",
-                store.transient
+                 to get covariant vectors, extend it with `clv forward --resume RUN_DIR --steps MORE --clv-steps N` (RUN_DIR the run's directory), which keeps what the backward stage needs \
+                 for a window of the last N steps (with a transient of N/2 steps after it, or --transient T)"
             )));
         }
         if opts.transient >= kept {
@@ -952,7 +952,8 @@ fn finished_earlier(dir: &RunDir, opts: &BackwardOptions) -> Result<BackwardRepo
         format!("the backward sweep of {run} finished earlier and its frames went to the reader of that stream: this stream carries none; start it again without --resume for the frames")
     } else {
         let frames = match opts.frames_file(&dir.path) {
-            Some(f) => format!("its frames are in {}; to write them again (a damaged file), move it aside and give the command without --resume", f.display()),
+            Some(f) if f.exists() => format!("its frames are in {}; to write them again (a damaged file), move it aside and give the command without --resume", f.display()),
+            Some(f) => format!("its frame file {} is gone (moved or deleted); give the command without --resume to write it again", f.display()),
             None => "it wrote no frame file".into(),
         };
         format!("the backward sweep of {run} finished earlier: nothing was recomputed, and this is its CLV spectrum; {frames}")

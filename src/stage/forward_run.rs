@@ -62,7 +62,7 @@ pub struct Feedback {
 impl Feedback {
     fn notice(&mut self, msg: String) {
         if let Some(bar) = &self.bar {
-            bar.suspend(|| eprintln!("clv: {msg}"));
+            bar.suspend(|| crate::note!("clv: {msg}"));
         }
         self.notices.push(msg);
     }

@@ -50,7 +50,24 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
         true => Some(RunDir::open(&run_dir)?.1),
         false => None,
     };
-    check_report(&report_dir, &run_dir, stored.as_ref())?;
+    if let Some(steps) = check_report(&report_dir, &run_dir, stored.as_ref())? {
+        // The run was made longer since (`clv forward --resume --steps`): its report of
+        // then is kept beside the results of that length, as `clv run` keeps them itself.
+        let kept = forward_run::previous_results(&run_dir, steps).join("report");
+        if kept.exists() {
+            return Err(Error::param("out", format!(
+                "{} holds the report of the run in {} as it was with {steps} steps, and {} exists already; move one of them, then give the command again",
+                report_dir.display(),
+                run_dir.display(),
+                kept.display()
+            )));
+        }
+        say(format!("the report in {} is of the run as it was with {steps} steps: kept as {}", report_dir.display(), kept.display()));
+        if let Some(parent) = kept.parent() {
+            std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+        }
+        std::fs::rename(&report_dir, &kept).map_err(|e| Error::io(&report_dir, e))?;
+    }
     if let Some(stored) = stored {
         if let Some(ext) = extension(&stored, config, store) {
             say(format!("extending the run in {} from {} to {} steps", run_dir.display(), stored.config.steps, config.steps));
@@ -77,7 +94,7 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
         let k = config.vectors as u64;
         let beside = (2 << 20) + 2 * 16 * (k * (k + 1) / 2);
         if let Some(warning) = crate::store::run::space_warning(&run_dir, meta.store.footprint(config).0 + beside) {
-            eprintln!("clv run: {warning}");
+            crate::note!("clv run: {warning}");
         }
         forward_run::create(&run_dir, &meta, feedback)?;
     }
@@ -122,15 +139,21 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
 /// Refuse, before anything is computed, to write the report into `report_dir` over files
 /// that are not a report of the run in `run_dir` (`stored`; None: there is none yet, the
 /// run is new): a report can be all that is left of a long run. A report of this run,
-/// finished or killed midway (`clv run` given again after an interruption), is written anew.
-fn check_report(report_dir: &Path, run_dir: &Path, stored: Option<&RunMeta>) -> Result<()> {
+/// finished or killed midway (`clv run` given again after an interruption), is written anew;
+/// a finished one of this run with fewer steps (made longer since by `clv forward --resume
+/// --steps`) is the run's earlier result: its step count is returned, for keeping it.
+fn check_report(report_dir: &Path, run_dir: &Path, stored: Option<&RunMeta>) -> Result<Option<u64>> {
     use crate::report::dir::{report_in, ReportDir};
     let found = report_in(report_dir);
     let what = match (&found, stored) {
-        (ReportDir::Empty, _) => return Ok(()),
-        (ReportDir::Report { run: Some(run), .. }, Some(stored)) if run.same_but_threads(&stored.config) => return Ok(()),
+        (ReportDir::Empty, _) => return Ok(None),
+        (ReportDir::Report { run: Some(run), .. }, Some(stored)) if run.same_but_threads(&stored.config) => return Ok(None),
+        // Of this run before it was made longer.
+        (ReportDir::Report { run: Some(run), finished: true }, Some(stored)) if run.steps < stored.config.steps && RunConfig { steps: stored.config.steps, ..run.clone() }.same_but_threads(&stored.config) => {
+            return Ok(Some(run.steps));
+        }
         // Killed midway by a build whose incomplete page named no run: its files are partial.
-        (ReportDir::Report { run: None, finished: false }, Some(_)) => return Ok(()),
+        (ReportDir::Report { run: None, finished: false }, Some(_)) => return Ok(None),
         (ReportDir::Report { .. }, None) => format!("a report, but {} holds no run (a new run starts there): the report is of another run", run_dir.display()),
         (ReportDir::Report { run: Some(run), .. }, Some(stored)) => format!(
             "the report of another run than the one in {} ({})",

@@ -109,7 +109,7 @@ fn crash_target() -> Option<&'static (String, u64)> {
             let v = std::env::var("CLV_FAULT_CRASH_AT").ok()?;
             let target = parse_target(&v);
             if target.is_none() {
-                eprintln!("clv: CLV_FAULT_CRASH_AT={v:?} is not POINT or POINT#N (N >= 1) with a POINT of {CRASH_POINTS:?}; ignored");
+                crate::note!("clv: CLV_FAULT_CRASH_AT={v:?} is not POINT or POINT#N (N >= 1) with a POINT of {CRASH_POINTS:?}; ignored");
             }
             target
         })
@@ -130,7 +130,7 @@ pub fn crash_point(name: &'static str) {
     if let Some((target, n)) = crash_target()
         && target == name
         && REACHED.fetch_add(1, Ordering::SeqCst) + 1 == *n {
-            eprintln!("clv: crash point {name} reached (CLV_FAULT_CRASH_AT)");
+            crate::note!("clv: crash point {name} reached (CLV_FAULT_CRASH_AT)");
             std::process::exit(CRASH_STATUS);
         }
 }

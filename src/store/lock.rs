@@ -67,7 +67,7 @@ pub fn take(lock: &Path, writing: &Path, what: &str, remove_when_done: bool, ope
             Ok(()) => continue,
             Err(fs::TryLockError::WouldBlock) => return Err(refusal(lock, writing, what)),
             Err(fs::TryLockError::Error(e)) if matches!(e.raw_os_error(), Some(libc::ENOLCK | libc::EOPNOTSUPP | libc::ENOSYS)) => {
-                eprintln!(
+                crate::note!(
                     "clv: warning: the file system of {} cannot lock files ({e}), so clv cannot refuse a second process writing it; make sure only one runs the {what}",
                     writing.display()
                 );

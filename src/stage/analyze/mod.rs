@@ -465,7 +465,7 @@ impl Analyzer {
             disks: ctx.is_disks(),
             options: serde_json::to_value(&ctx.options).unwrap_or_default(),
         };
-        write_index(&head, &self.out, &produced, &warnings, self.frames, self.first_step, self.last_step)?;
+        write_index(&head, &self.out, &produced, &warnings, &errors, self.frames, self.first_step, self.last_step)?;
         if !errors.is_empty() {
             return Err(Error::Other(errors.join("; ")));
         }
@@ -520,7 +520,9 @@ fn frame_source(source: &Path) -> Result<(PathBuf, Option<SweepFile>)> {
         return Ok((source.to_path_buf(), None));
     }
     let expect = |options: Option<BackwardOptions>| -> Result<Option<SweepFile>> {
-        let (_, meta) = crate::store::RunDir::open(source)?;
+        let (dir, meta) = crate::store::RunDir::open(source)?;
+        // A run.json that no longer describes the run is its own error, not the frames'.
+        dir.check_meta(&meta)?;
         Ok(Some(SweepFile { dir: source.to_path_buf(), meta, options }))
     };
     let d = source.display();
@@ -546,10 +548,12 @@ fn frame_source(source: &Path) -> Result<(PathBuf, Option<SweepFile>)> {
     }
     let flags = format!("recorded in {}: {}", record.display(), opts.as_flags());
     if let Some(f) = file.as_ref().filter(|_| !last.done) {
-        return Err(Error::Other(format!(
-            "{d}: the run's last backward sweep ({flags}) has not finished writing {}; continue it with `clv backward {d} --resume`, then analyse the run again",
-            f.display()
-        )));
+        let running = crate::store::RunDir { path: source.to_path_buf() }.is_being_written();
+        let then = match running {
+            true => "a clv process is writing it now: analyse the run when it has finished".to_string(),
+            false => format!("continue it with `clv backward {d} --resume`, then analyse the run again"),
+        };
+        return Err(Error::Other(format!("{d}: the run's last backward sweep ({flags}) has not finished writing {}; {then}", f.display())));
     }
     let what = match &file {
         Some(f) => format!("wrote {}, which is gone (deleted or moved)", f.display()),

@@ -93,6 +93,12 @@ impl Overlaps {
             (true, Some(&last)) => vec![last, 2 * ctx.n - 4, 2 * ctx.n + 3, ctx.d - super::paper_index(93, 2 * ctx.n - 3)],
             _ => self.js.clone(),
         };
+        // A small system's last vector before the modes can be the smallest positive one.
+        let mut seen = Vec::new();
+        self.fig4_js.retain(|j| !seen.contains(j) && {
+            seen.push(*j);
+            true
+        });
         self.vg = ctx.with_gs.then(|| self.fig4_js.iter().map(|_| Mean::new(ctx.k)).collect());
         self.vv_js = self.js.iter().chain(&self.mode_js).chain(&self.conjugate_js).copied().collect();
         self.vv_js.sort_unstable();
@@ -229,7 +235,7 @@ impl Analysis for Overlaps {
             } else {
                 format!(
                     "the covariant vectors of the paper's j = 370, 393, 400 and 700: the last unstable vector before the mode region, the unstable and the stable mode vector next to the null space (2N-3, 2N+4), and a stable vector that is no mode, the conjugate 4N+1-j of the paper's 93 scaled (its curve may step at i = {})",
-                    ctx.d - self.fig4_js[3]
+                    ctx.d - self.fig4_js.last().copied().unwrap_or_default()
                 )
             };
             produced.push(Produced {
