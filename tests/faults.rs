@@ -1185,4 +1185,11 @@ fn a_cut_frame_file_is_named_and_written_whole_again() {
     ok(clv(&args));
     assert!(frames(&file) == whole, "the frames written again differ");
     ok(clv(&["inspect", d]));
+    // Damaged from its start (no complete frame, or no MCAP at all): the same command.
+    for bytes in [&b""[..], b"hello\n"] {
+        std::fs::write(&file, bytes).unwrap();
+        let fresh = dir.parent().unwrap().join(format!("cut-report-{}", bytes.len()));
+        let err = stderr(&clv(&["analyze", d, "--out", fresh.to_str().unwrap(), "--quiet"]));
+        assert!(err.contains(&format!("move {} aside and give its sweep again: `{command}", file.display())), "{err}");
+    }
 }

@@ -667,5 +667,9 @@ fn clv_run_writes_no_report_over_another_runs() {
         let err = common::stderr(&out);
         assert!(!out.status.success() && err.contains(&format!("{} is a file, where `clv run` keeps the {part}", o.join(part).display())), "{err}");
         assert_eq!(read(&o.join(part)), "mine");
+        std::fs::remove_file(o.join(part)).unwrap();
+        std::os::unix::fs::symlink(o.join("nowhere"), o.join(part)).unwrap();
+        let err = common::stderr(&run(&o, &[]));
+        assert!(err.contains(&format!("{} is a symbolic link to nothing", o.join(part).display())), "{err}");
     }
 }

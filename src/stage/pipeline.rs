@@ -45,6 +45,9 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
         if dir.exists() && !dir.is_dir() {
             return Err(Error::param("out", format!("{} is a file, where `clv run` keeps {what} (OUT/run and OUT/report are its directories): move it, or give another --out", dir.display())));
         }
+        if !dir.exists() && dir.symlink_metadata().is_ok() {
+            return Err(Error::param("out", format!("{} is a symbolic link to nothing, where `clv run` keeps {what}: remove it (or make its target), or give another --out", dir.display())));
+        }
     }
     let stored = match run_dir.join("run.json").exists() {
         true => Some(RunDir::open(&run_dir)?.1),

@@ -599,6 +599,16 @@ pub fn analyze_source(
     let info = std::cell::RefCell::new(StreamInfo::default());
     let mut analyzer: Option<Analyzer> = None;
     let name = if source == Path::new("-") { "<stdin>".to_string() } else { source.display().to_string() };
+    // How to write a damaged file whole again, where the sweep that wrote it is known (from
+    // its metadata, or as the run directory's last sweep).
+    let rewrite = |info: &StreamInfo| -> String {
+        let options = BackwardOptions::of_stream(info).or_else(|| expected.as_ref().and_then(|e| e.options.clone()));
+        if source == Path::new("-") || options.is_none() {
+            return String::new();
+        }
+        let run = expected.as_ref().map(|e| e.dir.clone()).or_else(|| options.as_ref()?.frames_path.as_deref().and_then(|r| crate::store::frames::run_dir_of(source, r)));
+        format!("; to write it whole, {}", super::backward::rewrite_advice(source, options.as_ref(), run.as_deref()))
+    };
     let damage = crate::store::frames::read_frames_with(
         source,
         |i| {
@@ -624,7 +634,12 @@ pub fn analyze_source(
             on_frame(analyzer.frames);
             Ok(flow)
         },
-    )?;
+    )
+    .map_err(|e| match e {
+        // Not a frame file at all (the run's, damaged from its start).
+        Error::Corrupt { path, msg } if expected.is_some() => Error::Corrupt { msg: msg + &rewrite(&StreamInfo::default()), path },
+        e => e,
+    })?;
     let Some(analyzer) = analyzer else {
         if is_run_segment(source) {
             return Err(Error::Other(format!(
@@ -632,19 +647,13 @@ pub fn analyze_source(
             )));
         }
         return Err(Error::Other(match damage {
-            Some(d) => format!("{name}: no frames in the stream ({d})"),
+            Some(d) => format!("{name}: no frames in the stream ({d}){}", rewrite(&info.borrow())),
             None => format!("{name}: no frames in the stream: its writer sent none. It failed before its first frame (its own error says why: a full disk, a signal), or it was `clv backward --resume` of a sweep that had finished, which sends none (start it without --resume)"),
         }));
     };
     let analysed = analyzer.finish(damage.as_deref())?;
     if let Some(d) = damage {
-        let rewrite = if source == Path::new("-") {
-            String::new()
-        } else {
-            let options = BackwardOptions::of_stream(&info.borrow());
-            let run = expected.as_ref().map(|e| e.dir.clone()).or_else(|| options.as_ref()?.frames_path.as_deref().and_then(|r| crate::store::frames::run_dir_of(source, r)));
-            format!("; to write it whole, {}", super::backward::rewrite_advice(source, options.as_ref(), run.as_deref()))
-        };
+        let rewrite = rewrite(&info.borrow());
         return Err(Error::corrupt(
             &name,
             format!("the stream ends early or is damaged ({d}); the {} complete frames before it were analysed into {}, but the results are incomplete{rewrite}", analysed.frames, out.display()),
