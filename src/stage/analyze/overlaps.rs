@@ -446,6 +446,21 @@ mod tests {
         assert!(header.contains("abs_v1_mean,abs_v1_std,abs_v9_mean,abs_v9_std,abs_v16_mean"), "{header}");
     }
 
+    /// With no mode steps to end before, a small system's last default j is its smallest
+    /// positive exponent's, also Fig. 4's unstable mode vector: each is shown once.
+    #[test]
+    fn fig4_shows_each_index_once() {
+        let (n, d) = (4, 16);
+        let mut ctx = context("disks", n, d, true, vec![1]);
+        ctx.j_default = true;
+        let mut a = new(&ctx).unwrap();
+        a.consume(&frame(0, d, identity(d), Some(identity(d)))).unwrap();
+        let out = scratch("overlaps-fig4-small");
+        a.finish(&out, 1).unwrap();
+        let header = std::fs::read_to_string(out.join("overlap_clv_gs.csv")).unwrap().lines().next().unwrap().to_string();
+        assert_eq!(header, "i,i_over_D,abs_v5_mean,abs_v5_std,abs_v12_mean,abs_v12_std,abs_v16_mean,abs_v16_std");
+    }
+
     /// Fig. 14 takes the last index of each of the two positive mode steps nearest the null
     /// space when two are found, wherever they are; with fewer it keeps the paper's 2N-5 and
     /// 2N-3.
