@@ -139,7 +139,8 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         }
     }
     set_aside.sort();
-    let damaged_records = damaged_records(&dir);
+    // The frame file is checked against run.json only where run.json describes the run.
+    let damaged_records = damaged_records(&dir, meta_mismatch.is_none().then_some(&meta));
     let backward_sweep = backward_sweep(&dir);
     let c = meta.store.checkpoint_every.max(1);
     let gaps: Vec<String> = segments
@@ -232,8 +233,9 @@ fn clv_spectrum_advice(dir: &RunDir) -> String {
 
 /// What is wrong with the last finished sweep's frame file, if anything: cut short (checked
 /// by its end only: `clv inspect FILE` reads every frame), or another run's or sweep's
-/// (its metadata against the run's records).
-fn frame_file_problem(dir: &RunDir) -> Option<String> {
+/// (its metadata against the run's records; `meta`, the run.json that describes the run, or
+/// None where run.json disagrees with the segments, which is then the damage to name).
+fn frame_file_problem(dir: &RunDir, meta: Option<&RunMeta>) -> Option<String> {
     let last = crate::stage::backward::last_sweep(&dir.path).ok()??;
     let file = last.options.frames_file(&dir.path).filter(|f| last.done && f.exists())?;
     let rewrite = crate::stage::backward::rewrite_advice(&file, Some(&last.options), Some(&dir.path));
@@ -250,15 +252,12 @@ fn frame_file_problem(dir: &RunDir) -> Option<String> {
         Ok(())
     }, |_| Ok(crate::store::frames::Flow::Stop))
     .ok()?;
-    // Against a run.json that describes the run (else that is the damage to name).
-    let (_, meta) = RunDir::open(&dir.path).ok()?;
-    dir.check_meta(&meta).ok()?;
-    let why = crate::stage::backward::SweepFile { dir: dir.path.clone(), meta, options: Some(last.options.clone()) }.check(&info).err()?;
+    let why = crate::stage::backward::SweepFile { dir: dir.path.clone(), meta: meta?.clone(), options: Some(last.options.clone()) }.check(&info).err()?;
     Some(format!("{}, the frame file of the last backward sweep, is not its file: {why}; `clv analyze` reads it only by name; to write the sweep's own, {rewrite}", file.display()))
 }
 
 /// The run's checksummed records that exist and fail their check ([`crate::store::checked_json`]).
-fn damaged_records(dir: &RunDir) -> Vec<String> {
+fn damaged_records(dir: &RunDir, meta: Option<&RunMeta>) -> Vec<String> {
     let run = dir.path.display();
     let records = [
         (dir.spectrum_path(), format!("`clv forward --resume {run}` rewrites it from the run's last checkpoint")),
@@ -274,7 +273,7 @@ fn damaged_records(dir: &RunDir) -> Vec<String> {
             let e = crate::store::checked_json::read::<serde_json::Value>(&path).err().filter(|_| path.exists())?;
             Some(format!("{e}; {what_to_do}"))
         })
-        .chain(frame_file_problem(dir))
+        .chain(frame_file_problem(dir, meta))
         .collect()
 }
 
