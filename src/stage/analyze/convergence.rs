@@ -75,7 +75,7 @@ impl Analysis for Convergence {
             let fig_stem = format!("convergence_{stem}");
             save_figure(&fig, out, &fig_stem)?;
             figures.push(fig_stem);
-            match diagnose(&blocks.exponents, ctx.run.as_ref().map_or(0..0, |m| m.config.system.neutral())) {
+            match diagnose(&blocks.exponents, ctx.run.config.system.neutral()) {
                 Some(d) => {
                     sentences.push(verdict(label, &d, blocks.block_steps));
                     tests.push(vec![id as f64, d.blocks as f64, blocks.block_steps as f64, d.tested as f64, d.drifting, d.max_z, (d.max_z_index + 1) as f64, d.sum_z, d.sum_chance(), d.r1, d.r1_limit()]);

@@ -50,8 +50,8 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     if ctx.system != "henon" || ctx.d != 2 {
         return None;
     }
-    let (a, b) = match ctx.run.as_ref().map(|m| &m.config.system) {
-        Some(SystemConfig::Henon { a, b }) => (*a, *b),
+    let (a, b) = match ctx.run.config.system {
+        SystemConfig::Henon { a, b } => (a, b),
         _ => (Henon::A, Henon::B),
     };
     Some(Box::new(HenonPicture { a, b, points: Vec::new() }))

@@ -62,7 +62,8 @@ pub struct Options {
 /// What every analysis knows about the run it analyses.
 #[derive(Clone, Debug)]
 pub struct Context {
-    pub run: Option<RunMeta>,
+    /// The run the frames come from (its configuration and store settings).
+    pub run: RunMeta,
     /// The forward (Gram-Schmidt) spectrum of the run, if known.
     pub gs: Option<SpectrumSummary>,
     /// "disks", "henon" or "lorenz".
@@ -134,19 +135,18 @@ pub fn default_every(clv_steps: u64, vectors_every: u64) -> u64 {
 impl Context {
     /// The context of a stream, from its description and its first frame.
     pub fn new(info: &StreamInfo, first: &Frame, source: &str, every: Option<u64>, j: Option<Vec<usize>>, deltas: Option<Vec<u64>>) -> Result<Self> {
-        let run: Option<RunMeta> = info.run_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
-        let gs: Option<SpectrumSummary> = info.spectrum_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
-        let (system, n, lx, ly, tau, clv_steps) = match &run {
-            Some(m) => {
-                let (name, n, lx, ly) = match m.config.system {
-                    crate::config::SystemConfig::Henon { .. } => ("henon", 0, 0.0, 0.0),
-                    crate::config::SystemConfig::Lorenz { .. } => ("lorenz", 0, 0.0, 0.0),
-                    crate::config::SystemConfig::Disks { n, lx, ly, .. } => ("disks", n, lx, ly),
-                };
-                (name.to_string(), n, lx, ly, m.config.tau, m.store.clv_steps)
-            }
+        let run: RunMeta = match info.run_json.as_deref().map(serde_json::from_str) {
+            Some(Ok(run)) => run,
+            Some(Err(e)) => return Err(Error::Other(format!("{source}: the frame stream's run description (clv.run metadata) does not read: {e}; was it written by another version of clv?"))),
             None => return Err(Error::Other(format!("{source}: the frame stream carries no run description (clv.run metadata); was it written by clv backward?"))),
         };
+        let gs: Option<SpectrumSummary> = info.spectrum_json.as_deref().and_then(|s| serde_json::from_str(s).ok());
+        let (name, n, lx, ly) = match run.config.system {
+            crate::config::SystemConfig::Henon { .. } => ("henon", 0, 0.0, 0.0),
+            crate::config::SystemConfig::Lorenz { .. } => ("lorenz", 0, 0.0, 0.0),
+            crate::config::SystemConfig::Disks { n, lx, ly, .. } => ("disks", n, lx, ly),
+        };
+        let (system, tau, clv_steps) = (name.to_string(), run.config.tau, run.store.clv_steps);
         if let Some(bad) = j.iter().flatten().find(|&&j| j == 0 || j > first.k) {
             return Err(Error::param("j", format!("index {bad} is outside 1..={}", first.k)));
         }
@@ -175,7 +175,7 @@ impl Context {
         if deltas.contains(&0) {
             return Err(Error::param("deltas", "window lengths must be at least 1 step"));
         }
-        let frame_steps = run.as_ref().zip(backward.as_ref()).and_then(|(m, o)| Window::of(m, o).ok()?.frame_steps(o));
+        let frame_steps = backward.as_ref().and_then(|o| Window::of(&run, o).ok()?.frame_steps(o));
         // Windows of Delta consecutive frames (not computed for a file of every m-th step):
         // lengths of which none fits would give a table of NaN only.
         if let Some((oldest, newest)) = frame_steps.filter(|_| given_deltas && saved_every == 1) {
@@ -265,9 +265,9 @@ impl Context {
         let stride = if sampled { lcm(self.options.every, self.saved_every) } else { self.saved_every };
         let frames = match self.frame_steps {
             Some((oldest, newest)) => multiples_in(oldest, newest, stride),
-            None => self.run.as_ref().map_or(1000, |m| m.store.clv_steps) / stride.max(1),
+            None => self.run.store.clv_steps / stride.max(1),
         };
-        crate::statistics::block_len(frames, self.run.as_ref().map_or(20, |m| m.config.blocks as u64))
+        crate::statistics::block_len(frames, self.run.config.blocks as u64)
     }
 
     /// Which frames the vector statistics use, for captions.
@@ -367,7 +367,7 @@ pub struct Analyzer {
 
 impl Analyzer {
     pub fn start(ctx: Context, analyses: Vec<Box<dyn Analysis>>, out: &Path) -> Result<Self> {
-        begin_report(out, &ctx.source, ctx.run.as_ref().map(|m| &m.config))?;
+        begin_report(out, &ctx.source, Some(&ctx.run.config))?;
         let every = ctx.options.every;
         let mut workers = Vec::new();
         for mut analysis in analyses {
@@ -461,7 +461,7 @@ impl Analyzer {
             k: ctx.k,
             with_gs: ctx.with_gs,
             sample: ctx.sample(),
-            run: ctx.run.as_ref().map(|m| &m.config),
+            run: Some(&ctx.run.config),
             disks: ctx.is_disks(),
             options: serde_json::to_value(&ctx.options).unwrap_or_default(),
         };

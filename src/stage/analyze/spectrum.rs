@@ -62,13 +62,13 @@ impl Analysis for Spectrum {
         let (window_gs, window_gs_err) = if same_steps { (self.acc_gs.exponents(1.0), self.acc_gs.stderr(1.0)) } else { (nan.clone(), nan) };
         let (gs, gs_err) = if same_steps { (&window_gs, &window_gs_err) } else { (&run_gs, &run_gs_err) };
         let x: Vec<f64> = (0..ctx.k).map(|i| ctx.reduced(i)).collect();
-        let neutral = ctx.run.as_ref().map_or(0..0, |m| m.config.system.neutral());
+        let neutral = ctx.run.config.system.neutral();
         // The finite window's exponent of the three trailing null-space CLVs (see the caption).
-        let shear = match (ctx.is_disks() && ctx.n >= 2 && ctx.k >= 2 * ctx.n + 3, ctx.run.as_ref(), self.steps) {
-            (true, Some(run), Some((first, last))) => {
+        let shear = match (ctx.is_disks() && ctx.n >= 2 && ctx.k >= 2 * ctx.n + 3, self.steps) {
+            (true, Some((first, last))) => {
                 // Frame m carries the exponent over [t_m, t_(m+1)], at backward times
                 // (total - m - 1) tau .. (total - m) tau from the window's end.
-                let total = run.config.relax_steps + run.config.steps;
+                let total = ctx.run.config.relax_steps + ctx.run.config.steps;
                 Some(((total - last - 1) as f64 * ctx.tau, (total - first) as f64 * ctx.tau))
             }
             _ => None,
@@ -99,7 +99,7 @@ impl Analysis for Spectrum {
                  they agree within the errors wherever the spectrum is not degenerate. Kolmogorov-Sinai entropy h_KS, the sum of the positive exponents (Pesin's identity): {} (GS), {clv_h} (CLV). \
                  The GS spectrum over the whole forward run{} is more precise (columns lambda_gs, stderr_gs of spectrum.csv; the figure's GS spectrum is lambda_gs_window): h_KS = {}.",
                 Estimate::or_unknown(self.acc_gs.ks_entropy(1.0, neutral)),
-                ctx.run.as_ref().map_or(String::new(), |run| format!(" ({} steps)", run.config.steps)),
+                format!(" ({} steps)", ctx.run.config.steps),
                 Estimate::or_unknown(run_h),
             )
         } else {
@@ -107,13 +107,11 @@ impl Analysis for Spectrum {
                 "Forward Gram-Schmidt exponents (time average of ln R_ii) and backward covariant exponents (time average of the local CLV exponents over {frames} frames) against the reduced index {reduced}. \
                  Kolmogorov-Sinai entropy h_KS, the sum of the positive exponents (Pesin's identity): {} (GS), {clv_h} (CLV).",
                 Estimate::or_unknown(run_h),
-            ) + &ctx.run.as_ref().map_or(String::new(), |run| {
-                format!(
-                    " The GS averages are over the whole run ({} steps), the CLV averages over the frames' steps only: they differ by that window's own fluctuation, which the CLV errors measure. \
-                     These frames were written before they carried their GS exponents; the backward stage gives the GS spectrum over the frames' steps (`gs_window` in RUN_DIR/clv_spectrum.json), the comparison like for like.",
-                    run.config.steps
-                )
-            })
+            ) + &format!(
+                " The GS averages are over the whole run ({} steps), the CLV averages over the frames' steps only: they differ by that window's own fluctuation, which the CLV errors measure. \
+                 These frames were written before they carried their GS exponents; the backward stage gives the GS spectrum over the frames' steps (`gs_window` in RUN_DIR/clv_spectrum.json), the comparison like for like.",
+                ctx.run.config.steps
+            )
         };
         let mut produced = vec![Produced {
             title: "Lyapunov spectrum (Fig. 2)".into(),
@@ -191,13 +189,14 @@ mod tests {
         let gs = spectrum(n, 2);
         let want_gs: f64 = gs.exponents.iter().filter(|&&l| l > 0.0).sum();
         let ctx = context("disks", n, d, 4.0, 4.0, Some(gs), false);
+        let neutral = ctx.run.config.system.neutral();
         let mut a = new(&ctx).unwrap();
         let mut want_clv = 0.0;
-        let frames = 200; // four blocks of the 50 frames a context without a run gets
+        let frames = 200; // four blocks of the context's 50 frames
         for step in 0..frames {
             let mut f = frame(step, vec![0.0; d], vec![0.0; d * d], None);
             f.local = (0..d).map(|i| (d / 2) as f64 - i as f64 - 0.5 + if step / 50 % 2 == 0 { 0.25 } else { -0.25 }).collect();
-            want_clv += f.local.iter().filter(|&&l| l > 0.0).sum::<f64>() / frames as f64;
+            want_clv += f.local.iter().enumerate().filter(|&(i, &l)| l > 0.0 && !neutral.contains(&i)).map(|(_, l)| l).sum::<f64>() / frames as f64;
             a.consume(&f).unwrap();
         }
         let produced = a.finish(&out_dir("spectrum-h"), frames).unwrap();
@@ -217,7 +216,7 @@ mod tests {
         config.vectors = 2 * n + 3;
         let mut ctx = context("disks", n, d, 4.0, 4.0, None, false);
         ctx.k = config.vectors;
-        ctx.run = Some(RunMeta { format: FORMAT.into(), store: StoreConfig::for_run(&config), config: config.clone(), build: BuildInfo::current() });
+        ctx.run = RunMeta { format: FORMAT.into(), store: StoreConfig::for_run(&config), config: config.clone(), build: BuildInfo::current() };
         let mut a = new(&ctx).unwrap();
         let total = config.relax_steps + config.steps;
         for step in [total - 20, total - 10] {

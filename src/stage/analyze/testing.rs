@@ -1,6 +1,8 @@
 //! Synthetic contexts, frames and table readers shared by the unit tests of the analyses.
 
 use super::{Context, Options};
+use crate::config::{RunConfig, SystemConfig};
+use crate::store::run::{BuildInfo, RunMeta, StoreConfig, FORMAT};
 use crate::report::SpectrumSummary;
 use crate::stage::frame::Frame;
 use std::path::PathBuf;
@@ -39,9 +41,18 @@ pub fn spectrum(n: usize, len: usize) -> SpectrumSummary {
     SpectrumSummary { stderr: vec![1e-3; e.len()], exponents: e, ks_entropy: None, blocks: None }
 }
 
+/// The context of a stream of `system` ("disks", "henon" or "lorenz"; N disks in an lx x ly
+/// box) with D = d, its run the preset of that system with k = d vectors and a backward
+/// window of 1000 steps (20 blocks of 50 frames).
 pub fn context(system: &str, n: usize, d: usize, lx: f64, ly: f64, gs: Option<SpectrumSummary>, with_gs: bool) -> Context {
+    let mut config = RunConfig::preset(if system == "disks" { "default" } else { system }).unwrap();
+    if system == "disks" {
+        config.system = SystemConfig::disks_in_box(n, lx, ly);
+    }
+    config.vectors = d;
+    let store = StoreConfig { clv_steps: 1000, ..StoreConfig::for_run(&config) };
     Context {
-        run: None,
+        run: RunMeta { format: FORMAT.into(), store, config, build: BuildInfo::current() },
         gs,
         system: system.into(),
         d,
