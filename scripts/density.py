@@ -13,13 +13,13 @@ gives per collision (lambda_1 / nu, h_KS / (N nu)).
     python3 scripts/density.py --out density               # N = 36, rho = 0.1 .. 0.8, about 15 s
     python3 scripts/density.py --out d --n 8 --densities 0.2,0.8 --steps 400
 
+Stopped, the same command again continues the study (study.py).
+
 Writes OUT/density.csv and prints it; each run's spectrum (clv forward --json) stays in
 OUT/runs.
 """
-import json
 import math
 import os
-import subprocess
 import sys
 
 import study
@@ -33,27 +33,16 @@ def enskog(rho):
 
 
 def main():
-    ap = study.arguments(__doc__, "36", "density.csv")
-    ap.add_argument("--densities", default="0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8", help="number densities rho, comma-separated (the fluid: below about 0.88)")
-    ap.add_argument("--steps", type=int, default=4000, help="forward steps of tau = 0.6 after the relaxation")
+    ap = study.arguments(__doc__, "36", "density.csv", min_n=2, one_n=True, density=False)
+    ap.add_argument("--densities", type=study.numbers(study.positive, "positive densities", 2, "0.1,0.4,0.7"), default="0.1,0.2,0.3,0.4,0.5,0.6,0.7,0.8", help="number densities rho, comma-separated (the fluid: below about 0.88)")
+    ap.add_argument("--steps", type=study.whole(1), default=4000, help="forward steps of tau = 0.6 after the relaxation")
     a = ap.parse_args()
-    s = study.Study("density.py", a, "density.csv", min_n=2, min_count=1)
-    if len(s.ns) != 1:
-        s.fail("--n takes one number of disks here (the densities vary)")
-    n = s.ns[0]
-    try:
-        densities = sorted({float(x) for x in a.densities.split(",") if x.strip()})
-    except ValueError:
-        s.fail(f"--densities {a.densities!r}: give numbers such as 0.1,0.4,0.7")
-    if len(densities) < 2 or densities[0] <= 0:
-        s.fail("--densities needs at least two positive densities")
+    s = study.Study("density.py", a, "density.csv")
+    n, densities = s.ns[0], a.densities
 
     rows = []
     for rho in densities:
-        out = s.run(["forward", "--n", str(n), "--density", str(rho), "--aspect", "1", "--steps", str(a.steps), "--json", "--quiet"], stdout=subprocess.PIPE, text=True).stdout
-        with open(os.path.join(s.runs, f"rho{rho}.json"), "w") as f:
-            f.write(out)
-        r = json.loads(out)
+        r = s.saved_forward(os.path.join(s.runs, f"rho{rho}.json"), n, rho, 1.0, a.steps, ["--n", str(n), "--density", str(rho), "--aspect", "1", "--steps", str(a.steps), "--quiet"])
         lam, err, st = r["exponents"], r["stderr"], r["statistics"]
         time = (st["steps"] + st["relax_steps"]) * r["config"]["tau"]
         nu = 2 * st["collisions"] / (n * time)

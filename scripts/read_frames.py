@@ -4,6 +4,11 @@
     python3 scripts/read_frames.py FRAMES.mcap            # a summary
     python3 scripts/read_frames.py FRAMES.mcap --json     # the same as one JSON object
 
+The summary's mean_local_clv_exponents is the
+mean of the local CLV exponents over the frames in the file only. It is the sweep's CLV
+spectrum only when the file holds every frame of the window (clv backward --save-every 1);
+the sweep's spectrum over all its frames is RUN_DIR/clv_spectrum.json.
+
 As a library:
 
     from read_frames import read_frames
@@ -61,11 +66,12 @@ def main():
     local = np.array([f["local"] for f in frames])
     worst_norm = max(float(np.abs(np.linalg.norm(f["v"], axis=0) - 1).max()) for f in frames if f["v"] is not None)
     meta = metadata(sys.argv[1])
+    mean_local = local.mean(axis=0).tolist()
     summary = {
         "frames": len(frames),
         "first_step": min(f["step"] for f in frames),
         "last_step": max(f["step"] for f in frames),
-        "clv_exponents": local.mean(axis=0).tolist(),
+        "mean_local_clv_exponents": mean_local,
         "max_unit_norm_error": worst_norm,
         "with_gs": frames[0]["g"] is not None,
         "frames_with_vectors": sum(f["v"] is not None for f in frames),
@@ -75,7 +81,11 @@ def main():
         print(json.dumps(summary))
     else:
         for key, value in summary.items():
-            print(f"{key}: {value if key != 'clv_exponents' else value[:4]}")
+            if key == "mean_local_clv_exponents":
+                print(f"mean local CLV exponents over the {len(frames)} frames in this file: {value[:4]}"
+                      f"{' ...' if len(value) > 4 else ''} (the sweep's CLV spectrum: RUN_DIR/clv_spectrum.json)")
+            else:
+                print(f"{key}: {value}")
 
 
 if __name__ == "__main__":

@@ -8,18 +8,20 @@ each N this script runs the whole pipeline with one vector (a step costs O(colli
 N = 1024 takes under a minute), and for the smaller N the full spectrum for the
 Kolmogorov-Sinai entropy per disk, h_KS / N, which has a thermodynamic limit too.
 
-    python3 scripts/scaling.py --out scaling                   # N = 16 .. 1024, about 3 min
+    python3 scripts/scaling.py --out scaling                   # N = 16 .. 1024, about 2 min
     python3 scripts/scaling.py --out s --n 8,16 --steps 600 --clv-steps 200
+
+Stopped, the same command again continues the study (study.py).
 
 Writes OUT/scaling.csv (N, lambda_1, W_1 and h_KS / N with their errors, h_KS where the
 full spectrum was computed) and OUT/fit.json (eta from a least-squares line of ln W_1
-against ln N, with its standard error), and prints both. The runs stay in OUT/runs.
+against ln N, with its standard error), and prints both. The runs stay in OUT/runs, with the
+full spectra (clv forward --json) as nN-full.json.
 """
 import csv
 import json
 import math
 import os
-import subprocess
 import sys
 
 import numpy as np
@@ -28,28 +30,28 @@ import study
 
 
 def main():
-    ap = study.arguments(__doc__, "16,32,64,128,256,512,1024", "scaling.csv")
-    ap.add_argument("--steps", type=int, default=20000, help="forward steps of tau = 0.6 after the relaxation")
-    ap.add_argument("--clv-steps", type=int, default=2000, help="frames of the backward window (W_1 is averaged over them)")
-    ap.add_argument("--full-up-to", type=int, default=64, help="compute the full spectrum (h_KS) for N up to this")
+    ap = study.arguments(__doc__, "16,32,64,128,256,512,1024", "scaling.csv", min_n=2)
+    ap.add_argument("--steps", type=study.whole(1), default=20000, help="forward steps of tau = 0.6 after the relaxation")
+    ap.add_argument("--clv-steps", type=study.whole(1), default=2000, help="frames of the backward window (W_1 is averaged over them)")
+    ap.add_argument("--full-up-to", type=study.whole(0), default=64, help="compute the full spectrum (h_KS) for N up to this")
     a = ap.parse_args()
-    s = study.Study("scaling.py", a, "scaling.csv", min_n=2)
+    s = study.Study("scaling.py", a, "scaling.csv")
     common = ["--density", str(a.density), "--aspect", "1", "--quiet"]
 
     rows = []
     for n in s.ns:
         run_dir, report = os.path.join(s.runs, f"n{n}-run"), os.path.join(s.runs, f"n{n}-report")
-        s.run(["forward", "--n", str(n), "--vectors", "1", "--steps", str(a.steps), "--clv-steps", str(a.clv_steps), "--out", run_dir] + common, stdout=subprocess.DEVNULL)
+        s.forward(run_dir, ["--n", str(n), "--vectors", "1", "--steps", str(a.steps), "--clv-steps", str(a.clv_steps)] + common)
         with open(os.path.join(run_dir, "spectrum.json")) as f:
             spectrum = json.load(f)
-        s.backward_into_analyze(run_dir, report, [], ["--only", "localization"])
+        s.backward_into_analyze(run_dir, report, "localization", ["localization.csv"])
         with open(os.path.join(report, "localization.csv")) as f:
             first = next(csv.DictReader(f))
         w1 = float(first["W_clv"])
         row = {"N": n, "lambda_1": spectrum["exponents"][0], "lambda_1_stderr": spectrum["stderr"][0], "W_1": w1, "W_1_stderr": float(first["stderr_clv"]), "h_KS_per_disk": math.nan, "h_KS_per_disk_stderr": math.nan}
         if n <= a.full_up_to:
-            out = s.run(["forward", "--n", str(n), "--steps", str(a.steps), "--json"] + common, stdout=subprocess.PIPE).stdout
-            h = json.loads(out)["ks_entropy"]
+            full = s.saved_forward(os.path.join(s.runs, f"n{n}-full.json"), n, a.density, 1.0, a.steps, ["--n", str(n), "--steps", str(a.steps)] + common)
+            h = full["ks_entropy"]
             row["h_KS_per_disk"], row["h_KS_per_disk_stderr"] = h["value"] / n, h["stderr"] / n
         rows.append(row)
         print(f"N = {n:5d}: lambda_1 = {row['lambda_1']:.4f} +- {row['lambda_1_stderr']:.1e}, W_1 = {w1:.4f} +- {row['W_1_stderr']:.1e}, h_KS/N = {row['h_KS_per_disk']:.4f}", file=sys.stderr)

@@ -113,6 +113,15 @@ pub const MIN_TAU: f64 = 1e-9;
 /// More threads than any machine this runs on has cores.
 pub const MAX_THREADS: usize = 4096;
 
+/// A thread count any stage accepts: 1 to [`MAX_THREADS`]. Checked before a stage writes
+/// anything, also where a run continues on other threads.
+pub fn check_threads(threads: usize) -> Result<()> {
+    if threads == 0 || threads > MAX_THREADS {
+        return Err(Error::param("threads", format!("must be between 1 and {MAX_THREADS}, got {threads}")));
+    }
+    Ok(())
+}
+
 impl RunConfig {
     /// The same run, perhaps on another number of threads (which the numbers do not depend
     /// on: a run may continue, and be replayed backward, on any).
@@ -169,9 +178,7 @@ impl RunConfig {
         if self.relax_steps.checked_add(self.steps).is_none_or(|total| total > 1 << 53) {
             return Err(Error::param("steps", format!("--relax-steps {} plus --steps {} is beyond any run (2^53 steps at most)", self.relax_steps, self.steps)));
         }
-        if self.threads == 0 || self.threads > MAX_THREADS {
-            return Err(Error::param("threads", format!("must be between 1 and {MAX_THREADS}, got {}", self.threads)));
-        }
+        check_threads(self.threads)?;
         if self.blocks < 2 {
             return Err(Error::param("blocks", "need at least 2 blocks for a standard error"));
         }

@@ -25,6 +25,9 @@ pub enum Error {
     /// sweep stopped unfinished. The process exits as a writer killed by SIGPIPE (141), so
     /// that a script does not take the sweep for done.
     ReaderClosed { frames: u64, recorded: u64 },
+    /// The reader of standard output closed it before `what` was written whole (with what
+    /// was saved all the same, and how to get it). Exits as a writer killed by SIGPIPE (141).
+    OutputClosed { what: String, then: String },
     /// Anything else, already phrased for the user.
     Other(String),
 }
@@ -60,6 +63,7 @@ impl fmt::Display for Error {
                  those of its finished segments{}",
                 if frames > recorded { format!(" (the {} after them come again)", frames - recorded) } else { String::new() }
             ),
+            Error::OutputClosed { what, then } => write!(f, "the reader of standard output closed it before {what} was written whole; {then}"),
             Error::Other(msg) => f.write_str(msg),
         }
     }
@@ -111,7 +115,7 @@ impl Error {
     pub fn exit_code(&self) -> i32 {
         match self {
             Error::Stopped { signal, .. } => 128 + signal,
-            Error::ReaderClosed { .. } => 128 + libc::SIGPIPE,
+            Error::ReaderClosed { .. } | Error::OutputClosed { .. } => 128 + libc::SIGPIPE,
             _ => 1,
         }
     }

@@ -435,6 +435,36 @@ fn frames_flow_through_real_pipes_and_a_closed_pipe_ends_cleanly() {
     assert!(err.contains("closed the stream") && err.matches("error").count() == 1, "one error, no other failure: {err}");
 }
 
+/// A reader that takes every frame but closes the pipe before the stream's closing records
+/// (its summary, more than a pipe's buffer holds) got a stream a reader calls damaged: the
+/// producer says so and exits 141, though the sweep itself finished.
+#[test]
+fn a_stream_closed_before_its_summary_is_no_success() {
+    let dir = forward("pipe-summary", &["--n", "4", "--aspect", "1", "--steps", "3000", "--clv-steps", "1500", "--transient", "50"]);
+    let d = dir.to_str().unwrap();
+    let whole = clv(&["backward", d, "--out", "-", "--quiet"]);
+    assert!(whole.status.success(), "{}", String::from_utf8_lossy(&whole.stderr));
+    let bytes = whole.stdout;
+    // MCAP records after the 8-byte magic: opcode, u64 length, content; the summary follows
+    // the Data End record (opcode 0x0F).
+    let mut at = 8;
+    while bytes[at] != 0x0f {
+        at += 9 + u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+    }
+    let summary_start = at + 9 + u64::from_le_bytes(bytes[at + 1..at + 9].try_into().unwrap()) as usize;
+    assert!(bytes.len() - summary_start > 96 << 10, "the closing records exceed a pipe's buffer: {} bytes", bytes.len() - summary_start);
+    let mut producer = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", d, "--out", "-", "--quiet"]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let mut reader = producer.stdout.take().unwrap();
+    let mut got = vec![0u8; summary_start];
+    std::io::Read::read_exact(&mut reader, &mut got).unwrap();
+    drop(reader);
+    let out = producer.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(141), "{err}");
+    assert!(err.contains("closing records") && err.contains("the sweep finished") && err.contains("clv_spectrum.json"), "{err}");
+    assert!(got == bytes[..summary_start], "every frame came, as in the whole stream");
+}
+
 fn read_frames_from(input: impl std::io::Read, into: &mut Vec<Frame>) {
     clv::store::segment::read_stream(Path::new("<pipe>"), input, clv::store::segment::ReadMode::Strict, |m| {
         if m.topic == clv::store::schema::FRAME.topic {
@@ -505,8 +535,18 @@ fn two_threads_give_the_frames_of_one() {
     let (cut_report, cut_frames) = (backward_json(&cut, &["--with-gs"]), frames(&cut.join("frames.mcap")));
     assert_eq!(cut_report["exponents"], r1["exponents"]);
     assert!(cut_frames == f1, "the frames of the run continued on two threads");
-    let refused = clv(&["backward", one.to_str().unwrap(), "--threads", "0", "--quiet"]);
-    assert!(!refused.status.success() && common::stderr(&refused).contains("--threads"));
+    // Too few or too many threads are refused before anything is written: the last sweep's
+    // record and its frame file stay as they were (a refusal after them left a sweep that
+    // never ran for `analyze` and `inspect` to find).
+    let record = std::fs::read(one.join("backward.json")).unwrap();
+    for threads in ["0", "5000"] {
+        let other = one.join("other.mcap");
+        let refused = clv(&["backward", one.to_str().unwrap(), "--threads", threads, "--out", other.to_str().unwrap(), "--quiet"]);
+        assert!(!refused.status.success() && common::stderr(&refused).contains("invalid --threads: must be between 1 and 4096"), "{}", common::stderr(&refused));
+        assert!(std::fs::read(one.join("backward.json")).unwrap() == record && !other.exists() && !one.join("other.mcap.tmp").exists());
+        let refused = clv(&["forward", "--resume", cut.to_str().unwrap(), "--steps", "100000", "--threads", threads, "--quiet"]);
+        assert!(!refused.status.success() && common::stderr(&refused).contains("invalid --threads"), "{}", common::stderr(&refused));
+    }
 }
 
 /// The sweep reuses a frame's buffers once its consumer has dropped it: a consumer that lets

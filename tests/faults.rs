@@ -218,6 +218,27 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
     assert!(!out.status.success() && err.contains("--with-gs") && err.contains("--transient 7") && !err.contains("BackwardOptions"), "{err}");
 }
 
+/// A dropped ssh session sends SIGHUP to a job started without nohup: the forward stage stops
+/// at a checkpoint of its own as for SIGTERM, and exits as by the signal (129).
+#[test]
+fn sighup_stops_the_forward_stage_at_a_checkpoint_too() {
+    let run = scratch("faults", "hup").join("run");
+    let args = ["forward", "--quiet", "--n", "16", "--aspect", "1", "--steps", "40000", "--checkpoint-every", "50", "--out", run.to_str().unwrap()];
+    let child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    let started = std::time::Instant::now();
+    while (clv::store::RunDir { path: run.clone() }).segments().map_or(true, |s| s.is_empty()) && started.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // SAFETY: a plain kill(2) of the child we spawned.
+    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGHUP) };
+    let out = child.wait_with_output().unwrap();
+    let err = stderr(&out);
+    assert!(out.status.code() == Some(128 + libc::SIGHUP) && err.contains("stopped by a signal after step"), "{:?}: {err}", out.status);
+    let step: u64 = err.split("after step ").nth(1).and_then(|t| t.split(' ').next()).and_then(|n| n.parse().ok()).unwrap();
+    let dir = clv::store::RunDir { path: run.clone() };
+    assert!(dir.partial_segments().unwrap().is_empty() && dir.segments().unwrap().last().unwrap().last == step, "the last segment ends at the stop");
+}
+
 /// A batch system's time limit sends SIGTERM before SIGKILL: the forward stage stops after
 /// the step it is in, with a checkpoint there and its segment finished, so that the run
 /// resumes from that very step (no interrupted segment, nothing recomputed) to the
@@ -541,14 +562,15 @@ fn numerical_faults_stop_the_run_naming_the_step() {
     let err = stderr(&out);
     assert!(!out.status.success() && err.contains(&format!("step {}", prev + 1)) && err.contains("not finite"), "{err}");
     assert!(last > prev);
-    // Two equal tangent vectors: R is singular.
+    // Two equal tangent vectors (the NaN above replaced): R is singular, at the second.
     alter_checkpoint(&dir, prev, |cp| {
         let d = cp.d;
+        cp.state.g[5] = 0.5;
         let first: Vec<f64> = cp.state.g[..d].to_vec();
         cp.state.g[d..2 * d].copy_from_slice(&first);
     });
     let out = clv(&["forward", "--resume", run, "--quiet"]);
-    assert!(!out.status.success() && stderr(&out).contains("linearly dependent"), "{}", stderr(&out));
+    assert!(!out.status.success() && stderr(&out).contains("found the first 32 tangent vectors dependent") && stderr(&out).contains("linearly dependent"), "{}", stderr(&out));
     // A tau far too long for the flow: the error points at --tau.
     let out = clv(&["forward", "--system", "lorenz", "--tau", "100", "--steps", "5", "--quiet"]);
     assert!(!out.status.success() && stderr(&out).contains("smaller --tau"), "{}", stderr(&out));
@@ -698,12 +720,12 @@ fn damaged_frame_files_and_cut_streams_are_reported() {
         let err = stderr(&out);
         assert!(!out.status.success(), "damage {i} at byte {at} went unnoticed");
         assert!(err.contains(&format!("damaged-{i}.mcap")) && !err.contains("panicked"), "{err}");
-        // A report made of the frames before the damage says so at its head; no frame of a
-        // damaged chunk reaches it (chunks are checked whole before their messages are read).
-        if let Ok(summary) = std::fs::read(report.join("summary.json")) {
-            let v: serde_json::Value = serde_json::from_slice(&summary).unwrap();
-            assert!(v["warnings"][0].as_str().is_some_and(|w| w.contains("damaged")), "damage {i} at byte {at}: {v}");
-            assert!(std::fs::read_to_string(report.join("index.html")).unwrap().contains("Incomplete stream"));
+        // A report made of the frames before the damage says so at its head and stays
+        // unfinished (no summary.json, as the exit status says); no frame of a damaged chunk
+        // reaches it (chunks are checked whole before their messages are read).
+        assert!(!report.join("summary.json").exists(), "damage {i} at byte {at}: a finished report");
+        if let Ok(index) = std::fs::read_to_string(report.join("index.html")) {
+            assert!(index.contains("<title>clv analyses: incomplete") && index.contains("Incomplete"), "damage {i} at byte {at}: {index:.400}");
         }
         // clv inspect finds the same damage.
         let seen = clv(&["inspect", path.to_str().unwrap()]);
@@ -832,15 +854,17 @@ fn an_unreadable_segment_is_not_taken_for_damage() {
     }
 }
 
-/// A reader that has gone before the table is printed (`clv forward ... | head -0`) ends
-/// nothing badly: the command exits 0 without a panic.
+/// A reader that has gone before the table is printed (`clv forward ... | head -0`): the
+/// results of a run without --out never arrived, so the command says so and exits as a
+/// writer killed by SIGPIPE (141), not 0; no panic.
 #[test]
-fn a_closed_standard_output_is_no_error() {
+fn a_closed_standard_output_is_no_success() {
     for args in [&["forward", "--n", "8", "--aspect", "1", "--steps", "5000", "--quiet"][..], &["forward", "--n", "8", "--aspect", "1", "--steps", "5000", "--quiet", "--json"]] {
         let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
         drop(child.stdout.take());
         let out = child.wait_with_output().unwrap();
-        assert!(out.status.success() && !stderr(&out).contains("panicked"), "{args:?}: {:?} {}", out.status, stderr(&out));
+        let err = stderr(&out);
+        assert!(out.status.code() == Some(141) && err.contains("closed it before the output was written whole") && err.contains("--out DIR") && !err.contains("panicked"), "{args:?}: {:?} {err}", out.status);
     }
 }
 

@@ -231,7 +231,9 @@ fn combine_gives_the_spectrum_of_independent_runs() {
     let m = v["mean_chi2_per_dof"].as_f64().unwrap();
     assert!(m > 0.05 && m < 20.0, "chi2/dof {m}");
     let text = String::from_utf8(clv(&[&["combine"][..], &paths].concat()).stdout).unwrap();
-    assert!(text.contains("3 runs (seeds 1, 2, 3), 1600 steps in all"), "{text}");
+    assert!(text.contains("3 runs (seeds 1, 2, 3), 1600 steps in all") && text.contains("on 2 degrees of freedom"), "{text}");
+    // Student's t for one sigma from 2 degrees of freedom: 1.3214.
+    assert!((v["t_one_sigma"].as_f64().unwrap() - 1.3214).abs() < 1e-3 && v["relax_steps"] == serde_json::json!([100, 100, 100]), "{v}");
     let other = dir.join("other");
     assert!(clv(&["forward", "--n", "4", "--aspect", "1", "--tau", "0.5", "--steps", "400", "--seed", "4", "--out", other.to_str().unwrap(), "--quiet"]).status.success());
     // The same box given by its sides (density derived with other rounding) is the same system.

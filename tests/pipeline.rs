@@ -91,10 +91,13 @@ fn analyze_refuses_bad_sources_clearly() {
     let out = clv(&["analyze", junk.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("junk.mcap") && !err.contains("panicked"), "{err}");
-    // A directory without frames, and a run segment instead of frames: what to run instead.
+    // A directory that is no run, a run without frames, and a run segment instead of
+    // frames: what to give or run instead.
     let err = common::stderr(&clv(&["analyze", base.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
-    assert!(err.contains("a directory without a frame file") && err.contains("clv backward"), "{err}");
+    assert!(err.contains("is no run directory: give a frame file"), "{err}");
     let run = forward_in(&base);
+    let err = common::stderr(&clv(&["analyze", run.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
+    assert!(err.contains("a directory without a frame file") && err.contains("clv backward"), "{err}");
     let segment = clv::store::RunDir { path: run.clone() }.segments().unwrap().remove(0).path;
     let err = common::stderr(&clv(&["analyze", segment.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
     assert!(err.contains("is a segment of a run directory") && err.contains("clv backward"), "{err}");
@@ -475,8 +478,8 @@ fn python_reads_frame_files() {
     let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(s["frames"], v["frames"]);
     assert_eq!(s["frames_with_vectors"].as_u64().unwrap(), v["frames"].as_u64().unwrap().div_ceil(4));
-    assert_eq!(s["clv_exponents"], v["clv_exponents"]);
-    let py: Vec<f64> = serde_json::from_value(v["clv_exponents"].clone()).unwrap();
+    assert_eq!(s["mean_local_clv_exponents"], v["mean_local_clv_exponents"]);
+    let py: Vec<f64> = serde_json::from_value(v["mean_local_clv_exponents"].clone()).unwrap();
     let rs: Vec<f64> = serde_json::from_value(report["exponents"].clone()).unwrap();
     for (a, b) in py.iter().zip(&rs) {
         assert!((a - b).abs() <= 1e-12 * b.abs().max(1.0), "Python {a} vs clv {b}");
@@ -502,6 +505,26 @@ fn configuration_files_round_trip_and_flags_override_them() {
     let out = ok(clv(&["forward", "--config", f, "--n", "8", "--lx", "4", "--ly", "4", "--steps", "100", "--json", "--quiet"]));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!((&v["config"]["system"]["lx"], &v["config"]["system"]["density"]), (&serde_json::json!(4.0), &serde_json::json!(0.5)));
+    // A file's sides and the command line's density and aspect: both together replace the
+    // sides; one alone would keep a default for the other, a box nobody asked for, and is
+    // refused, in forward and run alike. A file that gives the box both ways is refused too.
+    let square = base.join("square.toml");
+    std::fs::write(&square, "n = 8\nsteps = 100\nrelax-steps = 10\nlx = 4\nly = 4\n").unwrap();
+    let sq = square.to_str().unwrap();
+    let out = ok(clv(&["forward", "--config", sq, "--density", "0.5", "--aspect", "1", "--json", "--quiet"]));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!((&v["config"]["system"]["lx"], &v["config"]["system"]["aspect"]), (&serde_json::json!(4.0), &serde_json::json!(1.0)));
+    for (cmd, flag) in [("forward", "--density"), ("forward", "--aspect"), ("run", "--density")] {
+        let half = clv(&[cmd, "--config", sq, flag, "1", "--out", base.join("half").to_str().unwrap(), "--quiet"]);
+        let err = common::stderr(&half);
+        assert!(!half.status.success() && err.contains(&format!("invalid {flag}: the configuration file gives the box by its sides")), "{cmd} {flag}: {err}");
+        assert!(!base.join("half").exists(), "nothing is written");
+    }
+    let both = base.join("both.toml");
+    std::fs::write(&both, "n = 8\nsteps = 100\ndensity = 0.7\nlx = 4\nly = 4\n").unwrap();
+    let refused = clv(&["forward", "--config", both.to_str().unwrap(), "--quiet"]);
+    let err = common::stderr(&refused);
+    assert!(!refused.status.success() && err.contains("both.toml: invalid setting lx: the box is given both by its sides"), "{err}");
     let twice = clv(&["forward", "--config", f, "--config", f, "--steps", "10"]);
     assert!(!twice.status.success() && common::stderr(&twice).contains("--config: given twice"), "{}", common::stderr(&twice));
     let small = base.join("small.toml");

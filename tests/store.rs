@@ -145,8 +145,16 @@ fn resuming_a_finished_run_does_nothing_and_conflicts_are_refused() {
     assert!(out.status.success(), "flags equal to the stored ones are fine: {}", String::from_utf8_lossy(&out.stderr));
     let out = clv(&[&RUN[..], &["--out", d]].concat());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("not empty") && err.contains("--resume"), "{err}");
+    assert!(!out.status.success() && err.contains("not empty (it holds a run: continue it with `clv forward --resume"), "{err}");
     assert!(contents(&dir) == *want, "a refused command must not touch the run");
+    // A directory of other files is no run to resume.
+    let other = dir.with_file_name("other-files");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(other.join("notes.txt"), "mine").unwrap();
+    let out = clv(&[&RUN[..], &["--out", other.to_str().unwrap()]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("holds files of something other than a run") && !err.contains("--resume"), "{err}");
+    assert_eq!(std::fs::read_dir(&other).unwrap().count(), 1, "nothing was written");
 }
 
 fn damage(path: &Path, rng: &mut Rng, truncate: bool) -> String {
@@ -460,4 +468,24 @@ fn a_missing_or_foreign_segment_is_named_and_resume_restores_the_run() {
     std::fs::remove_file(&middle.path).unwrap();
     ok(clv(&["forward", "--resume", d, "--quiet"]));
     assert!(contents(&dir) == *want);
+}
+
+/// A sweep into a frame file of its own name inside the run, interrupted, then the run
+/// extended: the interrupted file goes with the shorter run's results into previous-*, so
+/// that a new sweep into that name starts (before, the stranded FILE.tmp sent the user
+/// between "continue with --resume" and "there is no sweep to continue").
+#[test]
+fn an_extension_keeps_an_interrupted_sweeps_own_frame_file_with_the_shorter_run() {
+    let run = scratch("extend-interrupted").join("run");
+    let r = run.to_str().unwrap();
+    ok(clv(&["forward", "--n", "8", "--aspect", "1", "--steps", "600", "--clv-steps", "200", "--checkpoint-every", "20", "--out", r, "--quiet"]));
+    let custom = run.join("custom.mcap");
+    let crashed = common::clv_env(&["backward", r, "--out", custom.to_str().unwrap(), "--quiet"], &[("CLV_FAULT_CRASH_AT", "frames-synced#2")]);
+    assert_eq!(crashed.status.code(), Some(clv::store::fault::CRASH_STATUS), "{}", common::stderr(&crashed));
+    assert!(run.join("custom.mcap.tmp").exists());
+    ok(clv(&["forward", "--resume", r, "--steps", "800", "--quiet"]));
+    let previous = run.join("previous-600-steps");
+    assert!(previous.join("custom.mcap.tmp").exists() && previous.join("backward.json").exists() && !run.join("custom.mcap.tmp").exists());
+    ok(clv(&["backward", r, "--out", custom.to_str().unwrap(), "--quiet"]));
+    assert!(custom.exists());
 }

@@ -20,7 +20,7 @@ pub struct BackwardArgs {
     /// Default: RUN_DIR/frames.mcap.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Backward steps discarded before frames are emitted (default: the run's --transient).
+    /// Backward steps discarded before frames are emitted (default: the run's --transient; with 0 the frames still end one step before the run's last, whose local exponents would need the R after it).
     #[arg(long)]
     pub transient: Option<u64>,
     /// Initial upper-triangular C at the end of the window.
@@ -60,8 +60,8 @@ pub struct BackwardArgs {
 pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     use clv::stage::backward::{self, BackwardOptions, CInit};
     use clv::store::frames::{FrameStdout, Flow};
-    if args.threads == Some(0) {
-        return Err(Error::param("threads", "must be at least 1"));
+    if let Some(threads) = args.threads {
+        clv::config::check_threads(threads)?;
     }
     let (dir, meta) = clv::store::RunDir::open(&args.dir)?;
     let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
@@ -136,6 +136,18 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if stored.is_none() || given("vectors_every") {
         opts.vectors_every = args.vectors_every;
     }
+    // Frames that keep no V_n at all leave the analyses of vector statistics nothing: said
+    // now, not when the report comes out empty.
+    if let Ok(window) = backward::Window::of(&meta, &opts)
+        && let Some((oldest, newest)) = window.frame_steps(&opts)
+    {
+        use clv::stage::frame::{lcm, multiples_in};
+        let m = opts.vectors_every.max(1);
+        let kept = if to_stdout { 1 } else { opts.save_every };
+        if m > 1 && !args.quiet && multiples_in(oldest, newest, lcm(m, kept)) == 0 {
+            clv::note!("clv: warning: no frame of steps {oldest}..{newest} will carry covariant vectors: --vectors-every {m} forms V_n only at the steps that are multiples of {m}; the CLV spectrum and the local exponents do not need them, the analyses of vector statistics do");
+        }
+    }
     // Only for a sweep that will write (--resume of none, or of a finished one, does not).
     let writes = !args.resume || backward::last_sweep(&args.dir).ok().flatten().is_some_and(|last| !last.done);
     if let Some(path) = opts.frames_file(&args.dir).filter(|_| writes)
@@ -178,9 +190,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         sweep.finish_and_clear();
         let _ = multi.clear();
     }
-    if let Some(out) = stdout {
-        out.finish()?;
-    }
+    let delivered = stdout.map_or(Ok(true), FrameStdout::finish)?;
     for note in report.notes.iter().filter(|_| !args.quiet) {
         clv::note!("clv: {note}");
     }
@@ -188,6 +198,15 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if report.statistics.stopped_early {
         let recorded = backward::last_sweep(&args.dir).ok().flatten().map_or(0, |s| s.frames);
         return Err(Error::ReaderClosed { frames: report.statistics.frames, recorded });
+    }
+    if !delivered {
+        return Err(Error::OutputClosed {
+            what: format!("the frame stream's closing records (after all its {} frames)", report.statistics.frames),
+            then: format!(
+                "the sweep finished and its CLV spectrum is saved ({}), but the reader got a stream cut short; if it was to keep the stream, give the same command again without --resume",
+                dir.clv_spectrum_path().display()
+            ),
+        });
     }
     if args.json {
         print_json(&report)?;

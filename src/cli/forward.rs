@@ -69,7 +69,7 @@ pub struct ForwardArgs {
     /// numbers do not depend on it).
     #[arg(long, default_value_t = 1)]
     pub threads: usize,
-    /// Blocks for the standard error (batch means): each block is steps / blocks steps long (rounded down), so a run has at least this many complete blocks and fewer than twice as many.
+    /// Blocks for the standard error (batch means): each block is steps / blocks steps long (rounded down), so a run has at least this many complete blocks and fewer than twice as many; with fewer steps than blocks, each step is a block.
     #[arg(long, default_value_t = 20)]
     pub blocks: usize,
     /// Write a run directory (checkpoints, R matrices, running spectrum) for the backward stage.
@@ -90,10 +90,10 @@ pub struct ForwardArgs {
     /// Which R matrices to store: at checkpoints, or at every step of the CLV window too.
     #[arg(long, value_enum, default_value = "checkpoints")]
     pub store_r: StoreRArg,
-    /// Steps at the end of the run for which covariant vectors are wanted (default steps/10).
+    /// Steps at the end of the run for which covariant vectors are wanted (default a tenth of relax-steps + steps, at most 2/3 of steps).
     #[arg(long)]
     pub clv_steps: Option<u64>,
-    /// Backward-sweep steps discarded before the CLV window (default clv-steps/2).
+    /// Backward-sweep steps discarded before the CLV window (default clv-steps/2; with 0 the window still ends one step before the run's last, whose local exponents would need the R after it).
     #[arg(long)]
     pub transient: Option<u64>,
     /// Print one JSON object to stdout instead of the table.
@@ -115,15 +115,28 @@ fn parse_ratio(s: &str) -> std::result::Result<f64, String> {
 
 impl ForwardArgs {
     /// The box as the command line gives it (`given` tells which flags it names), over a
-    /// configuration file's or a preset's: its --lx and --ly, or its --density and --aspect
-    /// (then a file's sides yield); both at once are refused.
-    pub fn box_from_command_line(&self, given: impl Fn(&str) -> bool) -> Result<ForwardArgs> {
-        let (sides, density) = (given("lx") || given("ly"), given("density") || given("aspect"));
-        if sides && density {
+    /// configuration file's or a preset's (`in_file`): its --lx and --ly, or its --density and
+    /// --aspect (then a file's sides yield). Both ways at once are refused, on the command
+    /// line or in a file, and so is half of density and aspect over a file's sides: which
+    /// shape or density the box should keep would be a guess.
+    pub fn box_from_command_line(&self, given: impl Fn(&str) -> bool, in_file: impl Fn(&str) -> bool) -> Result<ForwardArgs> {
+        let sides = |named: &dyn Fn(&str) -> bool| named("lx") || named("ly");
+        let shape = |named: &dyn Fn(&str) -> bool| named("density") || named("aspect");
+        if sides(&given) && shape(&given) {
             return Err(Error::param("lx", "give the box either by its sides (--lx and --ly) or by --density and --aspect, not both"));
         }
+        if sides(&in_file) && shape(&in_file) {
+            return Err(Error::param("lx", "the box is given both by its sides (lx, ly) and by density or aspect; keep one of the two"));
+        }
+        if sides(&in_file) && shape(&given) && !(given("density") && given("aspect")) {
+            let (flag, other) = if given("density") { ("density", "aspect") } else { ("aspect", "density") };
+            return Err(Error::param(
+                flag,
+                format!("the configuration file gives the box by its sides (lx, ly), and --{flag} alone would take the default --{other} with it; give both --density and --aspect, or --lx and --ly"),
+            ));
+        }
         let mut args = self.clone();
-        if density {
+        if shape(&given) {
             (args.lx, args.ly) = (None, None);
         }
         Ok(args)
@@ -274,15 +287,16 @@ fn on_command_line(name: &str) -> bool {
 }
 
 fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
-    let args = &args.box_from_command_line(on_command_line)?;
+    let in_file = |name: &str| matches.value_source(name) == Some(ValueSource::CommandLine) && !on_command_line(name);
+    let args = &args.box_from_command_line(on_command_line, in_file)?;
     no_disk_flags_for_henon(args.system, |id| matches.value_source(id) == Some(ValueSource::CommandLine))?;
     if let Some(dir) = &args.resume {
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
         forward_run::complete_creation(dir, &mut feedback)?;
         let extension = check_resume_flags(args, matches, dir)?;
         let threads = (matches.value_source("threads") == Some(ValueSource::CommandLine)).then_some(args.threads);
-        if threads == Some(0) {
-            return Err(Error::param("threads", "must be at least 1"));
+        if let Some(threads) = threads {
+            clv::config::check_threads(threads)?;
         }
         let outcome = match extension {
             Some(ext) => forward_run::extend(dir, ext, threads, &[], &mut feedback)?,

@@ -207,13 +207,18 @@ pub fn print_json<T: serde::Serialize>(found: &T) -> Result<()> {
     emit(&(serde_json::to_string(found).map_err(|e| Error::Other(e.to_string()))? + "\n"))
 }
 
-/// `text` on standard output. A reader that has gone (`clv inspect RUN | head -1`) is no
-/// error: what it did not read was not wanted.
+/// `text` on standard output. A reader that has gone before it was all written is an error
+/// that exits as a writer killed by SIGPIPE (141), as other tools do: a script must not
+/// take a result that never arrived (`clv forward` without --out keeps nothing else) for
+/// one that did.
 pub fn emit(text: &str) -> Result<()> {
     use std::io::Write;
     let mut out = std::io::stdout().lock();
     match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(Error::OutputClosed {
+            what: "the output".into(),
+            then: "the rest of it is lost (a run of `clv forward` without --out keeps nothing else: give --out DIR to keep its results)".into(),
+        }),
         written => written.map_err(|e| Error::io("<standard output>", e)),
     }
 }

@@ -76,7 +76,10 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
     };
     let in_settings = |name: &str| super::names_flag(&args.settings, name);
     no_disk_flags_for_henon(forward.system, in_settings)?;
-    forward.box_from_command_line(in_settings).and_then(|f| f.meta()).map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))
+    let in_file = |name: &str| {
+        matches.subcommand_matches("forward").and_then(|m| m.value_source(name)) == Some(clap::parser::ValueSource::CommandLine) && !in_settings(name)
+    };
+    forward.box_from_command_line(in_settings, in_file).and_then(|f| f.meta()).map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))
 }
 
 /// `args` with `clv run`'s own options that were given among the settings (`clv run --steps

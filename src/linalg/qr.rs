@@ -93,10 +93,12 @@ impl Qr {
     /// k x k upper-triangular R_n with a positive diagonal (its lower part is zero).
     ///
     /// If a column is linearly dependent on the ones before it (or not finite), `g` is left
-    /// as it was and `r` is zero but for R_ii = 0 (NaN if `g` is not finite) at the first
-    /// such column, for the caller to report.
-    pub fn factor(&mut self, g: &mut Tangent, r: &mut Mat<f64>) {
-        self.factor_with_copies(g, r, Copies::default());
+    /// as it was, `r` is zero but for R_ii = 0 (NaN if `g` is not finite), and an i such
+    /// that the first i + 1 columns are dependent is returned, for the caller to report
+    /// (faer's panel factorisation tells how many columns of a panel are independent, not
+    /// which).
+    pub fn factor(&mut self, g: &mut Tangent, r: &mut Mat<f64>) -> Option<usize> {
+        self.factor_with_copies(g, r, Copies::default())
     }
 
     /// [`Qr::factor`], also writing the copies of G_n and R_n that `copies` asks for, with
@@ -104,11 +106,11 @@ impl Qr {
     /// worker writes its chunks while they are in cache, instead of a pass over the whole
     /// block afterwards (the backward stage's recomputation: 1.7 + 0.4 ms a step at D = 792,
     /// measured). Nothing is written there if a column is dependent.
-    pub fn factor_with_copies(&mut self, g: &mut Tangent, r: &mut Mat<f64>, copies: Copies<'_>) {
+    pub fn factor_with_copies(&mut self, g: &mut Tangent, r: &mut Mat<f64>, copies: Copies<'_>) -> Option<usize> {
         let (d, k) = (g.dim(), g.count());
         assert!(r.nrows() == k && r.ncols() == k && self.a.nrows() == d && self.a.ncols() == k);
         if k == 0 {
-            return;
+            return None;
         }
         let paper = copies.g_paper.map(|p| {
             assert!(p.internal_row.len() == d && p.out.len() == d * k, "paper columns need D rows and D x k values");
@@ -259,11 +261,13 @@ impl Qr {
         });
 
         let i = deficient.into_inner();
-        if i != usize::MAX {
-            r.fill(0.0);
-            r[(i, i)] = if g.rows().iter().all(|x| x.is_finite()) { 0.0 } else { f64::NAN };
-            // `g` still holds the input: Q is only written once every panel is factored.
+        if i == usize::MAX {
+            return None;
         }
+        r.fill(0.0);
+        r[(i, i)] = if g.rows().iter().all(|x| x.is_finite()) { 0.0 } else { f64::NAN };
+        // `g` still holds the input: Q is only written once every panel is factored.
+        Some(i)
     }
 }
 

@@ -4,9 +4,13 @@
 //!
 //! Why between runs: independent trajectories are the one error estimate that needs no
 //! assumption about correlation times. The weighted mean over runs of lengths T_r is the
-//! exponent of the runs laid end to end; its error is the spread of the run means,
-//! sqrt(R / (R - 1) * sum_r w_r^2 (lambda_r - lambda)^2) with w_r = T_r / sum T (for equal
-//! lengths the standard error of the mean of R numbers). chi^2 / dof = sum_r ((lambda_r -
+//! exponent of the runs laid end to end. Its error is from the spread of the run means: a
+//! run of length T_r scatters with variance s^2 / T_r, so s^2 is estimated by
+//! sum_r T_r (lambda_r - lambda)^2 / (R - 1), and the error of the mean is
+//! sqrt(s^2 / sum T) (for equal lengths the standard error of the mean of R numbers; for
+//! unequal ones, the weights' own spread would make sum_r w_r^2 (lambda_r - lambda)^2
+//! too small, by 10 times for lengths 1:40). With few runs, that error rests on R - 1
+//! degrees of freedom; the table gives Student's factor for a one-sigma interval. chi^2 / dof = sum_r ((lambda_r -
 //! lambda) / sigma_r)^2 / (R - 1), averaged over the exponents that vary, is about 1 when
 //! every run's batch-means error sigma_r is right; clearly above 1, those errors are too
 //! small (or the runs do not sample the same state).
@@ -30,9 +34,13 @@ struct RunSpectrum {
 #[derive(Clone, Debug, Serialize)]
 pub struct Combined {
     pub runs: Vec<PathBuf>,
-    /// The runs' common configuration (steps: the sum over the runs; seed: the first run's).
+    /// The runs' common configuration (steps: the sum over the runs; seed and relax_steps:
+    /// the first run's, each run's in `seeds` and `relax_steps`).
     pub config: RunConfig,
     pub seeds: Vec<u64>,
+    /// Each run's steps and relaxation steps, in the order of `runs`.
+    pub steps: Vec<u64>,
+    pub relax_steps: Vec<u64>,
     pub exponents: Vec<f64>,
     /// Standard error from the spread between the runs.
     pub stderr: Vec<f64>,
@@ -43,6 +51,9 @@ pub struct Combined {
     pub mean_chi2_per_dof: f64,
     /// h_KS of the combined exponents, its error from the runs' h_KS.
     pub ks_entropy: Option<Estimate>,
+    /// Student's t for a one-sigma (68.3 %) interval from the R - 1 degrees of freedom of
+    /// the errors: stderr times this is the interval's half width (1.84 for two runs).
+    pub t_one_sigma: f64,
 }
 
 /// Read `paths` (run directories or spectrum.json files) and combine them.
@@ -98,6 +109,9 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
         runs: paths.to_vec(),
         config: RunConfig { steps: runs.iter().map(|r| r.config.steps).sum(), ..first.clone() },
         seeds: runs.iter().map(|r| r.config.seed).collect(),
+        steps: runs.iter().map(|r| r.config.steps).collect(),
+        relax_steps: runs.iter().map(|r| r.config.relax_steps).collect(),
+        t_one_sigma: crate::statistics::student_t_quantile(1.0 - ONE_SIGMA, (runs.len() - 1) as f64),
         exponents,
         stderr,
         chi2_per_dof: chi2,
@@ -133,14 +147,16 @@ fn read(path: &Path) -> Result<RunSpectrum> {
     Ok(run)
 }
 
-/// The mean of `x` weighted by `w`, and its error from the spread of `x`:
-/// sqrt(R / (R - 1) * sum_r v_r^2 (x_r - mean)^2) with v_r = w_r / sum w.
+/// The probability of a normal deviate within one standard deviation of its mean.
+const ONE_SIGMA: f64 = 0.682_689_492_137_086;
+
+/// The mean of `x` weighted by the lengths `w` (x_r scatters with variance s^2 / w_r), and
+/// its error sqrt(s^2 / sum w), with s^2 = sum_r w_r (x_r - mean)^2 / (R - 1) unbiased.
 fn weighted_mean(x: &[f64], w: &[f64]) -> (f64, f64) {
     let total: f64 = w.iter().sum();
     let mean = x.iter().zip(w).map(|(x, w)| x * w).sum::<f64>() / total;
-    let r = x.len() as f64;
-    let var = x.iter().zip(w).map(|(x, w)| (w / total).powi(2) * (x - mean).powi(2)).sum::<f64>() * r / (r - 1.0);
-    (mean, var.sqrt())
+    let s2 = x.iter().zip(w).map(|(x, w)| w * (x - mean).powi(2)).sum::<f64>() / (x.len() - 1) as f64;
+    (mean, (s2 / total).sqrt())
 }
 
 /// sum_r ((x_r - mean) / s_r)^2 / (R - 1); NaN where the runs' own errors are round-off
@@ -167,16 +183,25 @@ impl Combined {
         }
         let _ = writeln!(
             s,
-            "{} runs (seeds {}), {} steps in all; errors from the spread between the runs",
+            "{} runs (seeds {}), {} steps in all; errors from the spread between the runs, on {} degrees of freedom{}",
             self.runs.len(),
             self.seeds.iter().map(u64::to_string).collect::<Vec<_>>().join(", "),
-            self.config.steps
+            self.config.steps,
+            self.runs.len() - 1,
+            if self.runs.len() <= 10 {
+                format!(": a one-sigma (68 %) interval is {:.2} stderr wide on either side (Student's t); more runs make the errors surer", self.t_one_sigma)
+            } else {
+                String::new()
+            }
         );
+        if self.relax_steps.iter().any(|&r| r != self.relax_steps[0]) {
+            let list = self.relax_steps.iter().map(u64::to_string).collect::<Vec<_>>().join(", ");
+            let _ = writeln!(s, "the runs relaxed for different numbers of steps ({list}): one too short to reach the steady state biases the mean, and chi2/dof above 1 shows it");
+        }
         let _ = writeln!(
             s,
-            "mean chi2/dof of the runs about the combined spectrum, with their own errors: {:.2} (about 1 when each run's batch-means errors are right; {} degrees of freedom an exponent)",
-            self.mean_chi2_per_dof,
-            self.runs.len() - 1
+            "mean chi2/dof of the runs about the combined spectrum, with their own errors: {:.2} (about 1 when each run's batch-means errors are right)",
+            self.mean_chi2_per_dof
         );
         s
     }
@@ -196,6 +221,26 @@ mod tests {
         assert!((e - sd / 2.0).abs() < 1e-15);
         let (m, _) = weighted_mean(&[1.0, 4.0], &[2.0, 1.0]);
         assert_eq!(m, (1.0 + 1.0 + 4.0) / 3.0);
+    }
+
+    /// Runs of unequal lengths, each scattering with variance 1 / T_r: the squared error
+    /// is on average that of the runs laid end to end, 1 / sum T (unbiased), for lengths
+    /// 1:40 as for 1:2:3. (The spread of the weights alone gave a tenth of it for 1:40.)
+    #[test]
+    fn the_error_of_unequal_runs_is_that_of_their_total_length() {
+        let mut rng = crate::rng::Rng::new(9);
+        for lengths in [vec![1.0, 40.0], vec![1.0, 2.0, 3.0]] {
+            let trials = 40_000;
+            let total: f64 = lengths.iter().sum();
+            let (mut err2, mut mean2) = (0.0, 0.0);
+            for _ in 0..trials {
+                let x: Vec<f64> = lengths.iter().map(|t| rng.normal() / t.sqrt()).collect();
+                let (m, e) = weighted_mean(&x, &lengths);
+                err2 += e * e / trials as f64;
+                mean2 += m * m / trials as f64;
+            }
+            assert!((err2 * total - 1.0).abs() < 0.05 && (mean2 * total - 1.0).abs() < 0.05, "{lengths:?}: {} {}", err2 * total, mean2 * total);
+        }
     }
 
     /// chi^2/dof of normal draws with their true error is about 1 on average; with errors

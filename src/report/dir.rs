@@ -112,6 +112,9 @@ pub struct Head<'a> {
     pub disks: bool,
     /// The analyses' options, for summary.json.
     pub options: serde_json::Value,
+    /// The stream was read to its end, undamaged: else the report, of the frames before the
+    /// damage, stays unfinished (no summary.json), as where an analysis failed.
+    pub whole: bool,
 }
 
 /// Write index.html (every entry of `produced` with its figures, caption and small tables)
@@ -119,7 +122,8 @@ pub struct Head<'a> {
 /// `failed`: what the analyses that failed said; their sections are missing, and the report
 /// stays unfinished (no summary.json, the page says so).
 pub fn write_index(head: &Head, out: &Path, produced: &[Produced], warnings: &[String], failed: &[String], frames: u64, first: u64, last: u64) -> Result<()> {
-    let title = if failed.is_empty() { "clv analyses" } else { "clv analyses: incomplete" };
+    let finished = failed.is_empty() && head.whole;
+    let title = if finished { "clv analyses" } else { "clv analyses: incomplete" };
     let mut html = String::from("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>") + title + "</title>\n<style>body{font-family:sans-serif;max-width:1000px;margin:auto;padding:1em} figure{margin:2em 0} img{max-width:100%} code{background:#eee}</style></head><body>\n";
     html += &format!(
         "<h1>Covariant Lyapunov vector analyses</h1>\n<p>Source: <code>{}</code>; {} frames (steps {}..{}), D = {}, k = {}{}; vector statistics use {}.</p>\n{}<p>Conventions: {}</p>\n",
@@ -165,7 +169,7 @@ pub fn write_index(head: &Head, out: &Path, produced: &[Produced], warnings: &[S
     }
     html += "<p>Everything above as JSON: <a href=\"summary.json\">summary.json</a>.</p>\n</body></html>\n";
     write_report_file(&out.join("index.html"), html.as_bytes())?;
-    if !failed.is_empty() {
+    if !finished {
         return Ok(());
     }
     // Last: a report with a summary.json is finished.

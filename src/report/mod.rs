@@ -93,7 +93,16 @@ impl SpectrumReport {
             let _ = writeln!(s, "{:>6}  {:>14.8}  {:>10.2e}{pair}", i + 1, x, e);
         }
         let st = &self.statistics;
-        let _ = writeln!(s, "sum of exponents: {:+.3e}", l.iter().sum::<f64>());
+        let k = l.len();
+        let sum = l.iter().sum::<f64>();
+        if k == self.config.system.dim() {
+            let _ = writeln!(s, "sum of exponents: {sum:+.3e}");
+        } else {
+            let _ = writeln!(s, "sum of the leading k = {k} exponents: {sum:+.3e}");
+        }
+        if let Some(w) = crate::linalg::precision_warning(l, self.config.tau) {
+            let _ = writeln!(s, "warning: {w}");
+        }
         if let Some(h) = self.ks_entropy {
             let per = match self.config.system {
                 crate::config::SystemConfig::Disks { n, .. } => format!(", {:.6} per disk", h.value / n as f64),
@@ -107,10 +116,15 @@ impl SpectrumReport {
         if let Some(d) = crate::stage::analyze::kernels::convergence::diagnose(&self.blocks.exponents, self.config.system.neutral()) {
             let _ = writeln!(s, "convergence ({} blocks of {} steps): {}; {}", d.blocks, self.blocks.block_steps, d.numbers(), d.verdict());
         }
-        let t = st.simulated_time;
-        let t = if t != 0.0 && !(1e-3..1e9).contains(&t.abs()) { format!("{t:e}") } else { format!("{t}") };
+        // Times as n tau: 1.8, not the 1.7999999999999998 the product rounds to.
+        let time = |t: f64| if t != 0.0 && !(1e-3..1e9).contains(&t.abs()) { format!("{t:e}") } else { format!("{t:.6}").trim_end_matches('0').trim_end_matches('.').to_string() };
+        let t = time(st.simulated_time);
         let _ = write!(s, "{} steps (t = {t}), ", st.steps);
         match st.collisions {
+            Some(c) if st.relax_steps > 0 => {
+                let all = time((st.relax_steps + st.steps) as f64 * self.config.tau);
+                let _ = writeln!(s, "{c} collisions in t = {all} with the {} relaxation steps, {:.1} s wall, energy drift {:.1e}", st.relax_steps, st.wall_seconds, st.energy_drift);
+            }
             Some(c) => {
                 let _ = writeln!(s, "{c} collisions, {:.1} s wall, energy drift {:.1e}", st.wall_seconds, st.energy_drift);
             }

@@ -673,7 +673,11 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
     if let (None, Some(f)) = (&prior, frames_path.as_ref())
         && f.exists()
     {
-        return Err(Error::param("out", format!("{} already exists; refusing to overwrite it: choose another --out (or delete it yourself, if it is a frame file you no longer need)", f.display())));
+        return Err(Error::param("out", if f.is_dir() {
+            format!("{} is a directory; --out names the frame file to write (FILE.mcap)", f.display())
+        } else {
+            format!("{} already exists; refusing to overwrite it: choose another --out (or delete it yourself, if it is a frame file you no longer need)", f.display())
+        }));
     }
     Ok(prior)
 }

@@ -99,18 +99,22 @@ impl Forward {
             Some((g_paper, r_packed)) => Copies { g_paper: g_paper.map(|out| PaperColumns { internal_row: &self.paper_rows, out }), r_packed: Some(r_packed) },
             None => Copies::default(),
         };
-        self.qr.factor_with_copies(&mut self.g, &mut self.r, copies);
+        let dependent = self.qr.factor_with_copies(&mut self.g, &mut self.r, copies);
         let t2 = std::time::Instant::now();
-        if let Some(i) = (0..self.r.ncols()).find(|&i| !(self.r[(i, i)].is_finite() && self.r[(i, i)] > 0.0)) {
-            return Err(Error::Dynamics(format!(
-                "step {}: R_{}{} = {} after the QR step: the tangent vectors are not finite or linearly dependent \
-                 (k larger than the rank, or a numerical blow-up: a --tau so long that they grow or shrink by more than e^700 between two QR steps; \
-                 if so, give a smaller --tau); no exponent is accumulated from it",
-                self.step + 1,
-                i + 1,
-                i + 1,
-                self.r[(i, i)]
-            )));
+        if let Some(i) = dependent.or_else(|| (0..self.r.ncols()).find(|&i| !(self.r[(i, i)].is_finite() && self.r[(i, i)] > 0.0))) {
+            let why = if self.r[(i, i)].is_nan() {
+                "are not finite (a numerical blow-up)".to_string()
+            } else {
+                format!(
+                    "are linearly dependent in double precision: k larger than the rank, or a --tau so long that between two QR steps they spread \
+                     by more than the 16 digits of a double resolve, (lambda_1 - lambda_k) tau above about {:.0} (with tau = {}: exponents more than {:.3} apart); \
+                     give a smaller --tau",
+                    crate::linalg::RESOLVED_SPREAD,
+                    self.system.tau(),
+                    crate::linalg::RESOLVED_SPREAD / self.system.tau()
+                )
+            };
+            return Err(Error::Dynamics(format!("step {}: the QR step found the first {} tangent vectors dependent: they {why}; no exponent is accumulated from it", self.step + 1, i + 1)));
         }
         if self.step >= self.relax_steps {
             self.acc.add(&self.r);
@@ -164,6 +168,16 @@ impl Forward {
 mod tests {
     use super::*;
     use crate::config::SystemConfig;
+
+    /// A tau so long that the tangent vectors spread beyond a double's digits in one step
+    /// (N = 16, (lambda_1 - lambda_64) tau near 55) stops the run at its first step, naming
+    /// the spread (before, this read "R_11 = 0" whatever column was dependent).
+    #[test]
+    fn a_tau_beyond_double_precision_is_named() {
+        let config = RunConfig { system: SystemConfig::disks(16, 0.7, 1.0).unwrap(), tau: 6.0, relax_steps: 0, steps: 4, vectors: 64, seed: 3, threads: 1, blocks: 2 };
+        let err = Forward::new(&config).unwrap().step().unwrap_err().to_string();
+        assert!(err.contains("step 1: the QR step found the first") && err.contains("(lambda_1 - lambda_k) tau above about 36"), "{err}");
+    }
 
     /// A used pass restored to a saved state continues exactly as a fresh pass resumed from it.
     #[test]

@@ -167,7 +167,22 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
             oldest.path.display()
         )));
     }
-    let kept = archive_results(&dir, &previous_results(path, old.config.steps), also)?;
+    // The last sweep's frame file (or the .tmp of one interrupted) under another name: with
+    // the rest inside the run directory; outside it, where it is, said.
+    let mut with_sweep: Vec<PathBuf> = also.iter().map(|p| p.to_path_buf()).collect();
+    if let Some(sweep) = crate::stage::backward::last_sweep(path).ok().flatten()
+        && let Some(file) = sweep.options.frames_file(path)
+    {
+        let tmp = crate::store::frames::tmp_path(&file);
+        if sweep.options.frames_path.as_ref().is_some_and(|p| p.is_relative()) {
+            with_sweep.extend([file, tmp]);
+        } else if file.exists() || tmp.exists() {
+            let which = if sweep.done { file } else { tmp };
+            feedback.notice(format!("{} holds frames of the {}-step run (its last backward sweep); outside the run directory, it stays where it is", which.display(), old.config.steps));
+        }
+    }
+    let with_sweep: Vec<&Path> = with_sweep.iter().map(PathBuf::as_path).collect();
+    let kept = archive_results(&dir, &previous_results(path, old.config.steps), &with_sweep)?;
     write_atomic(&dir.meta_path(), &crate::store::checked_json::to_vec(&meta)?)?;
     let mut msg = format!(
         "extending {} from {} to {} steps (CLV window {} + transient {} at the new end)",
@@ -198,7 +213,14 @@ fn archive_results(dir: &RunDir, to: &Path, also: &[&Path]) -> Result<Option<Pat
     let frames = dir.frames_path();
     let names = [dir.spectrum_path(), dir.clv_spectrum_path(), dir.progress_path(), crate::store::frames::tmp_path(&frames), frames];
     // The CLV spectra of earlier sweeps with other options describe the shorter run too.
-    let present: Vec<PathBuf> = names.into_iter().chain(dir.earlier_clv_spectra()).chain(also.iter().map(|p| p.to_path_buf())).filter(|p| p.exists()).collect();
+    // `also` first: the frame files a record names go before the record (backward.json), so
+    // that a move cut short still finds them the next time.
+    let mut present: Vec<PathBuf> = Vec::new();
+    for p in also.iter().map(|p| p.to_path_buf()).chain(names).chain(dir.earlier_clv_spectra()) {
+        if p.exists() && !present.contains(&p) {
+            present.push(p);
+        }
+    }
     if !present.is_empty() {
         std::fs::create_dir_all(to).map_err(|e| Error::io(to, e))?;
     }
@@ -412,9 +434,17 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
         bar.set_length(total);
         bar.set_position(fwd.step);
     }
+    // The exponents after a few steps say already whether tau is too long for a double's
+    // digits (the final table says it again).
+    let precision_probe = config.relax_steps + config.steps.min(20);
     while fwd.step < total {
         fwd.step()?;
         let n = fwd.step;
+        if n == precision_probe
+            && let Some(warning) = crate::linalg::precision_warning(&fwd.acc.exponents(config.tau), config.tau)
+        {
+            feedback.notice(format!("warning: {warning}"));
+        }
         let is_cp = store.is_checkpoint(n, total);
         if is_cp || (store.store_r == StoreR::All && n > window) {
             sink.send(R.topic, n, encode_r(n, &fwd.r))?;

@@ -45,6 +45,18 @@ pub fn on_stride(step: u64, m: u64) -> bool {
     step.is_multiple_of(m.max(1))
 }
 
+/// The least common multiple of two strides: the steps on both.
+pub fn lcm(a: u64, b: u64) -> u64 {
+    let gcd = |mut a: u64, mut b: u64| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let (a, b) = (a.max(1), b.max(1));
+    a / gcd(a, b) * b
+}
+
 /// How many steps in lo..=hi are on the stride m ([`on_stride`]); none if lo > hi.
 pub fn multiples_in(lo: u64, hi: u64, m: u64) -> u64 {
     let m = m.max(1);

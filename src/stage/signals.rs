@@ -1,4 +1,5 @@
-//! What SIGTERM (a batch system's time limit, before its SIGKILL) and SIGINT (Ctrl-C) do.
+//! What SIGTERM (a batch system's time limit, before its SIGKILL), SIGINT (Ctrl-C) and SIGHUP
+//! (the terminal of a job started without nohup gone, as when an ssh session drops) do.
 //!
 //! The forward stage stops cleanly after the step it is in ([`StopOnSignals`]): it writes a
 //! checkpoint there, so that `--resume` loses nothing. The backward stage and the analyses
@@ -11,7 +12,7 @@
 
 use std::sync::atomic::{AtomicI32, AtomicPtr, Ordering};
 
-const SIGNALS: [libc::c_int; 2] = [libc::SIGTERM, libc::SIGINT];
+const SIGNALS: [libc::c_int; 3] = [libc::SIGTERM, libc::SIGINT, libc::SIGHUP];
 
 /// The signal that asked for a stop; 0 for none.
 static STOP: AtomicI32 = AtomicI32::new(0);
@@ -38,7 +39,7 @@ extern "C" fn explain_and_exit(sig: libc::c_int) {
 
 /// Handlers in place while the guard lives; dropping it puts back what was there before.
 struct Installed {
-    before: [libc::sighandler_t; 2],
+    before: [libc::sighandler_t; SIGNALS.len()],
 }
 
 impl Installed {

@@ -346,13 +346,18 @@ impl FrameStdout {
         }
     }
 
-    pub fn finish(mut self) -> Result<()> {
+    /// Write the stream's closing records (summary and footer): whether the reader took
+    /// them. Without them a reader finds the stream cut short.
+    pub fn finish(mut self) -> Result<bool> {
         if self.closed {
-            return Ok(());
+            return Ok(false);
         }
-        match self.out.writer.finish() {
-            Ok(_) => Ok(()),
-            Err(e) if is_broken_pipe(&e) => Ok(()),
+        // mcap's finish leaves the closing records in our buffer, whose flush on drop would
+        // lose a failure: flushed here.
+        let flushed = self.out.writer.finish().and_then(|_| Ok(self.out.writer.into_inner().into_inner().flush()?));
+        match flushed {
+            Ok(()) => Ok(true),
+            Err(e) if is_broken_pipe(&e) => Ok(false),
             Err(e) => Err(mcap_err(Path::new("<stdout>"), e)),
         }
     }

@@ -364,11 +364,12 @@ impl RunDir {
         let mut entries = fs::read_dir(path).map_err(|e| Error::io(path, e))?.filter(|e| !e.as_ref().is_ok_and(|e| leftover.contains(&e.path())));
         if entries.next().is_some() {
             super::lock::refuse_if_held(&path.join(".lock"), path, what)?;
-            return Err(Error::Other(format!(
-                "{} already exists and is not empty; resume it with `clv forward --resume {}` or choose another --out",
-                path.display(),
-                path.display()
-            )));
+            let what_is_there = if path.join("run.json").exists() {
+                format!("it holds a run: continue it with `clv forward --resume {}`", path.display())
+            } else {
+                "it holds files of something other than a run".to_string()
+            };
+            return Err(Error::Other(format!("{} already exists and is not empty ({what_is_there}); choose another --out, or an empty or new directory", path.display())));
         }
         Ok(())
     }

@@ -34,7 +34,7 @@ mod testing;
 pub mod transversality;
 
 use super::backward::{BackwardOptions, SweepFile, Window};
-use super::frame::{multiples_in, on_stride, Frame};
+use super::frame::{lcm, multiples_in, on_stride, Frame};
 use crate::error::{Error, Result};
 use crate::report::SpectrumSummary;
 use crate::store::frames::{Flow, StreamInfo};
@@ -86,6 +86,9 @@ pub struct Context {
     /// The stream holds the frames of the steps on this stride (a frame file's
     /// `--save-every`; 1 for a stream, which carries every step).
     pub saved_every: u64,
+    /// The frames carry V_n at the steps that are multiples of this (the backward stage's
+    /// `--vectors-every`).
+    pub vectors_every: u64,
     /// The mode steps ([`mode_steps::resolve`]) or why there are none, from
     /// [`Context::settle`] on.
     pub modes: mode_steps::Resolved,
@@ -110,18 +113,6 @@ const UNSETTLED: &str = "no frame with covariant vectors was analysed";
 /// system with `positive` positive exponents.
 pub fn paper_index(j: usize, positive: usize) -> usize {
     (j as f64 * positive as f64 / 393.0).round() as usize
-}
-
-/// The least common multiple of two strides: the steps on both.
-fn lcm(a: u64, b: u64) -> u64 {
-    let gcd = |mut a: u64, mut b: u64| {
-        while b != 0 {
-            (a, b) = (b, a % b);
-        }
-        a
-    };
-    let (a, b) = (a.max(1), b.max(1));
-    a / gcd(a, b) * b
 }
 
 /// The default of `--every`: about 400 frames of a window of `clv_steps`, rounded up to a
@@ -160,15 +151,19 @@ impl Context {
             Some(super::backward::Destination::File { every, .. }) => every,
             _ => 1,
         };
-        let every = every.unwrap_or_else(|| default_every(clv_steps, lcm(vectors_every, saved_every)));
+        let every_given = every.is_some();
+        let with_v = lcm(vectors_every, saved_every);
+        let every = every.unwrap_or_else(|| default_every(clv_steps, with_v));
         if every == 0 {
             return Err(Error::param("every", "must be at least 1"));
         }
-        if !every.is_multiple_of(vectors_every) {
-            return Err(Error::param("every", format!(
-                "{source}: the backward stage formed the covariant vectors only at the steps that are multiples of {vectors_every} (--vectors-every {vectors_every}), \
-                 so the vector statistics can sample every m-th step only for m a multiple of {vectors_every}, not {every}"
-            )));
+        if !every.is_multiple_of(with_v) {
+            let why = match (vectors_every, saved_every) {
+                (1, s) => format!("the file holds the frames of the steps that are multiples of {s} only (--save-every {s})"),
+                (v, 1) => format!("the backward stage formed the covariant vectors only at the steps that are multiples of {v} (--vectors-every {v})"),
+                (v, s) => format!("the file holds the frames of the steps that are multiples of {s} (--save-every {s}), with covariant vectors at the multiples of {v} (--vectors-every {v})"),
+            };
+            return Err(Error::param("every", format!("{source}: {why}, so the vector statistics can sample every m-th step only for m a multiple of {with_v}, not {every}")));
         }
         let given_deltas = deltas.is_some();
         let deltas = deltas.unwrap_or_else(|| [1u64, 2, 5, 10, 20, 50, 100, 200, 500].into_iter().filter(|&dl| dl * 4 <= clv_steps.max(4)).collect());
@@ -187,7 +182,7 @@ impl Context {
                 ));
             }
         }
-        if let Some((oldest, newest)) = frame_steps
+        if let Some((oldest, newest)) = frame_steps.filter(|_| every_given)
             && newest / every * every < oldest
         {
             return Err(Error::param(
@@ -207,6 +202,7 @@ impl Context {
             with_gs,
             options: Options { every, j: Vec::new(), deltas },
             saved_every,
+            vectors_every,
             source: source.to_string(),
             frame_steps,
             run,
@@ -448,8 +444,14 @@ impl Analyzer {
         let damaged = damage.map(|d| format!("The stream ends early or is damaged ({d}); every result here is from the {} complete frames before that point.", self.frames));
         let coverage = self.ctx.coverage_warning(self.first_step, self.last_step).filter(|_| self.frames > 0);
         let unsampled = (self.frames > 0 && self.sampled == 0).then(|| {
+            let remedy = match self.ctx.vectors_every {
+                v if v > 1 && self.ctx.options.every <= v => format!(
+                    "the backward stage formed the covariant vectors only at the multiples of {v} (--vectors-every {v}): write the frames again with a smaller --vectors-every"
+                ),
+                _ => "give a smaller --every".to_string(),
+            };
             format!(
-                "No frame of this stream (steps {}..{}) is on the stride --every {}: the analyses of vector statistics had no frame to read, and their tables are empty; give a smaller --every.",
+                "No frame of this stream (steps {}..{}) is on the stride --every {}: the analyses of vector statistics had no frame to read, and their tables are empty; {remedy}.",
                 self.first_step, self.last_step, self.ctx.options.every
             )
         });
@@ -464,6 +466,7 @@ impl Analyzer {
             run: Some(&ctx.run.config),
             disks: ctx.is_disks(),
             options: serde_json::to_value(&ctx.options).unwrap_or_default(),
+            whole: damage.is_none(),
         };
         write_index(&head, &self.out, &produced, &warnings, &errors, self.frames, self.first_step, self.last_step)?;
         if !errors.is_empty() {
@@ -534,6 +537,10 @@ fn frame_source(source: &Path) -> Result<(PathBuf, Option<SweepFile>)> {
     let Some(last) = last else {
         if frames.exists() {
             return Ok((frames, expect(None)?));
+        }
+        if !source.join("run.json").exists() {
+            let what = if source.join("index.html").exists() { "a report (what `clv analyze` writes)" } else { "no run directory" };
+            return Err(Error::Other(format!("{d} is {what}: give a frame file (`clv analyze FILE --out REPORT`), a run directory whose backward stage wrote one, or - for a stream on standard input")));
         }
         return Err(Error::Other(format!(
             "{d} is a directory without a frame file ({}); analyse a run with `clv backward {d} --out - | clv analyze - --out REPORT`, or write {} with `clv backward {d}` first",

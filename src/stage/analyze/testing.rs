@@ -66,6 +66,7 @@ pub fn context(system: &str, n: usize, d: usize, lx: f64, ly: f64, gs: Option<Sp
         source: "synthetic".into(),
         frame_steps: None,
         saved_every: 1,
+        vectors_every: 1,
         modes: Err("not settled".into()),
         j_default: false,
     }

@@ -22,7 +22,7 @@
 //! z and r_1 would measure round-off, or, for the covariant vectors of a null space, the
 //! drift that a finite backward window builds into them (e_(k+3) - s e_k).
 
-use crate::statistics::standard_error;
+use crate::statistics::{standard_error, student_t_two_sided};
 
 /// The drift and independence tests over the exponents that vary.
 #[derive(Clone, Debug, PartialEq)]
@@ -34,8 +34,11 @@ pub struct Diagnostics {
     /// The largest |z| and its exponent (0-based).
     pub max_z: f64,
     pub max_z_index: usize,
-    /// z of the sum of the positive exponents (h_KS; NaN without positive exponents).
+    /// z of the sum of the positive exponents (NaN without positive exponents).
     pub sum_z: f64,
+    /// That sum is h_KS: the k exponents reach the non-positive ones (else it is the sum of
+    /// the leading k only, [`crate::statistics::ks_entropy`]).
+    pub sum_is_h_ks: bool,
     /// Mean lag-1 autocorrelation of consecutive block averages.
     pub r1: f64,
     /// Blocks used.
@@ -87,67 +90,19 @@ impl Diagnostics {
     /// The numbers of both tests, for a report line.
     pub fn numbers(&self) -> String {
         format!(
-            "{:.0} % of {} exponents have |z| > 2 (by chance {:.0} %; largest |z| = {:.1}, i = {}); h_KS: z = {:+.1} (as large by chance: {:.1} %); r_1 = {:+.3} (limit {:+.3})",
+            "{:.0} % of {} exponents have |z| > 2 (by chance {:.0} %; largest |z| = {:.1}, i = {}); {}: z = {:+.1} (as large by chance: {:.1} %); r_1 = {:+.3} (limit {:+.3})",
             100.0 * self.drifting,
             self.tested,
             100.0 * self.chance(),
             self.max_z,
             self.max_z_index + 1,
+            if self.sum_is_h_ks { "h_KS" } else { "sum of the k (all positive) exponents" },
             self.sum_z,
             100.0 * self.sum_chance(),
             self.r1,
             self.r1_limit()
         )
     }
-}
-
-/// P(|T| > t) for Student's t with `dof` degrees of freedom: the regularised incomplete
-/// beta function I_x(dof/2, 1/2) at x = dof / (dof + t^2).
-fn student_t_two_sided(t: f64, dof: f64) -> f64 {
-    incomplete_beta(dof / (dof + t * t), dof / 2.0, 0.5)
-}
-
-/// The regularised incomplete beta function I_x(a, b), by its continued fraction (modified
-/// Lentz), with the symmetry I_x(a, b) = 1 - I_(1-x)(b, a) where that converges faster.
-fn incomplete_beta(x: f64, a: f64, b: f64) -> f64 {
-    if x <= 0.0 {
-        return 0.0;
-    }
-    if x >= 1.0 {
-        return 1.0;
-    }
-    if x > (a + 1.0) / (a + b + 2.0) {
-        return 1.0 - incomplete_beta(1.0 - x, b, a);
-    }
-    let ln_gamma = |z: f64| -> f64 {
-        // Lanczos (g = 7, n = 9), good to 1e-15 for z > 0.
-        const C: [f64; 9] = [0.999_999_999_999_809_9, 676.520_368_121_885_1, -1_259.139_216_722_402_8, 771.323_428_777_653_1, -176.615_029_162_140_6, 12.507_343_278_686_905, -0.138_571_095_265_720_12, 9.984_369_578_019_572e-6, 1.505_632_735_149_311_6e-7];
-        let z = z - 1.0;
-        let t = z + 7.5;
-        let sum: f64 = C[0] + (1..9).map(|i| C[i] / (z + i as f64)).sum::<f64>();
-        0.5 * (2.0 * std::f64::consts::PI).ln() + (z + 0.5) * t.ln() - t + sum.ln()
-    };
-    let front = (ln_gamma(a + b) - ln_gamma(a) - ln_gamma(b) + a * x.ln() + b * (1.0 - x).ln()).exp() / a;
-    let tiny = 1e-300;
-    let (mut c, mut d) = (1.0, 1.0 - (a + b) * x / (a + 1.0));
-    d = 1.0 / if d.abs() < tiny { tiny } else { d };
-    let mut f = d;
-    for m in 1..300 {
-        let m = m as f64;
-        for numerator in [m * (b - m) * x / ((a + 2.0 * m - 1.0) * (a + 2.0 * m)), -(a + m) * (a + b + m) * x / ((a + 2.0 * m) * (a + 2.0 * m + 1.0))] {
-            d = 1.0 + numerator * d;
-            d = 1.0 / if d.abs() < tiny { tiny } else { d };
-            c = 1.0 + numerator / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            f *= c * d;
-        }
-        if (c * d - 1.0).abs() < 1e-15 {
-            break;
-        }
-    }
-    front * f
 }
 
 /// P(X >= x) for X binomial with n trials of probability p.
@@ -208,7 +163,8 @@ pub fn diagnose(blocks: &[Vec<f64>], neutral: std::ops::Range<usize>) -> Option<
     let positive: Vec<usize> = varies.iter().copied().filter(|&i| column(i).iter().sum::<f64>() > 0.0).collect();
     let sums: Vec<f64> = blocks.iter().map(|a| positive.iter().map(|&i| a[i]).sum()).collect();
     let sum_z = if positive.is_empty() { f64::NAN } else { halves_z(&sums) };
-    Some(Diagnostics { tested, drifting: drifting as f64 / tested as f64, max_z, max_z_index, sum_z, r1: r1 / tested as f64, blocks: nb })
+    let sum_is_h_ks = (0..k).any(|i| column(i).iter().sum::<f64>() <= 0.0);
+    Some(Diagnostics { tested, drifting: drifting as f64 / tested as f64, max_z, max_z_index, sum_z, sum_is_h_ks, r1: r1 / tested as f64, blocks: nb })
 }
 
 /// (mean of the newer half - mean of the older half) / the standard error of that
@@ -242,23 +198,13 @@ mod tests {
             .collect()
     }
 
-    /// Student's t tails against closed forms (dof 1: 1 - 2 atan(t) / pi; dof 2:
-    /// 1 - t / sqrt(t^2 + 2)) and the normal limit.
-    #[test]
-    fn student_t_tails_are_right() {
-        assert!((student_t_two_sided(2.0, 1.0) - (1.0 - 2.0 * 2f64.atan() / std::f64::consts::PI)).abs() < 1e-12);
-        assert!((student_t_two_sided(2.0, 2.0) - (1.0 - 2.0 / 6f64.sqrt())).abs() < 1e-12);
-        assert!((student_t_two_sided(2.0, 1e6) - 0.04550026).abs() < 1e-6);
-        assert!((student_t_two_sided(0.0, 5.0) - 1.0).abs() < 1e-12);
-    }
-
     /// One exponent of a k = 1 run straying by chance is no drift; a quarter of 154 is.
     #[test]
     fn drift_needs_more_strays_than_chance_gives() {
         assert!((binomial_tail(0, 10, 0.3) - 1.0).abs() < 1e-12);
         assert!((binomial_tail(2, 2, 0.3) - 0.09).abs() < 1e-12);
         assert!((binomial_tail(1, 3, 0.5) - 0.875).abs() < 1e-12);
-        let d = |tested: usize, count: usize| Diagnostics { tested, drifting: count as f64 / tested as f64, max_z: 3.0, max_z_index: 0, sum_z: 0.5, r1: 0.0, blocks: 20 };
+        let d = |tested: usize, count: usize| Diagnostics { tested, drifting: count as f64 / tested as f64, max_z: 3.0, max_z_index: 0, sum_z: 0.5, sum_is_h_ks: true, r1: 0.0, blocks: 20 };
         assert!((d(1, 0).chance() - 0.0608).abs() < 1e-3, "t with 18 degrees of freedom: {}", d(1, 0).chance());
         assert!(!d(1, 1).drifts() && !d(2, 1).drifts() && !d(154, 20).drifts());
         assert!(d(154, 40).drifts() && d(20, 10).drifts());
