@@ -25,8 +25,9 @@ pub enum Error {
     /// sweep stopped unfinished. The process exits as a writer killed by SIGPIPE (141), so
     /// that a script does not take the sweep for done.
     ReaderClosed { frames: u64, recorded: u64 },
-    /// The reader of standard output closed it before `what` was written whole (with what
-    /// was saved all the same, and how to get it). Exits as a writer killed by SIGPIPE (141).
+    /// The reader of standard output closed it before `what` (a clause: "the output was
+    /// written whole"); `then` says what was saved all the same, and how to get the rest.
+    /// Exits as a writer killed by SIGPIPE (141).
     OutputClosed { what: String, then: String },
     /// Anything else, already phrased for the user.
     Other(String),
@@ -63,7 +64,7 @@ impl fmt::Display for Error {
                  those of its finished segments{}",
                 if frames > recorded { format!(" (the {} after them come again)", frames - recorded) } else { String::new() }
             ),
-            Error::OutputClosed { what, then } => write!(f, "the reader of standard output closed it before {what} was written whole; {then}"),
+            Error::OutputClosed { what, then } => write!(f, "the reader of standard output closed it before {what}; {then}"),
             Error::Other(msg) => f.write_str(msg),
         }
     }

@@ -102,11 +102,12 @@ impl Accumulator {
 
 /// h_KS = sum of the positive lambda_i (Pesin's identity), leaving out the `neutral` indices
 /// (exponents zero by symmetry, [`crate::config::SystemConfig::neutral`], which a finite run
-/// may measure slightly positive); None when all are positive (the spectrum does not reach
-/// the non-positive part).
+/// may measure slightly positive); None when all others are positive (the spectrum does not
+/// reach the null space or the non-positive part).
 pub fn ks_entropy(lambda: &[f64], neutral: std::ops::Range<usize>) -> Option<f64> {
+    let reaches_the_rest = lambda.iter().enumerate().any(|(i, &l)| l <= 0.0 || neutral.contains(&i));
     // + 0.0: an empty sum is -0.0, which would print as "-0.000000" for a system without chaos.
-    lambda.iter().any(|&l| l <= 0.0).then(|| lambda.iter().enumerate().filter(|&(i, &l)| l > 0.0 && !neutral.contains(&i)).map(|(_, l)| l).sum::<f64>() + 0.0)
+    reaches_the_rest.then(|| lambda.iter().enumerate().filter(|&(i, &l)| l > 0.0 && !neutral.contains(&i)).map(|(_, l)| l).sum::<f64>() + 0.0)
 }
 
 /// The exponents averaged over consecutive blocks of a run: the batch means its standard
@@ -286,6 +287,10 @@ mod tests {
         // Without a positive exponent (disks that never collide) h_KS is zero, not -0.
         let h = ks_entropy(&[-0.0, -1.0], 0..0).unwrap();
         assert_eq!(format!("{h:.6}"), "0.000000");
+        // Leading exponents that reach into the null space, all measured slightly positive:
+        // every positive one is there, so h_KS is known.
+        assert_eq!(ks_entropy(&[2.0, 1.0, 1e-16, 2e-16], 2..4), Some(3.0));
+        assert_eq!(ks_entropy(&[2.0, 1.0], 2..4), None);
         // A flow's direction has exponent zero, measured slightly positive in a finite run
         // (Lorenz: lambda_2 = +3e-4): not counted.
         let mut flow = Accumulator::new(3, 2);

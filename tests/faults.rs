@@ -609,6 +609,9 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
         (vec!["forward", "--n", "198", "--density", "1.3", "--out", o], "--density"),
         (vec!["forward", "--n", "40", "--aspect", "0.01", "--out", o], "--"),
         (vec!["forward", "--n", "1", "--out", o], "--n"),
+        // A negative count is a value of its flag, named, not an unknown argument.
+        (vec!["forward", "--n", "-5", "--out", o], "invalid value '-5' for '--n <N>'"),
+        (vec!["forward", "--seed", "-1", "--out", o], "invalid value '-1' for '--seed <SEED>'"),
         (vec!["forward", "--n", "4", "--vectors", "0", "--out", o], "--vectors"),
         (vec!["forward", "--n", "4", "--vectors", "17", "--out", o], "--vectors"),
         (vec!["forward", "--n", "4", "--tau", "0", "--out", o], "--tau"),
@@ -1216,4 +1219,12 @@ fn a_cut_frame_file_is_named_and_written_whole_again() {
         let err = stderr(&clv(&["analyze", d, "--out", fresh.to_str().unwrap(), "--quiet"]));
         assert!(err.contains(&format!("move {} aside and give its sweep again: `{command}", file.display())), "{err}");
     }
+    // An interrupted sweep's FILE.tmp given to analyze: the sweep to continue, and the file
+    // it finishes (not FILE.tmp) for the one given again.
+    let tmp = dir.join("frames.mcap.tmp");
+    ok(clv(&["backward", d, "--save-every", "5", "--out", dir.join("again.mcap").to_str().unwrap(), "--quiet"]));
+    let bytes = std::fs::read(dir.join("again.mcap")).unwrap();
+    std::fs::write(&tmp, &bytes[..bytes.len() / 2]).unwrap();
+    let err = stderr(&clv(&["analyze", tmp.to_str().unwrap(), "--out", dir.parent().unwrap().join("tmp-report").to_str().unwrap(), "--quiet"]));
+    assert!(err.contains(&format!("the unfinished file of an interrupted sweep into {}: continue that sweep with `clv backward", file.display())) && err.contains(&format!("--out {} ", file.display())), "{err}");
 }

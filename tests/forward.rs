@@ -160,11 +160,11 @@ fn a_batch_job_logs_its_progress() {
     let lines: Vec<&str> = err.lines().filter(|l| l.contains(" forward: step ")).collect();
     assert!(!lines.is_empty(), "no progress line in {err:?}");
     for line in &lines {
-        // clv: 2026-11-24T06:27:40Z forward: step 1849 of 4010 (46%), 1810.9 a second, 1s elapsed, about 1s left
+        // clv: 2026-11-24T06:27:40Z forward: step 1849 of 4010 (46%), 1810.9 steps a second, 1s elapsed, about 1s left
         let stamp = line.strip_prefix("clv: ").and_then(|l| l.split(' ').next()).unwrap_or_default();
         let shape: String = stamp.chars().map(|c| if c.is_ascii_digit() { '9' } else { c }).collect();
         assert_eq!(shape, "9999-99-99T99:99:99Z", "{line}");
-        assert!(line.contains(" of 4010 (") && line.contains(" elapsed, about "), "{line}");
+        assert!(line.contains(" of 4010 (") && line.contains(" steps a second, ") && line.contains(" elapsed, about "), "{line}");
     }
     let quiet = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).env_remove("CLV_LOG_SECONDS").output().unwrap();
     assert!(!String::from_utf8_lossy(&quiet.stderr).contains(" forward: step "));
@@ -264,3 +264,19 @@ fn combine_gives_the_spectrum_of_independent_runs() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+
+/// A --tau too long for a double's digits is said at once (on standard error, after the
+/// first 20 steps, with or without --out) and with the results (under the table, and in
+/// --json's warnings); the default tau is not.
+#[test]
+fn a_tau_too_long_for_the_digits_is_warned_of() {
+    let args = ["forward", "--n", "4", "--aspect", "1", "--steps", "200", "--relax-steps", "20", "--json"];
+    let out = clv(&[&args[..], &["--tau", "2.5"]].concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && err.matches("warning: (lambda_1 - lambda_k) tau = ").count() == 1, "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["warnings"][0].as_str().is_some_and(|w| w.contains("give a --tau below")), "{v}");
+    let out = clv(&args);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v.get("warnings").is_none() && !String::from_utf8_lossy(&out.stderr).contains("warning"), "{v}");
+}

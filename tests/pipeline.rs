@@ -524,7 +524,7 @@ fn configuration_files_round_trip_and_flags_override_them() {
     std::fs::write(&both, "n = 8\nsteps = 100\ndensity = 0.7\nlx = 4\nly = 4\n").unwrap();
     let refused = clv(&["forward", "--config", both.to_str().unwrap(), "--quiet"]);
     let err = common::stderr(&refused);
-    assert!(!refused.status.success() && err.contains("both.toml: invalid setting lx: the box is given both by its sides"), "{err}");
+    assert!(!refused.status.success() && err.contains("both.toml:4: invalid setting lx: the box is given both by its sides"), "{err}");
     let twice = clv(&["forward", "--config", f, "--config", f, "--steps", "10"]);
     assert!(!twice.status.success() && common::stderr(&twice).contains("--config: given twice"), "{}", common::stderr(&twice));
     let small = base.join("small.toml");
@@ -550,6 +550,12 @@ fn configuration_files_round_trip_and_flags_override_them() {
     let refused = clv(&["run", "--config", small.to_str().unwrap(), "--out", changed.to_str().unwrap(), "--quiet", "--clv-steps", "90", "--seed", "5"]);
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success() && err.contains("another configuration: --clv-steps 80 in the run, 90 asked for;"), "{err}");
+    // Resuming with a file whose setting differs from the run's names the file's setting.
+    let reseeded = base.join("reseeded.toml");
+    std::fs::write(&reseeded, "n = 8\nseed = 9\n").unwrap();
+    let out = clv(&["forward", "--resume", out_dir.join("run").to_str().unwrap(), "--config", reseeded.to_str().unwrap()]);
+    let err = common::stderr(&out);
+    assert!(!out.status.success() && err.contains("seed = 9 in ") && err.contains("reseeded.toml conflicts with the run"), "{err}");
     // A bad value in a file is reported as the file's, with its line, for forward and run alike.
     let bad = base.join("bad.toml");
     std::fs::write(&bad, "# a run\nseed = 3\nn = \"many\"\n").unwrap();
@@ -564,7 +570,7 @@ fn configuration_files_round_trip_and_flags_override_them() {
     for cmd in [vec!["forward", "--config", bad.to_str().unwrap()], vec!["run", "--config", bad.to_str().unwrap(), "--out", base.join("bad-out").to_str().unwrap()]] {
         let out = clv(&cmd);
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && err.contains("bad.toml: invalid setting vectors: must be between 1 and D = 32"), "{cmd:?}: {err}");
+        assert!(!out.status.success() && err.contains("bad.toml:2: invalid setting vectors: must be between 1 and D = 32"), "{cmd:?}: {err}");
     }
     let out = clv(&["forward", "--config", bad.to_str().unwrap(), "--vectors", "999"]);
     let err = String::from_utf8_lossy(&out.stderr);
@@ -695,4 +701,42 @@ fn clv_run_writes_no_report_over_another_runs() {
         let err = common::stderr(&run(&o, &[]));
         assert!(err.contains(&format!("{} is a symbolic link to nothing", o.join(part).display())), "{err}");
     }
+}
+
+/// Indices given to --j twice are drawn once, in the order first given.
+#[test]
+fn repeated_j_indices_are_taken_once() {
+    let base = scratch("repeated-j");
+    let run = base.join("run");
+    ok(clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "400", "--out", run.to_str().unwrap(), "--quiet"]));
+    ok(clv(&["backward", run.to_str().unwrap(), "--quiet"]));
+    let report = base.join("report");
+    ok(clv(&["analyze", run.to_str().unwrap(), "--out", report.to_str().unwrap(), "--only", "spectrum", "--j", "2,2,1,2", "--quiet"]));
+    let summary: serde_json::Value = serde_json::from_str(&read(&report.join("summary.json"))).unwrap();
+    assert_eq!(summary["options"]["j"], serde_json::json!([2, 1]), "{summary}");
+}
+
+/// A stream with anything after its end (two streams concatenated, other output mixed in)
+/// is not analysed as if it were whole: the rest would go unread without a word.
+#[test]
+fn data_after_a_streams_end_is_reported() {
+    let base = scratch("trailing");
+    let run = base.join("run");
+    ok(clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "300", "--out", run.to_str().unwrap(), "--quiet"]));
+    let stream = ok(clv(&["backward", run.to_str().unwrap(), "--out", "-", "--quiet"])).stdout;
+    let analyze = |input: Vec<u8>, name: &str| {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_clv"))
+            .args(["analyze", "-", "--out", base.join(name).to_str().unwrap(), "--only", "spectrum", "--quiet"])
+            .stdin(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The reader stops at the first byte after the end: the rest meets a closed pipe.
+        let _ = std::io::Write::write_all(&mut child.stdin.take().unwrap(), &input);
+        child.wait_with_output().unwrap()
+    };
+    ok(analyze(stream.clone(), "whole"));
+    let twice = analyze([stream.clone(), stream].concat(), "twice");
+    let err = common::stderr(&twice);
+    assert!(!twice.status.success() && err.contains("goes on after its end") && !base.join("twice/summary.json").exists(), "{err}");
 }

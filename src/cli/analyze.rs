@@ -15,15 +15,15 @@ pub struct AnalyzeArgs {
     /// Vector statistics use the frames of the steps that are multiples of m (default: about
     /// 400 frames, and a multiple of the stream's --vectors-every and of a frame file's
     /// --save-every).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub every: Option<u64>,
     /// Lyapunov indices (1-based) for the overlap figures, e.g. 1,200,370 (default: the
     /// paper's choice scaled to this system's D, the last ending before the mode steps).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     pub j: Option<Vec<usize>>,
     /// Window lengths Delta (steps) for finite-time exponents, e.g. 1,10,100 (default: 1, 2,
     /// 5, ... up to a quarter of the CLV window).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     pub deltas: Option<Vec<u64>>,
     /// Run only these analyses (comma-separated names, e.g. spectrum,localization; an unknown name lists those that apply).
     #[arg(long, value_delimiter = ',')]

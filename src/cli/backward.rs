@@ -21,7 +21,7 @@ pub struct BackwardArgs {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Backward steps discarded before frames are emitted (default: the run's --transient; with 0 the frames still end one step before the run's last, whose local exponents would need the R after it).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub transient: Option<u64>,
     /// Initial upper-triangular C at the end of the window.
     #[arg(long, value_enum, default_value = "identity")]
@@ -31,23 +31,23 @@ pub struct BackwardArgs {
     pub with_gs: bool,
     /// Keep the frames of the steps that are multiples of m in the frame file (the stream on
     /// stdout always carries all); 0 without --out: no frame file, only the CLV spectrum.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub save_every: u64,
     /// Form the covariant vectors V_n = G_n C_n (a quarter of a backward step) only for the
     /// steps n that are multiples of m; the other frames carry the phase point and the local
     /// exponents. `clv analyze` then samples those frames (its --every: m by default, or a
     /// multiple of m), e.g. m = 62 for the paper's 25000 CLV steps (`clv run` does this itself).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub vectors_every: u64,
     /// Continue an interrupted backward sweep from its progress record.
     #[arg(long)]
     pub resume: bool,
     /// Memory budget in MB; segments that do not fit are kept in a scratch file instead.
-    #[arg(long, default_value_t = 4096)]
+    #[arg(long, default_value_t = 4096, allow_negative_numbers = true)]
     pub memory: u64,
     /// Threads for the recomputation and the sweep (default: the run's; the numbers do not
     /// depend on it).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub threads: Option<usize>,
     /// Print one JSON object (CLV and GS spectra, statistics) instead of the table.
     #[arg(long)]
@@ -144,8 +144,10 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         use clv::stage::frame::{lcm, multiples_in};
         let m = opts.vectors_every.max(1);
         let kept = if to_stdout { 1 } else { opts.save_every };
-        if m > 1 && !args.quiet && multiples_in(oldest, newest, lcm(m, kept)) == 0 {
-            clv::note!("clv: warning: no frame of steps {oldest}..{newest} will carry covariant vectors: --vectors-every {m} forms V_n only at the steps that are multiples of {m}; the CLV spectrum and the local exponents do not need them, the analyses of vector statistics do");
+        let l = lcm(m, kept);
+        if m > 1 && !args.quiet && multiples_in(oldest, newest, l) == 0 {
+            let saved = if kept > 1 { format!(" in a file of the frames of every {kept}-th step (--save-every {kept})") } else { String::new() };
+            clv::note!("clv: warning: no frame of steps {oldest}..{newest} will carry covariant vectors: --vectors-every {m}{saved} keeps V_n only at the steps that are multiples of {l}; the CLV spectrum and the local exponents do not need them, the analyses of vector statistics do");
         }
     }
     // Only for a sweep that will write (--resume of none, or of a finished one, does not).
@@ -201,7 +203,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     }
     if !delivered {
         return Err(Error::OutputClosed {
-            what: format!("the frame stream's closing records (after all its {} frames)", report.statistics.frames),
+            what: format!("the frame stream's closing records (after all its {} frames) were written", report.statistics.frames),
             then: format!(
                 "the sweep finished and its CLV spectrum is saved ({}), but the reader got a stream cut short; if it was to keep the stream, give the same command again without --resume",
                 dir.clv_spectrum_path().display()

@@ -7,19 +7,19 @@ use clv::Result;
 #[derive(Args)]
 pub struct BenchArgs {
     /// Disks N of the benchmark system (D = 4N).
-    #[arg(long, default_value_t = clv::bench::PAPER_N)]
+    #[arg(long, default_value_t = clv::bench::PAPER_N, allow_negative_numbers = true)]
     pub n: usize,
     /// Tangent vectors (default D).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub vectors: Option<usize>,
     /// Threads for the linear algebra.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub threads: usize,
     /// Repetitions of each measurement.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, allow_negative_numbers = true)]
     pub reps: usize,
     /// System sizes N for the collision-rate measurement (k = 0).
-    #[arg(long, value_delimiter = ',', default_value = "198,1980,19800")]
+    #[arg(long, value_delimiter = ',', default_value = "198,1980,19800", allow_negative_numbers = true)]
     pub collision_sizes: Vec<usize>,
     /// Skip the peak-memory measurement (child processes).
     #[arg(long)]

@@ -36,7 +36,7 @@ pub struct ForwardArgs {
     #[arg(long, value_enum, default_value = "disks")]
     pub system: SystemKind,
     /// Number of disks N (D = 4N).
-    #[arg(long, default_value_t = 198)]
+    #[arg(long, default_value_t = 198, allow_negative_numbers = true)]
     pub n: usize,
     /// Number density rho = N/(Lx Ly).
     #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
@@ -54,23 +54,23 @@ pub struct ForwardArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub tau: Option<f64>,
     /// Relaxation steps before accumulation.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, allow_negative_numbers = true)]
     pub relax_steps: u64,
     /// Accumulated steps.
-    #[arg(long, default_value_t = 1000)]
+    #[arg(long, default_value_t = 1000, allow_negative_numbers = true)]
     pub steps: u64,
     /// Number k of tangent vectors (default: all, k = D).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub vectors: Option<usize>,
     /// Seed of the initial state (positions on the start lattice, velocities).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// Threads for the QR step and the tangent updates (2 halves a step at D = 792; the
     /// numbers do not depend on it).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub threads: usize,
     /// Blocks for the standard error (batch means): each block is steps / blocks steps long (rounded down), so a run has at least this many complete blocks and fewer than twice as many; with fewer steps than blocks, each step is a block.
-    #[arg(long, default_value_t = 20)]
+    #[arg(long, default_value_t = 20, allow_negative_numbers = true)]
     pub blocks: usize,
     /// Write a run directory (checkpoints, R matrices, running spectrum) for the backward stage.
     #[arg(long, conflicts_with = "resume")]
@@ -79,22 +79,22 @@ pub struct ForwardArgs {
     #[arg(long)]
     pub resume: Option<PathBuf>,
     /// Steps between checkpoints.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, allow_negative_numbers = true)]
     pub checkpoint_every: u64,
     /// Checkpoints per segment file.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, allow_negative_numbers = true)]
     pub segment_checkpoints: u64,
     /// Close a segment file once it holds this many MB.
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, default_value_t = 1024, allow_negative_numbers = true)]
     pub segment_mb: u64,
     /// Which R matrices to store: at checkpoints, or at every step of the CLV window too.
     #[arg(long, value_enum, default_value = "checkpoints")]
     pub store_r: StoreRArg,
     /// Steps at the end of the run for which covariant vectors are wanted (default a tenth of relax-steps + steps, at most 2/3 of steps).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub clv_steps: Option<u64>,
     /// Backward-sweep steps discarded before the CLV window (default clv-steps/2; with 0 the window still ends one step before the run's last, whose local exponents would need the R after it).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub transient: Option<u64>,
     /// Print one JSON object to stdout instead of the table.
     #[arg(long)]
@@ -252,11 +252,14 @@ fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path:
         if w != s {
             let flag = id.replace('_', "-");
             let extend = if id == "steps" { ", give a larger --steps to extend it" } else { "" };
+            let (setting, drop) = match args.config.as_ref().filter(|_| !on_command_line(&flag)) {
+                Some(file) => (format!("{flag} = {} in {}", w.unwrap_or("?"), file.display()), "leave out --config (or that setting)"),
+                None => (format!("--{flag} {}", w.unwrap_or("?")), "drop the flag"),
+            };
             return Err(Error::param(
                 "resume",
                 format!(
-                    "--{flag} {} conflicts with the run in {}, which was made with --{flag} {}; drop the flag to resume it{extend}, or start a new run with --out",
-                    w.unwrap_or("?"),
+                    "{setting} conflicts with the run in {}, which was made with --{flag} {}; {drop} to resume it{extend}, or start a new run with --out",
                     dir.display(),
                     s.unwrap_or("(not set)")
                 ),
@@ -355,6 +358,10 @@ fn spectrum(config: RunConfig, json: bool, quiet: bool) -> Result<()> {
     let check_every = StoreConfig::for_run(&config).checkpoint_every;
     while fwd.step < total {
         fwd.step()?;
+        if let Some(warning) = fwd.early_precision_warning(config.steps).filter(|_| !quiet) {
+            let say = || clv::note!("clv: warning: {warning}");
+            bar.as_ref().map_or_else(say, |bar| bar.suspend(say));
+        }
         if fwd.step % check_every == 0 || fwd.step == total {
             forward_run::check_energy(fwd.step, start.energy, fwd.system.invariants().energy)?;
         }
@@ -367,5 +374,8 @@ fn spectrum(config: RunConfig, json: bool, quiet: bool) -> Result<()> {
     }
     let statistics = Statistics::new(&config, &start, &fwd.system.invariants(), started.elapsed().as_secs_f64());
     let report = SpectrumReport::new(config, &fwd.acc, statistics);
-    print_report(&report, json)
+    print_report(&report, json).map_err(|e| match e {
+        Error::OutputClosed { what, .. } => Error::OutputClosed { what, then: "this run kept nothing else, and its results are lost: give --out DIR to keep them in a run directory".into() },
+        e => e,
+    })
 }

@@ -36,7 +36,7 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
             Some(_) => {
                 let options: Option<clv::stage::backward::BackwardOptions> = found.backward.clone().and_then(|b| serde_json::from_value(b).ok());
                 let rewrite = clv::stage::backward::rewrite_advice(&args.dir, options.as_ref(), found.run_dir.as_deref());
-                Err(Error::Other(format!("{}: damaged or cut short; its {} complete frames can still be analysed; to write it whole, {rewrite}", args.dir.display(), found.frames)))
+                Err(Error::Other(format!("{}: damaged or cut short; its {} complete frames can still be analysed; {rewrite}", args.dir.display(), found.frames)))
             }
         };
     }

@@ -76,8 +76,17 @@ pub fn progress(what: &str, quiet: bool) -> Option<ProgressBar> {
 }
 
 /// The one line of a clap error that says what is wrong (without usage and hints).
+/// The first line of clap's message, with the list a line ending in ':' introduces (the
+/// missing arguments of "the following required arguments were not provided:").
 pub fn first_line(e: &clap::Error) -> String {
-    e.to_string().lines().next().unwrap_or_default().trim_start_matches("error: ").to_string()
+    let text = e.to_string();
+    let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+    let first = lines.next().unwrap_or_default().trim_start_matches("error: ").to_string();
+    if first.ends_with(':') {
+        let list: Vec<&str> = lines.take_while(|l| l.starts_with('-') || l.starts_with('<')).collect();
+        return format!("{first} {}", list.join(", "));
+    }
+    first
 }
 
 /// The settings a configuration file may hold: the flags of `clv forward` that define a run.
@@ -137,11 +146,15 @@ pub fn names_flag<S: AsRef<str>>(args: impl IntoIterator<Item = S>, name: &str) 
     args.into_iter().any(|a| a.as_ref() == flag || a.as_ref().strip_prefix(flag.as_str()).is_some_and(|rest| rest.starts_with('=')))
 }
 
-/// A value that a configuration file gave and the stages refused is the file's error;
-/// `given` tells whether the command line named the flag itself (then it is the flag's).
+/// A value that a configuration file gave and the stages refused is the file's error, named
+/// with its line; `given` tells whether the command line named the flag itself (then it is
+/// the flag's), and a setting the file does not hold is a default's (the flag's too).
 pub fn blame_file(e: Error, file: Option<&std::path::Path>, given: impl Fn(&str) -> bool) -> Error {
     match (e, file) {
-        (Error::Param { name, msg }, Some(file)) if !given(name) => Error::Other(format!("{}: invalid setting {name}: {msg}", file.display())),
+        (Error::Param { name, msg }, Some(file)) if !given(name) => match config_file::line_of(file, name) {
+            Some(line) => Error::Other(format!("{}:{line}: invalid setting {name}: {msg}", file.display())),
+            None => Error::Param { name, msg },
+        },
         (e, _) => e,
     }
 }
@@ -215,10 +228,7 @@ pub fn emit(text: &str) -> Result<()> {
     use std::io::Write;
     let mut out = std::io::stdout().lock();
     match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(Error::OutputClosed {
-            what: "the output".into(),
-            then: "the rest of it is lost (a run of `clv forward` without --out keeps nothing else: give --out DIR to keep its results)".into(),
-        }),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(Error::OutputClosed { what: "the output was written whole".into(), then: "what it did not read is not shown".into() }),
         written => written.map_err(|e| Error::io("<standard output>", e)),
     }
 }

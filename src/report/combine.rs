@@ -183,11 +183,12 @@ impl Combined {
         }
         let _ = writeln!(
             s,
-            "{} runs (seeds {}), {} steps in all; errors from the spread between the runs, on {} degrees of freedom{}",
+            "{} runs (seeds {}), {} steps in all; errors from the spread between the runs, on {} degree{} of freedom{}",
             self.runs.len(),
             self.seeds.iter().map(u64::to_string).collect::<Vec<_>>().join(", "),
             self.config.steps,
             self.runs.len() - 1,
+            if self.runs.len() == 2 { "" } else { "s" },
             if self.runs.len() <= 10 {
                 format!(": a one-sigma (68 %) interval is {:.2} stderr wide on either side (Student's t); more runs make the errors surer", self.t_one_sigma)
             } else {

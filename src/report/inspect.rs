@@ -241,7 +241,7 @@ fn frame_file_problem(dir: &RunDir, meta: Option<&RunMeta>) -> Option<String> {
     let rewrite = crate::stage::backward::rewrite_advice(&file, Some(&last.options), Some(&dir.path));
     if !crate::store::frames::ends_whole(&file).unwrap_or(false) {
         return Some(format!(
-            "{}, the frame file of the last backward sweep, is cut short (it does not end as a whole MCAP file); `clv inspect {}` counts its complete frames; to write it whole, {rewrite}",
+            "{}, the frame file of the last backward sweep, is cut short (it does not end as a whole MCAP file); `clv inspect {}` counts its complete frames; {rewrite}",
             file.display(),
             file.display()
         ));

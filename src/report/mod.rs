@@ -64,6 +64,10 @@ pub struct SpectrumReport {
     pub statistics: Statistics,
     /// The block averages behind `stderr`.
     pub blocks: BlockAverages,
+    /// What makes the exponents less precise than their errors say (a tau too long for a
+    /// double's digits, [`crate::linalg::precision_warning`]); absent when nothing does.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 impl SpectrumReport {
@@ -71,6 +75,7 @@ impl SpectrumReport {
     pub fn new(config: RunConfig, acc: &Accumulator, statistics: Statistics) -> Self {
         let exponents = acc.exponents(config.tau);
         SpectrumReport {
+            warnings: crate::linalg::precision_warning(&exponents, config.tau).into_iter().collect(),
             stderr: acc.stderr(config.tau),
             ks_entropy: acc.ks_entropy(config.tau, config.system.neutral()),
             kaplan_yorke_dimension: kaplan_yorke_dimension(&exponents, config.system.dim()),
@@ -100,7 +105,7 @@ impl SpectrumReport {
         } else {
             let _ = writeln!(s, "sum of the leading k = {k} exponents: {sum:+.3e}");
         }
-        if let Some(w) = crate::linalg::precision_warning(l, self.config.tau) {
+        for w in &self.warnings {
             let _ = writeln!(s, "warning: {w}");
         }
         if let Some(h) = self.ks_entropy {

@@ -10,12 +10,12 @@ use std::time::{Duration, Instant, SystemTime};
 
 /// A progress bar of steps, `what` its label.
 pub fn steps(what: &str) -> ProgressBar {
-    bar(what, "{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} steps, {per_sec} ({eta} left)", "{msg}: step {pos} of {len} ({percent}%), {rate} a second, {elapsed} elapsed, about {eta} left")
+    bar(what, "{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} steps, {per_sec} ({eta} left)", "{msg}: step {pos} of {len} ({percent}%), {rate} steps a second, {elapsed} elapsed, about {eta} left")
 }
 
 /// A counter of frames whose total is not known (a stream).
 pub fn frames(what: &str) -> ProgressBar {
-    bar(what, "{msg} [{elapsed_precise}] {pos} frames, {per_sec}", "{msg}: {pos} frames, {rate} a second, {elapsed} elapsed")
+    bar(what, "{msg} [{elapsed_precise}] {pos} frames, {per_sec}", "{msg}: {pos} frames, {rate} frames a second, {elapsed} elapsed")
 }
 
 /// Bars drawn together (one line each).

@@ -356,15 +356,25 @@ impl SweepFile {
     }
 }
 
-/// How to write a frame file `file` anew: move it aside and give its sweep again, with the
-/// options recorded in it and its run directory where known.
+/// How to write a frame file `file` anew, as a clause that follows "; ": move it aside and
+/// give its sweep again, with the options recorded in it and its run directory where known;
+/// for an interrupted sweep's FILE.tmp, continue that sweep instead.
 pub fn rewrite_advice(file: &Path, options: Option<&BackwardOptions>, run: Option<&Path>) -> String {
     let run = run.map_or("RUN_DIR".to_string(), |d| d.display().to_string());
+    // An interrupted sweep's FILE.tmp: the sweep that finishes it writes FILE.
+    let whole = file.to_str().and_then(|f| f.strip_suffix(".tmp")).filter(|f| f.ends_with(".mcap")).map(PathBuf::from);
+    let target = whole.as_deref().unwrap_or(file);
     let flags = match options {
-        Some(o) => o.flags_into(file),
-        None => format!("--out {}", file.display()),
+        Some(o) => o.flags_into(target),
+        None => format!("--out {}", target.display()),
     };
-    format!("move {} aside and give its sweep again: `clv backward {run} {flags}`", file.display())
+    match &whole {
+        Some(f) => format!(
+            "it is the unfinished file of an interrupted sweep into {}: continue that sweep with `clv backward {run} --resume`, or delete it and give the sweep again: `clv backward {run} {flags}`",
+            f.display()
+        ),
+        None => format!("to write it whole, move {} aside and give its sweep again: `clv backward {run} {flags}`", file.display()),
+    }
 }
 
 pub fn report_path(dir: &RunDir) -> PathBuf {

@@ -159,6 +159,14 @@ impl Forward {
         Ok(())
     }
 
+    /// At the step `steps.min(20)` after the relaxation (of a run of `steps` steps), why tau
+    /// is too long for a double's digits, if it is: the first exponents say already, long
+    /// before the table at the end ([`crate::linalg::precision_warning`]).
+    pub fn early_precision_warning(&self, steps: u64) -> Option<String> {
+        let tau = self.system.tau();
+        (self.step == self.relax_steps + steps.min(20)).then(|| crate::linalg::precision_warning(&self.acc.exponents(tau), tau)).flatten()
+    }
+
     pub fn time(&self) -> f64 {
         self.step as f64 * self.system.tau()
     }

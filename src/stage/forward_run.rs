@@ -434,15 +434,10 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
         bar.set_length(total);
         bar.set_position(fwd.step);
     }
-    // The exponents after a few steps say already whether tau is too long for a double's
-    // digits (the final table says it again).
-    let precision_probe = config.relax_steps + config.steps.min(20);
     while fwd.step < total {
         fwd.step()?;
         let n = fwd.step;
-        if n == precision_probe
-            && let Some(warning) = crate::linalg::precision_warning(&fwd.acc.exponents(config.tau), config.tau)
-        {
+        if let Some(warning) = fwd.early_precision_warning(config.steps) {
             feedback.notice(format!("warning: {warning}"));
         }
         let is_cp = store.is_checkpoint(n, total);

@@ -253,6 +253,22 @@ fn read_stream_limited(name: &Path, mut input: impl Read, mode: ReadMode, max_re
             _ => {}
         }
     }
+    // Bytes after the footer: another stream appended (`cat a b | clv analyze -`) or other
+    // output mixed in, which would otherwise go unread without a word.
+    if report.damage.is_none() {
+        let mut extra = [0u8; 1];
+        let n = loop {
+            match input.read(&mut extra) {
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                other => break other.map_err(|e| Error::io(name, e))?,
+            }
+        };
+        if n > 0 {
+            report.damage = Some(format!(
+                "it goes on after its end (the MCAP footer ends at byte {consumed}): another stream or other data follows, which was not read; give one stream at a time"
+            ));
+        }
+    }
     if let (Some(d), ReadMode::Strict) = (&report.damage, mode) {
         return Err(Error::corrupt(name, d.clone()));
     }

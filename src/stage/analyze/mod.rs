@@ -209,7 +209,8 @@ impl Context {
             modes: Err(UNSETTLED.into()),
             j_default: j.is_none(),
         };
-        ctx.options.j = j.unwrap_or_else(|| ctx.default_j());
+        // Each index once, in the order given (a repeated one would be drawn twice).
+        ctx.options.j = j.map(|j| j.iter().enumerate().filter(|&(i, x)| !j[..i].contains(x)).map(|(_, &x)| x).collect()).unwrap_or_else(|| ctx.default_j());
         Ok(ctx)
     }
 
@@ -444,11 +445,14 @@ impl Analyzer {
         let damaged = damage.map(|d| format!("The stream ends early or is damaged ({d}); every result here is from the {} complete frames before that point.", self.frames));
         let coverage = self.ctx.coverage_warning(self.first_step, self.last_step).filter(|_| self.frames > 0);
         let unsampled = (self.frames > 0 && self.sampled == 0).then(|| {
-            let remedy = match self.ctx.vectors_every {
-                v if v > 1 && self.ctx.options.every <= v => format!(
-                    "the backward stage formed the covariant vectors only at the multiples of {v} (--vectors-every {v}): write the frames again with a smaller --vectors-every"
-                ),
-                _ => "give a smaller --every".to_string(),
+            let with_v = lcm(self.ctx.vectors_every, self.ctx.saved_every);
+            let remedy = if with_v > 1 && self.ctx.options.every <= with_v {
+                format!(
+                    "the frames carry covariant vectors only at the steps that are multiples of {with_v} (--vectors-every {}, --save-every {}): write them again with smaller strides",
+                    self.ctx.vectors_every, self.ctx.saved_every
+                )
+            } else {
+                format!("give a smaller --every (a multiple of {with_v})")
             };
             format!(
                 "No frame of this stream (steps {}..{}) is on the stride --every {}: the analyses of vector statistics had no frame to read, and their tables are empty; {remedy}.",
@@ -614,7 +618,7 @@ pub fn analyze_source(
             return String::new();
         }
         let run = expected.as_ref().map(|e| e.dir.clone()).or_else(|| options.as_ref()?.frames_path.as_deref().and_then(|r| crate::store::frames::run_dir_of(source, r)));
-        format!("; to write it whole, {}", super::backward::rewrite_advice(source, options.as_ref(), run.as_deref()))
+        format!("; {}", super::backward::rewrite_advice(source, options.as_ref(), run.as_deref()))
     };
     let damage = crate::store::frames::read_frames_with(
         source,

@@ -163,7 +163,7 @@ pub fn diagnose(blocks: &[Vec<f64>], neutral: std::ops::Range<usize>) -> Option<
     let positive: Vec<usize> = varies.iter().copied().filter(|&i| column(i).iter().sum::<f64>() > 0.0).collect();
     let sums: Vec<f64> = blocks.iter().map(|a| positive.iter().map(|&i| a[i]).sum()).collect();
     let sum_z = if positive.is_empty() { f64::NAN } else { halves_z(&sums) };
-    let sum_is_h_ks = (0..k).any(|i| column(i).iter().sum::<f64>() <= 0.0);
+    let sum_is_h_ks = (0..k).any(|i| neutral.contains(&i) || column(i).iter().sum::<f64>() <= 0.0);
     Some(Diagnostics { tested, drifting: drifting as f64 / tested as f64, max_z, max_z_index, sum_z, sum_is_h_ks, r1: r1 / tested as f64, blocks: nb })
 }
 
@@ -227,6 +227,8 @@ mod tests {
         for seed in 0..20 {
             let d = diagnose(&blocks(|_, i| 3.0 - 0.1 * i as f64, 0.0, seed), 0..0).unwrap();
             assert_eq!((d.tested, d.blocks), (30, 40));
+            // All 30 positive: their sum is no h_KS, unless the last reach the null space.
+            assert!(!d.sum_is_h_ks && diagnose(&blocks(|_, i| 3.0 - 0.1 * i as f64, 0.0, seed), 27..33).unwrap().sum_is_h_ks);
             assert!(d.r1 < d.r1_limit(), "seed {seed}: r1 = {}", d.r1);
             drifting += d.drifting / 20.0;
         }
