@@ -218,23 +218,30 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
     assert!(!out.status.success() && err.contains("--with-gs") && err.contains("--transient 7") && !err.contains("BackwardOptions"), "{err}");
 }
 
+/// `clv args` (a forward run into `run`) sent `signal` once its first segment is written:
+/// its output and the step it says it stopped after (0 if it says none).
+fn stopped_after_a_segment<S: AsRef<std::ffi::OsStr>>(args: &[S], run: &Path, signal: libc::c_int) -> (std::process::Output, u64) {
+    let child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    let started = std::time::Instant::now();
+    while (clv::store::RunDir { path: run.to_path_buf() }).segments().map_or(true, |s| s.is_empty()) && started.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // SAFETY: a plain kill(2) of the child we spawned.
+    unsafe { libc::kill(child.id() as libc::pid_t, signal) };
+    let out = child.wait_with_output().unwrap();
+    let step = stderr(&out).split("after step ").nth(1).and_then(|t| t.split(' ').next()).and_then(|n| n.parse().ok()).unwrap_or(0);
+    (out, step)
+}
+
 /// A dropped ssh session sends SIGHUP to a job started without nohup: the forward stage stops
 /// at a checkpoint of its own as for SIGTERM, and exits as by the signal (129).
 #[test]
 fn sighup_stops_the_forward_stage_at_a_checkpoint_too() {
     let run = scratch("faults", "hup").join("run");
     let args = ["forward", "--quiet", "--n", "16", "--aspect", "1", "--steps", "40000", "--checkpoint-every", "50", "--out", run.to_str().unwrap()];
-    let child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
-    let started = std::time::Instant::now();
-    while (clv::store::RunDir { path: run.clone() }).segments().map_or(true, |s| s.is_empty()) && started.elapsed() < Duration::from_secs(60) {
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    // SAFETY: a plain kill(2) of the child we spawned.
-    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGHUP) };
-    let out = child.wait_with_output().unwrap();
+    let (out, step) = stopped_after_a_segment(&args, &run, libc::SIGHUP);
     let err = stderr(&out);
     assert!(out.status.code() == Some(128 + libc::SIGHUP) && err.contains("stopped by a signal after step"), "{:?}: {err}", out.status);
-    let step: u64 = err.split("after step ").nth(1).and_then(|t| t.split(' ').next()).and_then(|n| n.parse().ok()).unwrap();
     let dir = clv::store::RunDir { path: run.clone() };
     assert!(dir.partial_segments().unwrap().is_empty() && dir.segments().unwrap().last().unwrap().last == step, "the last segment ends at the stop");
 }
@@ -250,17 +257,9 @@ fn sigterm_stops_the_forward_stage_at_a_checkpoint_of_its_own() {
     };
     let (want, run) = (scratch("faults", "term-ref").join("run"), scratch("faults", "term").join("run"));
     ok(clv(&args(&want).iter().map(String::as_str).collect::<Vec<_>>()));
-    let child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args(&run)).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
-    let started = std::time::Instant::now();
-    while (clv::store::RunDir { path: run.clone() }).segments().map_or(true, |s| s.is_empty()) && started.elapsed() < Duration::from_secs(60) {
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    // SAFETY: a plain kill(2) of the child we spawned.
-    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
-    let out = child.wait_with_output().unwrap();
+    let (out, step) = stopped_after_a_segment(&args(&run), &run, libc::SIGTERM);
     let err = stderr(&out);
     assert!(out.status.code() == Some(128 + libc::SIGTERM) && err.contains("stopped by a signal after step") && err.contains("--resume"), "{:?}: {err}", out.status);
-    let step: u64 = err.split("after step ").nth(1).and_then(|t| t.split(' ').next()).and_then(|n| n.parse().ok()).unwrap();
     let dir = clv::store::RunDir { path: run.clone() };
     assert!(dir.partial_segments().unwrap().is_empty(), "an interrupted segment was left");
     assert_eq!(dir.segments().unwrap().last().unwrap().last, step, "the last segment ends at the stop");
