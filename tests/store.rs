@@ -488,4 +488,11 @@ fn an_extension_keeps_an_interrupted_sweeps_own_frame_file_with_the_shorter_run(
     assert!(previous.join("custom.mcap.tmp").exists() && previous.join("backward.json").exists() && !run.join("custom.mcap.tmp").exists());
     ok(clv(&["backward", r, "--out", custom.to_str().unwrap(), "--quiet"]));
     assert!(custom.exists());
+    // Outside the run the file stays, named, with what a new sweep into it needs.
+    let outside = run.with_file_name("outside.mcap");
+    let crashed = common::clv_env(&["backward", r, "--out", outside.to_str().unwrap(), "--quiet"], &[("CLV_FAULT_CRASH_AT", "frames-synced#2")]);
+    assert_eq!(crashed.status.code(), Some(clv::store::fault::CRASH_STATUS), "{}", common::stderr(&crashed));
+    let extended = ok(clv(&["forward", "--resume", r, "--steps", "900"]));
+    let err = common::stderr(&extended);
+    assert!(err.contains("outside.mcap.tmp holds frames of the 800-step run") && err.contains("needs it moved aside first"), "{err}");
 }

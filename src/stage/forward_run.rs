@@ -177,8 +177,13 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
         if sweep.options.frames_path.as_ref().is_some_and(|p| p.is_relative()) {
             with_sweep.extend([file, tmp]);
         } else if file.exists() || tmp.exists() {
-            let which = if sweep.done { file } else { tmp };
-            feedback.notice(format!("{} holds frames of the {}-step run (its last backward sweep); outside the run directory, it stays where it is", which.display(), old.config.steps));
+            let which = if sweep.done { &file } else { &tmp };
+            feedback.notice(format!(
+                "{} holds frames of the {}-step run (its last backward sweep); outside the run directory, it stays where it is, and a new sweep into {} needs it moved aside first",
+                which.display(),
+                old.config.steps,
+                file.display()
+            ));
         }
     }
     let with_sweep: Vec<&Path> = with_sweep.iter().map(PathBuf::as_path).collect();
