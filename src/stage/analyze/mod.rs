@@ -257,7 +257,7 @@ impl Context {
     /// Frames per block for standard errors by batch means: the run's `blocks` blocks over
     /// the frames an analysis reads, counted in the stream (every frame it holds, or with
     /// `sampled` those on the stride `every`), as the backward stage counts them for its own
-    /// CLV spectrum; 20 blocks of 1000 frames without a run description.
+    /// CLV spectrum (the window of the run, where the stream does not say its steps).
     pub fn block_len(&self, sampled: bool) -> u64 {
         let stride = if sampled { lcm(self.options.every, self.saved_every) } else { self.saved_every };
         let frames = match self.frame_steps {
