@@ -220,8 +220,20 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
 
 /// `clv args` (a forward run into `run`) sent `signal` once its first segment is written:
 /// its output and the step it says it stopped after (0 if it says none).
+/// The child gets the signal's default disposition: under `nohup` (as the suite may run)
+/// SIGHUP is inherited ignored, and clv rightly keeps it so.
 fn stopped_after_a_segment<S: AsRef<std::ffi::OsStr>>(args: &[S], run: &Path, signal: libc::c_int) -> (std::process::Output, u64) {
-    let child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    use std::os::unix::process::CommandExt;
+    let mut command = Command::new(env!("CARGO_BIN_EXE_clv"));
+    command.args(args).stdout(Stdio::null()).stderr(Stdio::piped());
+    // SAFETY: signal(2) is async-signal-safe, as a pre_exec closure must be.
+    unsafe {
+        command.pre_exec(move || {
+            libc::signal(signal, libc::SIG_DFL);
+            Ok(())
+        })
+    };
+    let child = command.spawn().unwrap();
     let started = std::time::Instant::now();
     while (clv::store::RunDir { path: run.to_path_buf() }).segments().map_or(true, |s| s.is_empty()) && started.elapsed() < Duration::from_secs(60) {
         std::thread::sleep(Duration::from_millis(10));
@@ -867,6 +879,13 @@ fn a_closed_standard_output_is_no_success() {
         let out = child.wait_with_output().unwrap();
         let err = stderr(&out);
         assert!(out.status.code() == Some(141) && err.contains("closed it before the output was written whole") && err.contains("--out DIR") && !err.contains("panicked"), "{args:?}: {:?} {err}", out.status);
+    }
+    // Help and the version are output too: unwritten, they are no success either.
+    for args in [&["--help"][..], &["forward", "--help"], &["--version"]] {
+        let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).stdout(full).output().unwrap();
+        let err = stderr(&out);
+        assert!(out.status.code() == Some(1) && err.contains("<standard output>") && !err.contains("panicked"), "{args:?}: {:?} {err}", out.status);
     }
 }
 

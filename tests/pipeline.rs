@@ -445,6 +445,18 @@ fn vectors_for_every_mth_frame_give_the_analyses_of_the_full_stream() {
     let err = common::stderr(&out);
     assert!(!out.status.success() && err.contains("--every") && err.contains("no step among them"), "{err}");
     assert!(!base.join("y").exists());
+    // Where no stride can sample a frame with vectors, an explicit --every is not refused
+    // with advice that cannot work: it goes on as the default does, and says to write the
+    // frames again.
+    let none = base.join("none.mcap");
+    ok(clv(&["backward", r, "--out", none.to_str().unwrap(), "--quiet", "--vectors-every", "1000000"]));
+    for (name, every) in [("n1", None), ("n2", Some("1000000")), ("n3", Some("2000000"))] {
+        let report = base.join(name);
+        let mut args = vec!["analyze", none.to_str().unwrap(), "--out", report.to_str().unwrap(), "--only", "localization"];
+        args.extend(every.iter().flat_map(|m| ["--every", m]));
+        let err = common::stderr(&ok(clv(&args)));
+        assert!(err.contains("had no frame to read") && err.contains("write them again with smaller strides") && !err.contains("give a smaller"), "{every:?}: {err}");
+    }
     // A window length longer than the stream measures nothing, and the verdict on domination
     // is taken from the lengths that fit.
     let z = base.join("z");

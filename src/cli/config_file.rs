@@ -3,13 +3,16 @@
 //! Why flags: one vocabulary for the command line and files. A file is expanded into
 //! `--key value` arguments placed before the command line's own, so flags given on the
 //! command line override the file. Supported TOML: `[section]` headers (for readability
-//! only), `key = value` with numbers, "strings" and booleans, and `#` comments.
+//! only, and only those `clv config` writes: [system], [run], [store]), `key = value` with numbers, "strings" and booleans, and `#` comments.
 
 use clv::config::{RunConfig, SystemConfig};
 use clv::error::{Error, Result};
 use clv::store::run::StoreConfig;
 use std::fmt::Write;
 use std::path::Path;
+
+/// The section headers a file may have; they do not change what a key means.
+const SECTIONS: [&str; 3] = ["system", "run", "store"];
 
 /// The arguments a configuration file stands for. `known` lists the accepted keys.
 pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
@@ -18,10 +21,17 @@ pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
     let mut seen: Vec<(String, usize)> = Vec::new();
     for (no, raw) in text.lines().enumerate() {
         let line = strip_comment(raw).trim();
-        if line.is_empty() || (line.starts_with('[') && line.ends_with(']')) {
+        let bad = |msg: String| Error::Other(format!("{}:{}: {msg}", path.display(), no + 1));
+        if line.is_empty() {
             continue;
         }
-        let bad = |msg: String| Error::Other(format!("{}:{}: {msg}", path.display(), no + 1));
+        if let Some(section) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
+            // A misspelt or foreign section would otherwise pass silently with its keys.
+            if !SECTIONS.contains(&section.trim()) {
+                return Err(bad(format!("unknown section [{}]; sections only group the settings for reading, and are [system], [run] and [store]", section.trim())));
+            }
+            continue;
+        }
         let (key, value) = line.split_once('=').ok_or_else(|| bad(format!("expected `key = value`, found {line:?}")))?;
         let key = key.trim().replace('_', "-");
         if !known.contains(&key) {
@@ -153,6 +163,10 @@ mod tests {
         std::fs::write(&path, "steps = 10\n[store]\nsteps = 20\n").unwrap();
         let err = expand(&path, &known).unwrap_err().to_string();
         assert!(err.contains("paper.toml:3") && err.contains("first on line 1"), "{err}");
+        // A misspelt section is refused, not read as a group of the known ones.
+        std::fs::write(&path, "[ run ]\nsteps = 10\n[sytem]\nn = 8\n").unwrap();
+        let err = expand(&path, &known).unwrap_err().to_string();
+        assert!(err.contains("paper.toml:3") && err.contains("[sytem]") && err.contains("[store]"), "{err}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

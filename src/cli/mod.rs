@@ -160,9 +160,18 @@ pub fn blame_file(e: Error, file: Option<&std::path::Path>, given: impl Fn(&str)
 }
 
 /// The command line, with a `--config FILE` of `clv forward` expanded. Clap's own errors
-/// (and --help, --version) exit here, as clap does.
+/// (and --help, --version) exit here, as clap does, except that help or a version that
+/// could not be written to a file or pipe is an error (clap would exit 0).
 pub fn parse(raw: Vec<String>) -> Result<(Cli, ArgMatches)> {
-    let matches = Cli::command().get_matches_from(expand_config(raw)?);
+    use std::io::IsTerminal;
+    let matches = match Cli::command().try_get_matches_from(expand_config(raw)?) {
+        Ok(matches) => matches,
+        Err(e) if e.use_stderr() || std::io::stdout().is_terminal() => e.exit(),
+        Err(e) => {
+            emit(&e.render().to_string())?;
+            std::process::exit(0)
+        }
+    };
     match Cli::from_arg_matches(&matches) {
         Ok(cli) => Ok((cli, matches)),
         Err(e) => e.exit(),

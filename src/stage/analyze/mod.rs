@@ -182,12 +182,15 @@ impl Context {
                 ));
             }
         }
-        if let Some((oldest, newest)) = frame_steps.filter(|_| every_given)
-            && newest / every * every < oldest
-        {
+        // Refused only where a smaller m would sample a frame; where none can, the analyses
+        // go on without vector statistics and say so, as with the default m.
+        let none_of = |m: u64, (oldest, newest): (u64, u64)| newest / m * m < oldest;
+        if let Some(steps) = frame_steps.filter(|&steps| every_given && none_of(every, steps) && !none_of(with_v, steps)) {
+            let (oldest, newest) = steps;
+            let multiple = if with_v > 1 { format!(", a multiple of {with_v}") } else { String::new() };
             return Err(Error::param(
                 "every",
-                format!("{source} holds the frames of steps {oldest}..{newest}, and no step among them is a multiple of {every}: the vector statistics would have no frame; give a smaller m (by default about 400 frames are sampled)"),
+                format!("{source} holds the frames of steps {oldest}..{newest}, and no step among them is a multiple of {every}: the vector statistics would have no frame; give a smaller m{multiple} (by default about 400 frames are sampled)"),
             ));
         }
         let mut ctx = Context {
@@ -446,7 +449,7 @@ impl Analyzer {
         let coverage = self.ctx.coverage_warning(self.first_step, self.last_step).filter(|_| self.frames > 0);
         let unsampled = (self.frames > 0 && self.sampled == 0).then(|| {
             let with_v = lcm(self.ctx.vectors_every, self.ctx.saved_every);
-            let remedy = if with_v > 1 && self.ctx.options.every <= with_v {
+            let remedy = if with_v > 1 && self.last_step / with_v * with_v < self.first_step {
                 format!(
                     "the frames carry covariant vectors only at the steps that are multiples of {with_v} (--vectors-every {}, --save-every {}): write them again with smaller strides",
                     self.ctx.vectors_every, self.ctx.saved_every
