@@ -171,6 +171,16 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
         ok(clv(&["forward", "--resume", dir.to_str().unwrap(), "--quiet"]));
         assert!(contents(&dir) == want, "limit {limit}: resumed run differs");
     }
+    // A disk that fills early in a segment of a larger system fails a write under a message
+    // header, which the MCAP writer hands on wrapped with its OS error lost (found on a 6 MB
+    // tmpfs at these sizes): still a full disk, with the way to continue.
+    for limit in ["5760000", "5840000"] {
+        let dir = scratch("faults", &format!("full-n40-{limit}")).join("run");
+        let args = ["forward", "--quiet", "--n", "40", "--aspect", "2/11", "--relax-steps", "200", "--steps", "6000", "--clv-steps", "300", "--out", dir.to_str().unwrap()];
+        let out = clv_env(&args, &[("CLV_FAULT_DISK_FULL_AFTER", limit)]);
+        let err = stderr(&out);
+        assert!(out.status.code() == Some(1) && err.contains("disk full") && err.contains(&format!("clv forward --resume {}", dir.display())), "limit {limit}: {err}");
+    }
     // A file-size limit (`ulimit -f` of 100 kB, below a segment's 200 kB) is met the same way,
     // not by SIGXFSZ killing the process without a word.
     let dir = scratch("faults", "file-size-limit").join("run");

@@ -44,10 +44,21 @@ pub fn charge(len: usize) -> io::Result<()> {
     Ok(())
 }
 
+/// How many of `len` bytes fit in what is left of the injected budget (all without one):
+/// as a real file system does, a write that does not fit is short, and the next one fails.
+fn room_for(len: usize) -> io::Result<usize> {
+    let Some(limit) = budget() else { return Ok(len) };
+    let taken = WRITTEN.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |w| Some(w.saturating_add(len as u64).min(limit.max(w)))).unwrap_or(0);
+    match limit.saturating_sub(taken).min(len as u64) as usize {
+        0 if len > 0 => Err(io::Error::from_raw_os_error(28)), // ENOSPC
+        room => Ok(room),
+    }
+}
+
 impl Write for Output {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        charge(buf.len())?;
-        self.0.write(buf)
+        let room = room_for(buf.len())?;
+        self.0.write(&buf[..room])
     }
     fn flush(&mut self) -> io::Result<()> {
         self.0.flush()

@@ -15,6 +15,7 @@ use super::segment::{read_stream, ReadMode, RUN_METADATA};
 use crate::error::{Error, Result};
 use crate::stage::frame::Frame;
 use mcap::records::{MessageHeader, Metadata};
+use super::write_error::{Watched, Witness};
 use mcap::write::{NoSeek, WriteOptions, Writer};
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -44,16 +45,23 @@ struct McapOut<W: Write + Seek> {
     writer: Writer<W>,
     channel: u16,
     sequence: u32,
+    /// Keeps the OS error of a failed write beneath the writer.
+    witness: Witness,
 }
 
 impl<W: Write + Seek> McapOut<W> {
-    fn new(w: W, seekable: bool, metadata: &BTreeMap<String, String>) -> mcap::McapResult<Self> {
+    /// `w` writes through a writer `witness` watches.
+    fn new(w: W, witness: Witness, seekable: bool, metadata: &BTreeMap<String, String>) -> std::result::Result<Self, (Witness, mcap::McapError)> {
+        Self::start(w, seekable, metadata).map(|(writer, channel)| McapOut { writer, channel, sequence: 0, witness: witness.clone() }).map_err(|e| (witness, e))
+    }
+
+    fn start(w: W, seekable: bool, metadata: &BTreeMap<String, String>) -> mcap::McapResult<(Writer<W>, u16)> {
         let mut writer = options(seekable).create(w)?;
         let meta = Metadata { name: RUN_METADATA.into(), metadata: metadata.clone() };
         writer.write_metadata(&meta)?;
         let schema = writer.add_schema(FRAME.name, "jsonschema", FRAME.text.as_bytes())?;
         let channel = writer.add_channel(schema, FRAME.topic, "cbor", &BTreeMap::new())?;
-        Ok(McapOut { writer, channel, sequence: 0 })
+        Ok((writer, channel))
     }
 
     fn write(&mut self, step: u64, data: &[u8]) -> mcap::McapResult<()> {
@@ -63,18 +71,12 @@ impl<W: Write + Seek> McapOut<W> {
     }
 }
 
-fn mcap_err(path: &Path, e: mcap::McapError) -> Error {
-    match e {
-        mcap::McapError::Io(io) => Error::io(path, io),
-        other => Error::Other(format!("{}: {other}", path.display())),
-    }
-}
 
 /// A frame file being written (as FILE.tmp until finished).
 pub struct FrameFile {
     path: PathBuf,
     tmp: PathBuf,
-    out: McapOut<BufWriter<super::fault::Output>>,
+    out: McapOut<BufWriter<Watched<super::fault::Output>>>,
     /// A second handle on the same file, for fsync while the writer owns the first.
     sync_handle: File,
     /// Frames written so far.
@@ -168,7 +170,8 @@ impl FrameFile {
             Err(e) => return Err(Error::io(&tmp, e)),
         };
         let sync_handle = file.try_clone().map_err(|e| Error::io(&tmp, e))?;
-        let out = McapOut::new(BufWriter::with_capacity(1 << 20, super::fault::Output(file)), true, metadata).map_err(|e| mcap_err(&tmp, e))?;
+        let witness = Witness::default();
+        let out = McapOut::new(BufWriter::with_capacity(1 << 20, witness.watch(super::fault::Output(file))), witness, true, metadata).map_err(|(w, e)| w.mcap_error(&tmp, e))?;
         Ok(FrameFile { path: path.to_path_buf(), tmp, out, sync_handle, frames: 0 })
     }
 
@@ -286,7 +289,7 @@ impl FrameFile {
     }
 
     fn write_raw(&mut self, step: u64, data: &[u8]) -> Result<()> {
-        self.out.write(step, data).map_err(|e| mcap_err(&self.tmp, e))?;
+        self.out.write(step, data).map_err(|e| self.out.witness.mcap_error(&self.tmp, e))?;
         self.frames += 1;
         Ok(())
     }
@@ -297,15 +300,15 @@ impl FrameFile {
 
     /// Close the current chunk and fsync: every frame so far survives a crash.
     pub fn sync(&mut self) -> Result<()> {
-        self.out.writer.flush().map_err(|e| mcap_err(&self.tmp, e))?;
+        self.out.writer.flush().map_err(|e| self.out.witness.mcap_error(&self.tmp, e))?;
         self.sync_handle.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
         super::fault::crash_point("frames-synced");
         Ok(())
     }
 
     pub fn finish(mut self) -> Result<PathBuf> {
-        self.out.writer.finish().map_err(|e| mcap_err(&self.tmp, e))?;
-        let file = self.out.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?.into_inner();
+        self.out.writer.finish().map_err(|e| self.out.witness.mcap_error(&self.tmp, e))?;
+        let file = self.out.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?.into_inner().into_inner();
         file.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
         super::fault::crash_point("frames-finished");
         std::fs::rename(&self.tmp, &self.path).map_err(|e| Error::io(&self.path, e))?;
@@ -317,19 +320,21 @@ impl FrameFile {
 
 /// The frame stream on standard output.
 pub struct FrameStdout {
-    out: McapOut<NoSeek<BufWriter<std::io::Stdout>>>,
+    out: McapOut<NoSeek<BufWriter<Watched<std::io::Stdout>>>>,
     /// The reader closed the pipe: nothing more can be written, and that is not an error.
     closed: bool,
 }
 
-fn is_broken_pipe(e: &mcap::McapError) -> bool {
-    matches!(e, mcap::McapError::Io(io) if io.kind() == std::io::ErrorKind::BrokenPipe)
+fn is_broken_pipe(e: &mcap::McapError, witness: &Witness) -> bool {
+    let pipe = |io: &std::io::Error| io.kind() == std::io::ErrorKind::BrokenPipe;
+    witness.os_error().is_some_and(|io| pipe(&io)) || matches!(e, mcap::McapError::Io(io) if pipe(io))
 }
 
 impl FrameStdout {
     pub fn new(metadata: &BTreeMap<String, String>) -> Result<Self> {
-        let out = McapOut::new(NoSeek::new(BufWriter::with_capacity(1 << 20, std::io::stdout())), false, metadata)
-            .map_err(|e| mcap_err(Path::new("<stdout>"), e))?;
+        let witness = Witness::default();
+        let out = McapOut::new(NoSeek::new(BufWriter::with_capacity(1 << 20, witness.watch(std::io::stdout()))), witness, false, metadata)
+            .map_err(|(w, e)| w.mcap_error(Path::new("<stdout>"), e))?;
         Ok(FrameStdout { out, closed: false })
     }
 
@@ -338,11 +343,11 @@ impl FrameStdout {
     pub fn write(&mut self, frame: &Frame) -> Result<Flow> {
         match self.out.write(frame.step, &frame.encode()).and_then(|_| self.out.writer.flush()) {
             Ok(()) => Ok(Flow::Continue),
-            Err(e) if is_broken_pipe(&e) => {
+            Err(e) if is_broken_pipe(&e, &self.out.witness) => {
                 self.closed = true;
                 Ok(Flow::Stop)
             }
-            Err(e) => Err(mcap_err(Path::new("<stdout>"), e)),
+            Err(e) => Err(self.out.witness.mcap_error(Path::new("<stdout>"), e)),
         }
     }
 
@@ -354,11 +359,12 @@ impl FrameStdout {
         }
         // mcap's finish leaves the closing records in our buffer, whose flush on drop would
         // lose a failure: flushed here.
+        let witness = self.out.witness.clone();
         let flushed = self.out.writer.finish().and_then(|_| Ok(self.out.writer.into_inner().into_inner().flush()?));
         match flushed {
             Ok(()) => Ok(true),
-            Err(e) if is_broken_pipe(&e) => Ok(false),
-            Err(e) => Err(mcap_err(Path::new("<stdout>"), e)),
+            Err(e) if is_broken_pipe(&e, &witness) => Ok(false),
+            Err(e) => Err(witness.mcap_error(Path::new("<stdout>"), e)),
         }
     }
 }

@@ -34,5 +34,6 @@ pub mod schema;
 pub mod scratch;
 pub mod segment;
 pub mod sink;
+pub mod write_error;
 
 pub use run::{RunDir, RunMeta, StoreConfig, StoreR};

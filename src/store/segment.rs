@@ -7,6 +7,7 @@
 //! `.tmp` file is by construction an interrupted one.
 
 use super::schema::Schema;
+use super::write_error::{Watched, Witness};
 use crate::error::{Error, Result};
 use mcap::records::{MessageHeader, Metadata, Record};
 use mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
@@ -39,19 +40,13 @@ pub struct SegmentWriter {
     tmp: PathBuf,
     first_step: u64,
     last_checkpoint: Option<u64>,
-    writer: Writer<BufWriter<super::fault::Output>>,
+    writer: Writer<BufWriter<Watched<super::fault::Output>>>,
+    witness: Witness,
     channels: BTreeMap<&'static str, u16>,
     sequence: u32,
     /// Bytes of message data written (before compression).
     pub bytes: u64,
     pub checkpoints: u64,
-}
-
-fn mcap_err(path: &Path, e: mcap::McapError) -> Error {
-    match e {
-        mcap::McapError::Io(io) => Error::io(path, io),
-        other => Error::Other(format!("{}: {other}", path.display())),
-    }
 }
 
 impl SegmentWriter {
@@ -64,7 +59,9 @@ impl SegmentWriter {
             .compression_level(1)
             .chunk_size(Some(4 << 20))
             .profile("clv");
-        let mut writer = options.create(BufWriter::with_capacity(1 << 20, super::fault::Output(file))).map_err(|e| mcap_err(&tmp, e))?;
+        let witness = Witness::default();
+        let mcap_err = |path: &Path, e| witness.mcap_error(path, e);
+        let mut writer = options.create(BufWriter::with_capacity(1 << 20, witness.watch(super::fault::Output(file)))).map_err(|e| mcap_err(&tmp, e))?;
         let meta = Metadata { name: RUN_METADATA.into(), metadata: BTreeMap::from([("run.json".to_string(), run_json.to_string())]) };
         writer.write_metadata(&meta).map_err(|e| mcap_err(&tmp, e))?;
         let mut channels = BTreeMap::new();
@@ -73,14 +70,14 @@ impl SegmentWriter {
             let id = writer.add_channel(schema, s.topic, "cbor", &BTreeMap::new()).map_err(|e| mcap_err(&tmp, e))?;
             channels.insert(s.topic, id);
         }
-        Ok(SegmentWriter { dir: dir.to_path_buf(), tmp, first_step, last_checkpoint: None, writer, channels, sequence: 0, bytes: 0, checkpoints: 0 })
+        Ok(SegmentWriter { dir: dir.to_path_buf(), tmp, first_step, last_checkpoint: None, writer, witness, channels, sequence: 0, bytes: 0, checkpoints: 0 })
     }
 
     pub fn write(&mut self, topic: &str, step: u64, data: &[u8]) -> Result<()> {
         let channel_id = *self.channels.get(topic).ok_or_else(|| Error::Other(format!("no channel {topic:?} in this file")))?;
         self.sequence += 1;
         let header = MessageHeader { channel_id, sequence: self.sequence, log_time: step, publish_time: step };
-        self.writer.write_to_known_channel(&header, data).map_err(|e| mcap_err(&self.tmp, e))?;
+        self.writer.write_to_known_channel(&header, data).map_err(|e| self.witness.mcap_error(&self.tmp, e))?;
         self.bytes += data.len() as u64;
         if topic == super::schema::CHECKPOINT.topic {
             self.checkpoints += 1;
@@ -91,8 +88,8 @@ impl SegmentWriter {
 
     /// Finish, fsync and rename to the final name; returns the final path.
     pub fn finish(mut self) -> Result<PathBuf> {
-        self.writer.finish().map_err(|e| mcap_err(&self.tmp, e))?;
-        let file = self.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?.into_inner();
+        self.writer.finish().map_err(|e| self.witness.mcap_error(&self.tmp, e))?;
+        let file = self.writer.into_inner().into_inner().map_err(|e| Error::io(&self.tmp, e.into_error()))?.into_inner().into_inner();
         file.sync_all().map_err(|e| Error::io(&self.tmp, e))?;
         drop(file);
         super::fault::crash_point("segment-synced");
