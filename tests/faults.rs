@@ -260,12 +260,15 @@ fn stopped_after_a_segment<S: AsRef<std::ffi::OsStr>>(args: &[S], run: &Path, si
 #[test]
 fn sighup_stops_the_forward_stage_at_a_checkpoint_too() {
     let run = scratch("faults", "hup").join("run");
-    let args = ["forward", "--quiet", "--n", "16", "--aspect", "1", "--steps", "40000", "--checkpoint-every", "50", "--out", run.to_str().unwrap()];
+    let args = ["forward", "--quiet", "--n", "16", "--aspect", "1", "--relax-steps", "30000", "--steps", "10000", "--checkpoint-every", "50", "--out", run.to_str().unwrap()];
     let (out, step) = stopped_after_a_segment(&args, &run, libc::SIGHUP);
     let err = stderr(&out);
     assert!(out.status.code() == Some(128 + libc::SIGHUP) && err.contains("stopped by a signal after step"), "{:?}: {err}", out.status);
     let dir = clv::store::RunDir { path: run.clone() };
     assert!(dir.partial_segments().unwrap().is_empty() && dir.segments().unwrap().last().unwrap().last == step, "the last segment ends at the stop");
+    // Stopped while relaxing: inspect shows no spectrum of zeros.
+    let shown = String::from_utf8_lossy(&clv(&["inspect", run.to_str().unwrap()]).stdout).into_owned();
+    assert!(step < 30000 && shown.contains(&format!("relaxing: step {step} of the 30000 relaxation steps")) && !shown.contains("spectrum so far"), "{shown}");
 }
 
 /// A batch system's time limit sends SIGTERM before SIGKILL: the forward stage stops after

@@ -752,3 +752,30 @@ fn data_after_a_streams_end_is_reported() {
     let err = common::stderr(&twice);
     assert!(!twice.status.success() && err.contains("goes on after its end") && !base.join("twice/summary.json").exists(), "{err}");
 }
+
+/// The forward stage's warning of a --tau too long for a double's digits follows its
+/// exponents into every later stage that shows them: inspect, the backward stage's table
+/// and --json (the same R matrices), and the report, whose Fig. 2 would otherwise show
+/// two spectra that agree because both are off.
+#[test]
+fn a_precision_warning_follows_the_exponents_into_every_stage() {
+    let base = scratch("tau-warned");
+    let run = base.join("run");
+    let r = run.to_str().unwrap();
+    ok(clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "200", "--relax-steps", "20", "--tau", "2.5", "--quiet", "--out", r]));
+    let text = |out: std::process::Output| String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(text(ok(clv(&["inspect", r]))).contains("warning: (lambda_1 - lambda_k) tau"));
+    let table = text(ok(clv(&["backward", r, "--quiet"])));
+    assert!(table.contains("warning (of the forward stage): (lambda_1 - lambda_k) tau"), "{table}");
+    let v: serde_json::Value = serde_json::from_slice(&ok(clv(&["backward", r, "--quiet", "--json", "--out", base.join("f.mcap").to_str().unwrap()])).stdout).unwrap();
+    assert!(v["warnings"][0].as_str().is_some_and(|w| w.contains("give a --tau below")), "{v}");
+    let report = base.join("report");
+    ok(clv(&["analyze", r, "--out", report.to_str().unwrap(), "--only", "spectrum", "--quiet"]));
+    let summary: serde_json::Value = serde_json::from_str(&read(&report.join("summary.json"))).unwrap();
+    assert!(summary["warnings"][0].as_str().is_some_and(|w| w.starts_with("The forward stage warned: (lambda_1")), "{summary}");
+    assert!(summary["produced"][0]["caption"].as_str().is_some_and(|c| c.starts_with("Not to be trusted")), "{summary}");
+    // The default tau warns of nothing.
+    let quiet = base.join("quiet");
+    ok(clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "200", "--relax-steps", "20", "--quiet", "--out", quiet.to_str().unwrap()]));
+    assert!(!text(ok(clv(&["backward", quiet.to_str().unwrap(), "--quiet"]))).contains("warning"));
+}

@@ -240,6 +240,9 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
             Estimate::or_unknown(window.and_then(|w| w.ks_entropy)),
             Estimate::or_unknown(report.gs_ks_entropy)
         );
+        for w in &report.warnings {
+            let _ = writeln!(table, "warning (of the forward stage): {w}");
+        }
         let st = &report.statistics;
         let _ = writeln!(table, "{} frames (steps {}..{}), {} steps recomputed in {} segments, {:.1} s", st.frames, st.first_frame_step, st.last_frame_step, st.recomputed_steps, st.segments, st.wall_seconds);
         emit(&table)?;

@@ -39,9 +39,12 @@ pub struct Inspection {
     /// Directories with the results of the run before it was extended (`previous-N-steps`).
     pub previous: Vec<String>,
     pub disk_bytes: u64,
-    /// Spectrum at the newest intact checkpoint.
+    /// Spectrum at the newest intact checkpoint (none while the run relaxes).
     pub exponents: Vec<f64>,
     pub stderr: Vec<f64>,
+    /// What makes that spectrum less precise than its errors say ([`crate::linalg::precision_warning`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     /// Every finished segment reads back whole (an interrupted one is not counted as damage).
     pub intact: bool,
     /// The convergence tests of the exponents so far (from 4 completed blocks on).
@@ -152,7 +155,10 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         .collect();
     previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));
     let total_steps = meta.config.relax_steps + meta.config.steps;
-    let (exponents, stderr) = newest.as_ref().map(|(s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
+    // During the relaxation nothing is accumulated: its zeros are no spectrum.
+    let accumulating = newest.as_ref().filter(|(s, _)| s.step > meta.config.relax_steps);
+    let (exponents, stderr) = accumulating.map(|(s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
+    let warnings = crate::linalg::precision_warning(&exponents, meta.config.tau).into_iter().collect();
     let convergence = newest.as_ref().and_then(|(_, acc)| {
         let blocks = acc.as_ref()?.block_averages(meta.config.tau);
         let d = crate::stage::analyze::kernels::convergence::diagnose(&blocks.exponents, meta.config.system.neutral())?;
@@ -178,6 +184,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         disk_bytes,
         exponents,
         stderr,
+        warnings,
         convergence,
         run: meta,
     })
@@ -313,6 +320,9 @@ impl Inspection {
         for name in &self.previous {
             let _ = writeln!(s, "  {name}/  the results of the run before it was extended");
         }
+        if let Some(step) = self.steps_done.filter(|&s| s <= self.run.config.relax_steps) {
+            let _ = writeln!(s, "relaxing: step {step} of the {} relaxation steps, no exponent accumulated yet", self.run.config.relax_steps);
+        }
         if !self.exponents.is_empty() {
             let show: Vec<String> = self.exponents.iter().take(4).map(|x| format!("{x:.5}")).collect();
             let _ = writeln!(s, "spectrum so far: lambda_1.. = {} ... lambda_k = {:.5}", show.join(", "), self.exponents.last().unwrap_or(&f64::NAN));
@@ -325,6 +335,9 @@ impl Inspection {
             }
             if !sums.is_empty() {
                 let _ = writeln!(s, "so far: {}", sums.join(", "));
+            }
+            for w in &self.warnings {
+                let _ = writeln!(s, "warning: {w}");
             }
             if let Some(c) = &self.convergence {
                 let _ = writeln!(s, "convergence so far ({} blocks of {} steps): {}; {}", c.blocks, c.block_steps, c.tests, c.verdict);

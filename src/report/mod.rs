@@ -152,6 +152,9 @@ pub struct SpectrumSummary {
     /// Absent from the files of builds before they were kept.
     #[serde(default)]
     pub blocks: Option<BlockAverages>,
+    /// What the forward stage warned of ([`SpectrumReport::warnings`]).
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 impl SpectrumSummary {

@@ -200,6 +200,10 @@ pub struct BackwardReport {
     pub gs_window: Option<WindowSpectrum>,
     pub options: BackwardOptions,
     pub statistics: BackwardStats,
+    /// What the forward stage warned of, which holds for these exponents too (the same R
+    /// matrices); absent when it warned of nothing.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
     /// What the stage did that a person should know (not stored).
     #[serde(skip)]
     pub notes: Vec<String>,
@@ -882,6 +886,7 @@ pub fn run(
         exponents: acc.exponents(1.0),
         stderr: acc.stderr(1.0),
         ks_entropy: acc.ks_entropy(1.0, config.system.neutral()),
+        warnings: gs.warnings,
         gs_exponents: gs.exponents,
         gs_stderr: gs.stderr,
         gs_ks_entropy: gs.ks_entropy,

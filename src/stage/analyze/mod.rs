@@ -462,7 +462,8 @@ impl Analyzer {
                 self.first_step, self.last_step, self.ctx.options.every
             )
         });
-        let warnings: Vec<String> = damaged.into_iter().chain(coverage).chain(unsampled).collect();
+        let forward = self.ctx.gs.iter().flat_map(|g| &g.warnings).map(|w| format!("The forward stage warned: {w}."));
+        let warnings: Vec<String> = forward.chain(damaged).chain(coverage).chain(unsampled).collect();
         let ctx = &self.ctx;
         let head = Head {
             source: &ctx.source,

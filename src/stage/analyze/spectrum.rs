@@ -113,6 +113,11 @@ impl Analysis for Spectrum {
                 ctx.run.config.steps
             )
         };
+        // Agreement of two spectra both off by the same lost digits proves nothing.
+        let caption = match ctx.gs.iter().flat_map(|g| &g.warnings).next() {
+            Some(w) => format!("Not to be trusted beyond the leading exponents: the forward stage warned that {w}. {caption}"),
+            None => caption,
+        };
         let mut produced = vec![Produced {
             title: "Lyapunov spectrum (Fig. 2)".into(),
             caption,
