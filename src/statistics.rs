@@ -4,7 +4,18 @@
 //! records on disk and the reports, so it belongs to none of them.
 
 use faer::Mat;
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize};
+
+/// A standard error read from JSON, where serde_json writes the NaN of an unknown one (a
+/// single block) as null: null is read back as NaN, not refused as damage.
+pub fn error_or_nan<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Option::<f64>::deserialize(d).map(|x| x.unwrap_or(f64::NAN))
+}
+
+/// Standard errors read from JSON, each null read back as NaN ([`error_or_nan`]).
+pub fn errors_or_nan<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+    Vec::<Option<f64>>::deserialize(d).map(|v| v.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect())
+}
 
 /// Running sums of ln R_ii, with block sums for the standard error (batch means).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -124,6 +135,7 @@ pub struct BlockAverages {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Estimate {
     pub value: f64,
+    #[serde(deserialize_with = "error_or_nan")]
     pub stderr: f64,
 }
 

@@ -779,3 +779,22 @@ fn a_precision_warning_follows_the_exponents_into_every_stage() {
     ok(clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "200", "--relax-steps", "20", "--quiet", "--out", quiet.to_str().unwrap()]));
     assert!(!text(ok(clv(&["backward", quiet.to_str().unwrap(), "--quiet"]))).contains("warning"));
 }
+
+/// A run of a single block has no standard errors: NaN, written to JSON as null, which every
+/// reader takes back as unknown (it was refused as a damaged file, with a repair that wrote
+/// it again the same). A run too short for the default window is told which flags fit it.
+#[test]
+fn a_run_of_one_block_is_read_by_every_stage() {
+    let base = scratch("one-block");
+    let (one, two) = (base.join("one"), base.join("two"));
+    let err = common::stderr(&clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "1", "--quiet", "--out", one.to_str().unwrap()]));
+    assert!(err.contains("give --steps 2 or more") && err.contains("--transient 0"), "{err}");
+    ok(clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "1", "--clv-steps", "1", "--transient", "0", "--quiet", "--out", one.to_str().unwrap()]));
+    assert!(read(&one.join("spectrum.json")).contains("null"), "the test needs a run without errors");
+    let table = String::from_utf8_lossy(&ok(clv(&["backward", one.to_str().unwrap(), "--quiet"])).stdout).into_owned();
+    assert!(table.contains("NaN"), "{table}");
+    ok(clv(&["analyze", one.to_str().unwrap(), "--out", base.join("report").to_str().unwrap(), "--quiet"]));
+    ok(clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "40", "--seed", "2", "--quiet", "--out", two.to_str().unwrap()]));
+    let combined = String::from_utf8_lossy(&ok(clv(&["combine", one.to_str().unwrap(), two.to_str().unwrap()])).stdout).into_owned();
+    assert!(combined.contains("chi2/dof of the runs about the combined spectrum: not known"), "{combined}");
+}

@@ -27,6 +27,7 @@ use std::path::{Path, PathBuf};
 struct RunSpectrum {
     config: RunConfig,
     exponents: Vec<f64>,
+    #[serde(deserialize_with = "crate::statistics::errors_or_nan")]
     stderr: Vec<f64>,
 }
 
@@ -97,7 +98,8 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
         chi2.push(chi2_per_dof(&x, &s, mean, scale));
     }
     let varying: Vec<f64> = chi2.iter().copied().filter(|c| c.is_finite()).collect();
-    let mean_chi2_per_dof = varying.iter().sum::<f64>() / varying.len().max(1) as f64;
+    // NaN (null in --json) where no exponent has errors in every run (a run of one block).
+    let mean_chi2_per_dof = varying.iter().sum::<f64>() / varying.len() as f64;
     let neutral = first.system.neutral();
     let ks = ks_entropy(&exponents, neutral.clone()).map(|value| {
         // Each run's sum over the exponents counted in the combined spectrum.
@@ -199,11 +201,15 @@ impl Combined {
             let list = self.relax_steps.iter().map(u64::to_string).collect::<Vec<_>>().join(", ");
             let _ = writeln!(s, "the runs relaxed for different numbers of steps ({list}): one too short to reach the steady state biases the mean, and chi2/dof above 1 shows it");
         }
-        let _ = writeln!(
-            s,
-            "mean chi2/dof of the runs about the combined spectrum, with their own errors: {:.2} (about 1 when each run's batch-means errors are right)",
-            self.mean_chi2_per_dof
-        );
+        if self.mean_chi2_per_dof.is_nan() {
+            let _ = writeln!(s, "mean chi2/dof of the runs about the combined spectrum: not known, no exponent has errors in every run (a run of one block has none)");
+        } else {
+            let _ = writeln!(
+                s,
+                "mean chi2/dof of the runs about the combined spectrum, with their own errors: {:.2} (about 1 when each run's batch-means errors are right)",
+                self.mean_chi2_per_dof
+            );
+        }
         s
     }
 }

@@ -145,6 +145,7 @@ impl SpectrumReport {
 #[derive(Clone, Debug, serde::Deserialize)]
 pub struct SpectrumSummary {
     pub exponents: Vec<f64>,
+    #[serde(deserialize_with = "crate::statistics::errors_or_nan")]
     pub stderr: Vec<f64>,
     /// Absent from the files of builds before it was reported.
     #[serde(default)]

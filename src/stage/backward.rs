@@ -183,9 +183,11 @@ pub struct BackwardStats {
 pub struct BackwardReport {
     /// The CLV spectrum: time averages of the local exponents over the emitted frames.
     pub exponents: Vec<f64>,
+    #[serde(deserialize_with = "crate::statistics::errors_or_nan")]
     pub stderr: Vec<f64>,
     /// The forward Gram-Schmidt spectrum of the same run.
     pub gs_exponents: Vec<f64>,
+    #[serde(deserialize_with = "crate::statistics::errors_or_nan")]
     pub gs_stderr: Vec<f64>,
     /// h_KS from the CLV and from the GS spectrum (absent from older reports).
     #[serde(default)]
@@ -213,6 +215,7 @@ pub struct BackwardReport {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct WindowSpectrum {
     pub exponents: Vec<f64>,
+    #[serde(deserialize_with = "crate::statistics::errors_or_nan")]
     pub stderr: Vec<f64>,
     pub ks_entropy: Option<Estimate>,
 }

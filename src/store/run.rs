@@ -109,8 +109,9 @@ impl StoreConfig {
         }
         if self.clv_steps.checked_add(self.transient).is_none_or(|needed| needed > config.steps) {
             return Err(Error::param("clv-steps", format!(
-                "the CLV window ({}) plus the backward transient ({}) must fit in the accumulated --steps ({})",
-                self.clv_steps, self.transient, config.steps
+                "the CLV window ({}) plus the backward transient ({}) must fit in the accumulated --steps ({}); give --steps {} or more, \
+                 or a shorter --clv-steps and --transient (by default a tenth of the run and half that; --transient 0 discards none)",
+                self.clv_steps, self.transient, config.steps, self.clv_steps.saturating_add(self.transient)
             )));
         }
         Ok(())
