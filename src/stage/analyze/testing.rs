@@ -38,7 +38,7 @@ pub fn spectrum(n: usize, len: usize) -> SpectrumSummary {
     let mut e = pos.clone();
     e.extend([0.0; 6]);
     e.extend(pos.iter().rev().map(|x| -x));
-    SpectrumSummary { stderr: vec![1e-3; e.len()], exponents: e, ks_entropy: None, blocks: None }
+    SpectrumSummary { stderr: vec![1e-3; e.len()], exponents: e, ks_entropy: None, blocks: None, warnings: Vec::new() }
 }
 
 /// The context of a stream of `system` ("disks", "henon" or "lorenz"; N disks in an lx x ly
