@@ -192,6 +192,10 @@ fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
     // A second sweep with other options: the first one's CLV spectrum is kept beside it, and
     // moves with it when the run is extended.
     ok(clv(&["backward", short.to_str().unwrap(), "--quiet", "--save-every", "0", "--c-init", "random"]));
+    // A report kept inside the run (where `clv analyze RUN --out RUN` points) describes the
+    // shorter run and goes with its results; a directory of the user's own stays.
+    ok(clv(&["analyze", short.join("frames.mcap").to_str().unwrap(), "--out", short.join("report").to_str().unwrap(), "--only", "spectrum", "--quiet"]));
+    std::fs::create_dir_all(short.join("notes")).unwrap();
     run(&long, "1500", "800");
     backward(&long);
     let before: BTreeMap<&str, Vec<u8>> = ["spectrum.json", "clv_spectrum.json", "clv_spectrum-1.json", "frames.mcap"].into_iter().map(|f| (f, std::fs::read(short.join(f)).unwrap())).collect();
@@ -200,6 +204,7 @@ fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
     let extend = |dir: &Path, env: &[(&str, &str)]| common::clv_env(&["forward", "--resume", dir.to_str().unwrap(), "--steps", "1500", "--clv-steps", "800", "--quiet"], env);
     ok(extend(&extended, &[]));
     let kept = extended.join("previous-530-steps");
+    assert!(kept.join("report/summary.json").exists() && !extended.join("report").exists() && extended.join("notes").is_dir(), "the report inside the run did not go with the shorter run's results");
     let shown = String::from_utf8(clv(&["inspect", extended.to_str().unwrap()]).stdout).unwrap();
     assert!(shown.contains("previous-530-steps/  the results of the run before it was extended"), "{shown}");
     for (f, bytes) in &before {

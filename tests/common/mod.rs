@@ -54,6 +54,8 @@ pub fn copy_dir(from: &Path, to: &Path) {
     for e in std::fs::read_dir(from).unwrap().flatten() {
         if e.path().is_file() {
             std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        } else if e.path().is_dir() {
+            copy_dir(&e.path(), &to.join(e.file_name()));
         }
     }
 }
