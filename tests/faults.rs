@@ -594,10 +594,18 @@ fn numerical_faults_stop_the_run_naming_the_step() {
         cp.state.g[d..2 * d].copy_from_slice(&first);
     });
     let out = clv(&["forward", "--resume", run, "--quiet"]);
-    assert!(!out.status.success() && stderr(&out).contains("found the first 32 tangent vectors dependent") && stderr(&out).contains("linearly dependent"), "{}", stderr(&out));
+    assert!(!out.status.success() && stderr(&out).contains("found the first 32 tangent vectors linearly dependent"), "{}", stderr(&out));
     // A tau far too long for the flow: the error points at --tau.
     let out = clv(&["forward", "--system", "lorenz", "--tau", "100", "--steps", "5", "--quiet"]);
     assert!(!out.status.success() && stderr(&out).contains("smaller --tau"), "{}", stderr(&out));
+    // So it does where the vectors overflow to infinity (hard disks, lambda_1 tau ~ 1000).
+    let out = clv(&["forward", "--n", "4", "--aspect", "1", "--tau", "200", "--steps", "5", "--quiet"]);
+    assert!(!out.status.success() && stderr(&out).contains("invalid --tau") && stderr(&out).contains("not finite") && stderr(&out).contains("smaller --tau"), "{}", stderr(&out));
+    // With --out, the run directory is named as the one to move aside: a run with another
+    // --tau is refused into it, and --resume meets the same step.
+    let blown = scratch("faults", "blown").join("run");
+    let out = clv(&["forward", "--n", "4", "--aspect", "1", "--tau", "200", "--steps", "5", "--quiet", "--out", blown.to_str().unwrap()]);
+    assert!(!out.status.success() && stderr(&out).contains(&format!("move {} aside or delete it", blown.display())), "{}", stderr(&out));
     // Energy changed behind the run's back: the drift check stops it at the next checkpoint.
     alter_checkpoint(&dir, prev, |cp| {
         let n2 = cp.d / 2;

@@ -45,10 +45,12 @@ pub fn inspect(args: &InspectArgs) -> Result<()> {
     // Damaged segments and gaps are repaired by a forward resume; each damaged record's line,
     // and a run.json that disagrees with the segments, says what repairs it.
     let only_records = found.segments.iter().all(|s| s.damage.is_none()) && found.gaps.is_empty();
+    // With --json, what the text calls DAMAGE lines are the object's fields.
+    let (lines, above) = if args.json { ("damaged_records and meta_mismatch entry of the JSON", "in the JSON's segments and gaps") } else { ("DAMAGE line above", "above") };
     match (found.intact, only_records) {
         (true, _) => Ok(()),
-        (false, true) => Err(Error::Other(format!("{}: damage found; each DAMAGE line above says how to repair it", args.dir.display()))),
-        (false, false) => Err(Error::Other(format!("{}: damaged files found (see above); repair them with `clv forward --resume {}`", args.dir.display(), args.dir.display()))),
+        (false, true) => Err(Error::Other(format!("{}: damage found; each {lines} says how to repair it", args.dir.display()))),
+        (false, false) => Err(Error::Other(format!("{}: damaged files found ({above}); repair them with `clv forward --resume {}`", args.dir.display(), args.dir.display()))),
     }
 }
 

@@ -102,19 +102,23 @@ impl Forward {
         let dependent = self.qr.factor_with_copies(&mut self.g, &mut self.r, copies);
         let t2 = std::time::Instant::now();
         if let Some(i) = dependent.or_else(|| (0..self.r.ncols()).find(|&i| !(self.r[(i, i)].is_finite() && self.r[(i, i)] > 0.0))) {
-            let why = if self.r[(i, i)].is_nan() {
-                "are not finite (a numerical blow-up)".to_string()
-            } else {
-                format!(
-                    "are linearly dependent in double precision: k larger than the rank, or a --tau so long that between two QR steps they spread \
-                     by more than the 16 digits of a double resolve, (lambda_1 - lambda_k) tau above about {:.0} (with tau = {}: exponents more than {:.3} apart); \
-                     give a smaller --tau",
-                    crate::linalg::RESOLVED_SPREAD,
-                    self.system.tau(),
-                    crate::linalg::RESOLVED_SPREAD / self.system.tau()
-                )
-            };
-            return Err(Error::Dynamics(format!("step {}: the QR step found the first {} tangent vectors dependent: they {why}; no exponent is accumulated from it", self.step + 1, i + 1)));
+            let (step, tau) = (self.step + 1, self.system.tau());
+            // The settings' error, not the dynamics': the same step fails again with them.
+            if !self.r[(i, i)].is_finite() {
+                return Err(Error::param("tau", format!(
+                    "step {step}: the QR step found tangent vector {} not finite, a numerical blow-up: between two QR steps the vectors grow like e^(lambda_1 tau), \
+                     past a double's range for lambda_1 tau above about 700; with tau = {tau}, give a smaller --tau; no exponent is accumulated from it",
+                    i + 1
+                )));
+            }
+            return Err(Error::param("tau", format!(
+                "step {step}: the QR step found the first {} tangent vectors linearly dependent in double precision: k larger than the rank, \
+                 or a --tau so long that between two QR steps they spread by more than the 16 digits of a double resolve, (lambda_1 - lambda_k) tau above about {:.0} \
+                 (with tau = {tau}: exponents more than {:.3} apart); give a smaller --tau; no exponent is accumulated from it",
+                i + 1,
+                crate::linalg::RESOLVED_SPREAD,
+                crate::linalg::RESOLVED_SPREAD / tau
+            )));
         }
         if self.step >= self.relax_steps {
             self.acc.add(&self.r);

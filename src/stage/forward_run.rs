@@ -440,7 +440,18 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
         bar.set_position(fwd.step);
     }
     while fwd.step < total {
-        fwd.step()?;
+        fwd.step().map_err(|e| match e {
+            Error::Param { name: "tau", msg } => Error::param(
+                "tau",
+                format!(
+                    "{msg}. The run in {} keeps its steps before this one, but cannot pass it with its settings (--resume meets the same step): \
+                     to start again with other settings, move {} aside or delete it",
+                    dir.path.display(),
+                    dir.path.display()
+                ),
+            ),
+            e => e,
+        })?;
         let n = fwd.step;
         if let Some(warning) = fwd.early_precision_warning(config.steps) {
             feedback.notice(format!("warning: {warning}"));

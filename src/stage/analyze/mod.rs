@@ -166,7 +166,10 @@ impl Context {
             return Err(Error::param("every", format!("{source}: {why}, so the vector statistics can sample every m-th step only for m a multiple of {with_v}, not {every}")));
         }
         let given_deltas = deltas.is_some();
-        let deltas = deltas.unwrap_or_else(|| [1u64, 2, 5, 10, 20, 50, 100, 200, 500].into_iter().filter(|&dl| dl * 4 <= clv_steps.max(4)).collect());
+        let mut deltas = deltas.unwrap_or_else(|| [1u64, 2, 5, 10, 20, 50, 100, 200, 500].into_iter().filter(|&dl| dl * 4 <= clv_steps.max(4)).collect());
+        // Each length once, shortest first (a repeated one would write its rows twice).
+        deltas.sort_unstable();
+        deltas.dedup();
         if deltas.contains(&0) {
             return Err(Error::param("deltas", "window lengths must be at least 1 step"));
         }

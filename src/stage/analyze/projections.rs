@@ -111,6 +111,7 @@ impl Analysis for Projections {
         let central = ctx.central_range();
         let full = k == ctx.d;
         let avg = format!("averaged over {frames} frames ({})", ctx.sample());
+        let second = central.map(|(a, b)| format!("; the second plot enlarges the central part, i = {}..{}", a + 1, b + 1)).unwrap_or_default();
         let tables = vec!["projections.csv".to_string()];
 
         // One figure and its central enlargement.
@@ -141,7 +142,7 @@ impl Analysis for Projections {
             produced.push(Produced {
                 title: "Position and momentum content of the GS vectors (Fig. 6)".into(),
                 caption: format!(
-                    "η_q = <Σ_n |δq_n|^2> and η_p = <Σ_n |δp_n|^2> for the Gram-Schmidt vectors g^i against i, {avg}; the second plot enlarges the central part. For GS vectors η_q and η_p are interchanged between i and 4N+1-i.{sym}"
+                    "η_q = <Σ_n |δq_n|^2> and η_p = <Σ_n |δp_n|^2> for the Gram-Schmidt vectors g^i against i, {avg}{second}. For GS vectors η_q and η_p are interchanged between i and 4N+1-i.{sym}"
                 ),
                 figures,
                 tables: tables.clone(),
@@ -152,7 +153,7 @@ impl Analysis for Projections {
         produced.push(Produced {
             title: "Position and momentum content of the covariant vectors (Fig. 7)".into(),
             caption: format!(
-                "η_q = <Σ_n |δq_n|^2> and η_p = <Σ_n |δp_n|^2> for the covariant vectors v^i against i, {avg}; the second plot enlarges the central part. For covariant vectors η_q(i) = η_q(4N+1-i).{sym}"
+                "η_q = <Σ_n |δq_n|^2> and η_p = <Σ_n |δp_n|^2> for the covariant vectors v^i against i, {avg}{second}. For covariant vectors η_q(i) = η_q(4N+1-i).{sym}"
             ),
             figures,
             tables: tables.clone(),
@@ -166,7 +167,7 @@ impl Analysis for Projections {
         produced.push(Produced {
             title: "Angle between position and momentum perturbations (Fig. 9)".into(),
             caption: format!(
-                "Time average of the signed cos Θ = δq · δp / (|δq| |δp|) of each vector against i{}, {avg}; the second plot enlarges the central part. For GS vectors it approaches +1 (-1) for the smallest positive (negative) exponents; for covariant vectors it does not.{}",
+                "Time average of the signed cos Θ = δq · δp / (|δq| |δp|) of each vector against i{}, {avg}{second}. For GS vectors it approaches +1 (-1) for the smallest positive (negative) exponents; for covariant vectors it does not.{}",
                 if self.gs.is_some() { ", GS and covariant vectors" } else { ", covariant vectors" },
                 if full {
                     format!(
@@ -248,6 +249,7 @@ mod tests {
         let produced = a.finish(&out, 2).unwrap();
         let stems: Vec<&String> = produced.iter().flat_map(|p| &p.figures).collect();
         assert_eq!(stems.len(), 6, "{stems:?}");
+        assert!(produced.iter().all(|p| p.caption.contains("the second plot enlarges the central part, i = ")));
         let t = read_csv(&out.join("projections.csv"));
         let (q, p, c) = (column(&t, "eta_q_clv"), column(&t, "eta_p_clv"), column(&t, "cos_theta_clv"));
         let want_q = [1.0, 0.5, 0.8, 0.8, 0.75, 1.0];
@@ -290,6 +292,13 @@ mod tests {
         // unit vectors: the first 2N are pure dq
         let q = column(&t, "eta_q_clv");
         assert!(q[..4].iter().all(|&x| x == 1.0) && q[4..].iter().all(|&x| x == 0.0));
+        // With k < D there is no central part to enlarge, and no caption says there is.
+        let mut ctx = context(2, false);
+        ctx.k = 4;
+        let mut a = new(&ctx).unwrap();
+        a.consume(&Frame { step: 0, time: 0.0, d, k: 4, phase: vec![0.0; d], v: (0..d * 4).map(|x| if x % (d + 1) == 0 { 1.0 } else { 0.0 }).collect(), local: vec![0.0; 4], gs_local: Vec::new(), g: None }).unwrap();
+        let produced = a.finish(&scratch("projections-k4"), 1).unwrap();
+        assert!(produced.iter().all(|p| p.figures.len() == 1 && !p.caption.contains("second plot")), "{produced:?}");
     }
 
     #[test]
