@@ -491,6 +491,7 @@ fn an_extension_keeps_an_interrupted_sweeps_own_frame_file_with_the_shorter_run(
     ok(clv(&["forward", "--resume", r, "--steps", "800", "--quiet"]));
     let previous = run.join("previous-600-steps");
     assert!(previous.join("custom.mcap.tmp").exists() && previous.join("backward.json").exists() && !run.join("custom.mcap.tmp").exists());
+    assert!(!run.join("custom.mcap.lock").exists(), "the killed sweep's lock file stays behind");
     ok(clv(&["backward", r, "--out", custom.to_str().unwrap(), "--quiet"]));
     assert!(custom.exists());
     // Outside the run the file stays, named, with what a new sweep into it needs.

@@ -175,6 +175,8 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
     {
         let tmp = crate::store::frames::tmp_path(&file);
         if sweep.options.frames_path.as_ref().is_some_and(|p| p.is_relative()) {
+            // A killed sweep's lock file: stale, since no sweep runs while the run is locked.
+            let _ = std::fs::remove_file(crate::store::frames::lock_path(&file));
             with_sweep.extend([file, tmp]);
         } else if file.exists() || tmp.exists() {
             let which = if sweep.done { &file } else { &tmp };

@@ -93,12 +93,17 @@ fn suffixed(path: &Path, suffix: &str) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// FILE.lock, the lock file of the frame file `path`; left behind only by a killed sweep.
+pub fn lock_path(path: &Path) -> PathBuf {
+    suffixed(path, ".lock")
+}
+
 /// Take the right to write the frame file `path` (and its FILE.tmp, FILE.tmp.old) for a
 /// whole backward sweep: a lock on FILE.lock beside it ([`super::lock`]), removed when the
 /// sweep is done. Two sweeps of different runs may name the same --out; of two at once, the
 /// second is refused here, before it looks at or writes anything of the file.
 pub fn lock(path: &Path) -> Result<super::lock::WriteLock> {
-    let lock = suffixed(path, ".lock");
+    let lock = lock_path(path);
     super::lock::take(&lock, path, "backward pass (or give this sweep another --out)", true, |e| Error::io(&lock, e))
 }
 
