@@ -798,3 +798,29 @@ fn a_run_of_one_block_is_read_by_every_stage() {
     let combined = String::from_utf8_lossy(&ok(clv(&["combine", one.to_str().unwrap(), two.to_str().unwrap()])).stdout).into_owned();
     assert!(combined.contains("chi2/dof of the runs about the combined spectrum: not known"), "{combined}");
 }
+
+/// An independent implementation (scripts/verify_henon.py: numpy, from the checkpoint of step
+/// 0 alone) of the Henon map, its QR iteration and Ginelli's backward pass agrees with the
+/// run and its frames to round-off: spectra, G_n, V_n, local exponents, covariance. Frames of
+/// another run (seed) are a disagreement, so the check can fail.
+#[test]
+fn an_independent_henon_implementation_agrees() {
+    if !common::python_has("mcap, cbor2, numpy") {
+        return;
+    }
+    let base = scratch("verify-henon");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/verify_henon.py");
+    let run_with = |seed: &str| {
+        let run = base.join(format!("run-{seed}"));
+        let frames = base.join(format!("frames-{seed}.mcap"));
+        ok(clv(&["forward", "--system", "henon", "--steps", "2000", "--relax-steps", "100", "--seed", seed, "--quiet", "--out", run.to_str().unwrap()]));
+        ok(clv(&["backward", run.to_str().unwrap(), "--out", frames.to_str().unwrap(), "--with-gs", "--quiet"]));
+        (run, frames)
+    };
+    let ((run, frames), (_, other)) = (run_with("1"), run_with("2"));
+    let out = ok(Command::new("python3").arg(&script).arg(&run).arg(&frames).output().unwrap());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["agree"] == true && v["frames"].as_u64() > Some(200), "{v}");
+    let out = Command::new("python3").arg(&script).arg(&run).arg(&other).output().unwrap();
+    assert!(!out.status.success() && common::stderr(&out).contains("disagreement"), "{}", common::stderr(&out));
+}
