@@ -824,3 +824,29 @@ fn an_independent_henon_implementation_agrees() {
     let out = Command::new("python3").arg(&script).arg(&run).arg(&other).output().unwrap();
     assert!(!out.status.success() && common::stderr(&out).contains("disagreement"), "{}", common::stderr(&out));
 }
+
+/// The covariant vectors of a hard-disk run are covariant by finite differences of the flow
+/// (scripts/verify_disks.py: its own event-driven integrator, no tangent-space code), and
+/// satisfy the exact identities of G_n and V_n in every frame. Another run's frames are a
+/// disagreement, so the check can fail.
+#[test]
+fn hard_disk_vectors_are_covariant_by_finite_differences() {
+    if !common::python_has("mcap, cbor2, numpy") {
+        return;
+    }
+    let base = scratch("verify-disks");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/verify_disks.py");
+    let run_with = |seed: &str| {
+        let run = base.join(format!("run-{seed}"));
+        let frames = base.join(format!("frames-{seed}.mcap"));
+        ok(clv(&["forward", "--n", "8", "--aspect", "2/11", "--steps", "600", "--relax-steps", "100", "--clv-steps", "100", "--seed", seed, "--quiet", "--out", run.to_str().unwrap()]));
+        ok(clv(&["backward", run.to_str().unwrap(), "--out", frames.to_str().unwrap(), "--with-gs", "--quiet"]));
+        (run, frames)
+    };
+    let ((run, frames), (_, other)) = (run_with("1"), run_with("2"));
+    let out = ok(Command::new("python3").arg(&script).arg(&run).arg(&frames).output().unwrap());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["agree"] == true && v["sampled"].as_u64() == Some(8), "{v}");
+    let out = Command::new("python3").arg(&script).arg(&run).arg(&other).output().unwrap();
+    assert!(!out.status.success() && common::stderr(&out).contains("disagreement"), "{}", common::stderr(&out));
+}
