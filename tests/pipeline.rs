@@ -699,6 +699,15 @@ fn clv_run_writes_no_report_over_another_runs() {
     ok(longer("800"));
     assert!(e.join("run/previous-600-steps/report/summary.json").exists(), "the earlier report is kept");
     assert!(read(&e.join("report/index.html")).contains("\"steps\":800"), "the report is the longer run's");
+    // Made longer keeping its window (as `clv forward --resume --steps` does by default),
+    // the run is taken by `clv run` of its new length with that window, not refused as
+    // another configuration.
+    ok(clv(&["forward", "--resume", e.join("run").to_str().unwrap(), "--steps", "1000", "--quiet"]));
+    ok(longer("1000"));
+    assert!(e.join("run/previous-800-steps/report/summary.json").exists() && read(&e.join("report/index.html")).contains("\"steps\":1000"));
+    // A window asked for that the run does not have is still another configuration.
+    let other = clv(&["run", "--out", e.to_str().unwrap(), "--n", "8", "--steps", "1000", "--relax-steps", "50", "--clv-steps", "90", "--quiet"]);
+    assert!(!other.status.success() && common::stderr(&other).contains("another configuration"), "{}", common::stderr(&other));
     // A file where the run or the report goes.
     for part in ["run", "report"] {
         let o = n.parent().unwrap().join(format!("file-as-{part}"));

@@ -132,9 +132,27 @@ fn own_options_moved(args: &RunArgs, matches: &ArgMatches) -> Result<RunArgs> {
     Ok(moved)
 }
 
+/// `clv run`'s CLV window follows --steps, but a run made longer by `clv forward --resume
+/// --steps` kept its own: for that run, given again with its steps and no window asked for,
+/// the run's window is taken (it was refused as another configuration).
+fn window_of_the_run_in_out(args: &RunArgs, config: &RunConfig, mut store: StoreConfig) -> StoreConfig {
+    let asked = |key: &str| super::names_flag(&args.settings, key) || args.config.as_deref().is_some_and(|file| super::config_file::line_of(file, key).is_some());
+    if asked("clv-steps") || asked("transient") {
+        return store;
+    }
+    if let Ok((_, stored)) = clv::store::RunDir::open(&args.out.join("run"))
+        && stored.config.same_but_threads(config)
+    {
+        store.clv_steps = stored.store.clv_steps;
+        store.transient = stored.store.transient;
+    }
+    store
+}
+
 pub fn run(args: &RunArgs, matches: &ArgMatches) -> Result<()> {
     let args = &own_options_moved(args, matches)?;
     let RunMeta { config, store, .. } = run_meta(args)?;
+    let store = window_of_the_run_in_out(args, &config, store);
     super::no_stdout_directory(&args.out, "the run and its report")?;
     if args.out.is_file() {
         return Err(Error::param("out", format!("{} is a file; `clv run` writes a directory (run/ and report/ in it)", args.out.display())));
