@@ -100,6 +100,11 @@ impl DiskFull for std::io::Error {
 }
 
 impl Error {
+    /// No room for a write: a full disk, a quota or a file-size limit ([`DiskFull`]).
+    pub fn is_disk_full(&self) -> bool {
+        matches!(self, Error::Io { source, .. } if source.is_disk_full())
+    }
+
     /// A full disk, said with how this command continues once there is space (`then`, e.g.
     /// "continue with `clv forward --resume RUN`"); any other error as it is.
     pub fn on_full_disk(self, then: impl FnOnce() -> String) -> Self {

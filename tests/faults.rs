@@ -196,7 +196,10 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
     let report = dir.parent().unwrap().join("limited-report");
     let analyze = format!("{} analyze {} --out {} --quiet", env!("CARGO_BIN_EXE_clv"), dir.display(), report.display());
     let out = Command::new("bash").args(["-c", &format!("ulimit -f 20 && exec {analyze}")]).output().unwrap();
-    assert!(!out.status.success() && stderr(&out).contains("file-size limit reached"), "{}", stderr(&out));
+    let err = stderr(&out);
+    // One error, that of the limit, with the way to continue (not one per analysis, each
+    // saying to give the command again, which is refused without --overwrite).
+    assert!(!out.status.success() && err.contains("file-size limit reached") && err.contains("again with --overwrite") && err.matches("clv: error").count() == 1, "{err}");
     let index = std::fs::read_to_string(report.join("index.html")).unwrap();
     assert!(index.contains("<title>clv analyses: incomplete") && index.contains("Incomplete report.") && !report.join("summary.json").exists(), "{index:.300}");
     ok(clv(&["analyze", dir.to_str().unwrap(), "--out", report.to_str().unwrap(), "--overwrite", "--quiet"]));
@@ -927,22 +930,31 @@ fn a_read_only_run_directory_is_named_with_the_way_out() {
     ok(clv(&["forward", "--n", "8", "--aspect", "1", "--steps", "300", "--clv-steps", "50", "--quiet", "--out", run.to_str().unwrap()]));
     let exe = base.join("clv");
     std::fs::copy(env!("CARGO_BIN_EXE_clv"), &exe).unwrap();
+    let analysed = base.join("f.mcap");
+    ok(clv(&["backward", run.to_str().unwrap(), "--quiet", "--out", analysed.to_str().unwrap()]));
+    std::fs::set_permissions(&analysed, std::fs::Permissions::from_mode(0o644)).unwrap();
     for entry in std::fs::read_dir(&run).unwrap() {
         std::fs::set_permissions(entry.unwrap().path(), std::fs::Permissions::from_mode(0o644)).unwrap();
     }
     std::fs::set_permissions(&base, std::fs::Permissions::from_mode(0o755)).unwrap();
     std::fs::set_permissions(&run, std::fs::Permissions::from_mode(0o555)).unwrap();
     let frames = std::env::temp_dir().join(format!("clv-read-only-{}.mcap", std::process::id()));
-    let args = ["backward", run.to_str().unwrap(), "--quiet", "--out", frames.to_str().unwrap()];
-    let out = if as_root {
-        Command::new("/usr/bin/setpriv").args(["--reuid=65534", "--regid=65534", "--clear-groups", exe.to_str().unwrap()]).args(args).output().unwrap()
-    } else {
-        Command::new(&exe).args(args).output().unwrap()
+    let as_user = |args: &[&str]| {
+        if as_root {
+            Command::new("/usr/bin/setpriv").args(["--reuid=65534", "--regid=65534", "--clear-groups", exe.to_str().unwrap()]).args(args).output().unwrap()
+        } else {
+            Command::new(&exe).args(args).output().unwrap()
+        }
     };
+    let out = as_user(&["backward", run.to_str().unwrap(), "--quiet", "--out", frames.to_str().unwrap()]);
+    // A report into it: the way out too, not a bare OS error.
+    let report = as_user(&["analyze", analysed.to_str().unwrap(), "--quiet", "--out", run.join("rep").to_str().unwrap()]);
     std::fs::set_permissions(&run, std::fs::Permissions::from_mode(0o755)).unwrap();
     let _ = std::fs::remove_dir_all(&base);
     let err = stderr(&out);
     assert!(!out.status.success() && err.contains("is not writable") && err.contains("cp -r"), "{err}");
+    let err = stderr(&report);
+    assert!(!report.status.success() && err.contains("give --out a directory you can write"), "{err}");
 }
 
 /// The small JSON records beside the segments carry checksums: one changed digit in the

@@ -236,6 +236,30 @@ fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
             assert!(std::fs::read(dir.join("previous-530-steps").join(f)).unwrap() == *bytes, "{at}: {f}");
         }
     }
+    // Killed after the shorter run's results went aside, before the new run.json was in
+    // place: a plain --resume (what the stage's messages and inspect advise) finishes the
+    // extension from run.tmp, instead of finishing the shorter run beside its moved results,
+    // which then blocked the extension; without a whole run.tmp it asks for the extension's
+    // command.
+    let dir = scratch("extend-crash-plain-resume").join("run");
+    copy_dir(&short, &dir);
+    assert_eq!(extend(&dir, &[("CLV_FAULT_CRASH_AT", "atomic-synced#1")]).status.code(), Some(clv::store::fault::CRASH_STATUS));
+    let torn = scratch("extend-crash-torn").join("run");
+    copy_dir(&dir, &torn);
+    let err = common::stderr(&ok(clv(&["forward", "--resume", dir.to_str().unwrap()])));
+    assert!(err.contains("was interrupted after the results of the shorter run went to") && contents(&dir) == want, "{err}");
+    std::fs::write(torn.join("run.tmp"), "{\"cut\": ").unwrap();
+    let out = clv(&["forward", "--resume", torn.to_str().unwrap(), "--quiet"]);
+    assert!(!out.status.success() && common::stderr(&out).contains("give the extension's command again"), "{}", common::stderr(&out));
+    ok(extend(&torn, &[]));
+    assert!(contents(&torn) == want, "the extension given again after a torn run.tmp");
+    // A full disk there: the message gives the extension's command, with its new length.
+    let full = scratch("extend-full").join("run");
+    copy_dir(&short, &full);
+    let err = common::stderr(&extend(&full, &[("CLV_FAULT_DISK_FULL_AFTER", "100")]));
+    assert!(err.contains("disk full") && err.contains(&format!("continue with `clv forward --resume {} --steps 1500 --clv-steps 800`", full.display())), "{err}");
+    ok(extend(&full, &[]));
+    assert!(contents(&full) == want, "the extension continued after a full disk");
 }
 
 /// run.json edited by hand (or damaged) so that it describes another trajectory is refused
@@ -501,4 +525,24 @@ fn an_extension_keeps_an_interrupted_sweeps_own_frame_file_with_the_shorter_run(
     let extended = ok(clv(&["forward", "--resume", r, "--steps", "900"]));
     let err = common::stderr(&extended);
     assert!(err.contains("outside.mcap.tmp holds frames of the 800-step run") && err.contains("needs it moved aside first"), "{err}");
+}
+
+/// A report inside the run that an analysis is writing now is not moved, torn, into
+/// previous-*: the extension is refused, naming it, and goes through once it is done.
+#[test]
+fn an_extension_does_not_move_a_report_being_written() {
+    let run = scratch("extend-report-busy").join("run");
+    let r = run.to_str().unwrap();
+    ok(clv(&["forward", "--n", "8", "--aspect", "1", "--steps", "600", "--clv-steps", "200", "--out", r, "--quiet"]));
+    ok(clv(&["backward", r, "--quiet"]));
+    let report = run.join("report");
+    ok(clv(&["analyze", r, "--out", report.to_str().unwrap(), "--only", "spectrum", "--quiet"]));
+    let writing = clv::report::dir::lock_report(&report).unwrap();
+    let out = clv(&["forward", "--resume", r, "--steps", "800", "--quiet"]);
+    let err = common::stderr(&out);
+    assert!(!out.status.success() && err.contains("another clv process is writing") && err.contains(&report.display().to_string()), "{err}");
+    assert!(report.join("summary.json").exists() && run.join("spectrum.json").exists() && !run.join("previous-600-steps").exists(), "moved while refused");
+    drop(writing);
+    ok(clv(&["forward", "--resume", r, "--steps", "800", "--quiet"]));
+    assert!(run.join("previous-600-steps/report/summary.json").exists());
 }

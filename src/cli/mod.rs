@@ -197,6 +197,12 @@ pub fn execute(cli: &Cli, matches: &ArgMatches) -> Result<()> {
 /// What a person does to continue a command a full disk stopped, once there is space.
 fn how_to_continue(command: &Command) -> String {
     match command {
+        // An extension is continued by its own command (the new length is in no file yet
+        // when the disk fills before its run.json is written).
+        Command::Forward(args) if args.resume.is_some() && names_flag(std::env::args(), "steps") => {
+            let window = [("clv-steps", args.clv_steps), ("transient", args.transient)].into_iter().filter_map(|(flag, v)| v.map(|v| format!(" --{flag} {v}"))).collect::<String>();
+            format!("continue with `clv forward --resume {} --steps {}{window}`", args.resume.as_ref().map_or(String::new(), |r| r.display().to_string()), args.steps)
+        }
         Command::Forward(args) => match args.resume.as_ref().or(args.out.as_ref()) {
             Some(run) => format!("continue with `clv forward --resume {}`", run.display()),
             None => "give the command again".into(),

@@ -276,7 +276,11 @@ impl Drop for ReportLock {
 pub fn lock_report(out: &Path) -> Result<ReportLock> {
     let made = !out.exists();
     let path = out.join(LOCK);
-    let lock = crate::store::lock::take(&path, out, LOCKED_FOR, true, |e| Error::io(&path, e))?;
+    let unwritable = |e: std::io::Error| match e.raw_os_error() {
+        Some(libc::EROFS | libc::EACCES | libc::EPERM) => Error::Other(format!("{}: {e}; a report cannot be written there: give --out a directory you can write", path.display())),
+        _ => Error::io(&path, e),
+    };
+    let lock = crate::store::lock::take(&path, out, LOCKED_FOR, true, unwritable)?;
     Ok(ReportLock { lock: Some(lock), dir: out.to_path_buf(), made })
 }
 

@@ -98,8 +98,45 @@ pub fn complete_creation(path: &Path, feedback: &mut Feedback) -> Result<()> {
 /// if given, else on the run's (the numbers do not depend on it).
 pub fn resume(path: &Path, threads: Option<usize>, feedback: &mut Feedback) -> Result<Outcome> {
     let (dir, mut meta, _lock) = open_to_continue(path, feedback)?;
+    if let Some(longer) = interrupted_extension(&dir, &meta)? {
+        write_atomic(&dir.meta_path(), &crate::store::checked_json::to_vec(&longer)?)?;
+        feedback.notice(format!(
+            "the extension of {} from {} to {} steps was interrupted after the results of the shorter run went to {}; it goes on",
+            path.display(),
+            meta.config.steps,
+            longer.config.steps,
+            previous_results(path, meta.config.steps).display()
+        ));
+        meta = longer;
+    }
     meta.config.set_threads(threads);
     continue_locked(&dir, &meta, feedback)
+}
+
+/// The run.json of an extension cut off after it moved the shorter run's results aside and
+/// before its new run.json was in place ([`extend`]): read from run.tmp when that was written
+/// whole. Without it, finishing the run at its old length would write a spectrum.json beside
+/// the one moved aside, and the extension would then be refused; so the extension's command
+/// is asked for instead.
+fn interrupted_extension(dir: &RunDir, meta: &RunMeta) -> Result<Option<RunMeta>> {
+    let kept = previous_results(&dir.path, meta.config.steps);
+    if dir.spectrum_path().exists() || !kept.join("spectrum.json").exists() {
+        return Ok(None);
+    }
+    let tmp = dir.path.join("run.tmp");
+    let same_run = |m: &RunMeta| m.config.steps > meta.config.steps && crate::config::RunConfig { steps: meta.config.steps, ..m.config.clone() }.same_but_threads(&meta.config);
+    let longer = std::fs::read(&tmp).ok().and_then(|bytes| crate::store::checked_json::from_slice::<RunMeta>(&tmp, &bytes).ok()).map(|(m, _)| m).filter(same_run);
+    match longer {
+        Some(longer) => Ok(Some(longer)),
+        None => Err(Error::Other(format!(
+            "an extension of the run in {} was interrupted: the results of its {} steps are already in {}; give the extension's command again \
+             (`clv forward --resume {} --steps M` with its new length M, and its --clv-steps and --transient if it had them)",
+            dir.path.display(),
+            meta.config.steps,
+            kept.display(),
+            dir.path.display()
+        ))),
+    }
 }
 
 /// The run in `path`, locked for the forward pass, once it is sure this build can continue
@@ -189,7 +226,14 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
         }
     }
     let with_sweep: Vec<&Path> = with_sweep.iter().map(PathBuf::as_path).collect();
+    // A report in `also` is moved under its lock: one being written now is refused, not torn.
+    let report_locks = also
+        .iter()
+        .filter(|p| matches!(crate::report::dir::report_in(p), crate::report::dir::ReportDir::Report { .. }))
+        .map(|p| crate::report::dir::lock_report(p))
+        .collect::<Result<Vec<_>>>()?;
     let kept = archive_results(&dir, &previous_results(path, old.config.steps), &with_sweep)?;
+    drop(report_locks);
     write_atomic(&dir.meta_path(), &crate::store::checked_json::to_vec(&meta)?)?;
     let mut msg = format!(
         "extending {} from {} to {} steps (CLV window {} + transient {} at the new end)",

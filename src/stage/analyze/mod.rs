@@ -425,6 +425,7 @@ impl Analyzer {
                 let w = self.workers.remove(i);
                 let name = w.name;
                 return Err(match w.handle.join() {
+                    Ok(Err(e)) if e.is_disk_full() => e,
                     Ok(Err(e)) => Error::Other(format!("analysis {name}: {e}")),
                     _ => Error::Other(format!("analysis {name} stopped")),
                 });
@@ -438,13 +439,20 @@ impl Analyzer {
     pub fn finish(mut self, damage: Option<&str>) -> Result<Analysed> {
         let mut produced = Vec::new();
         let mut errors = Vec::new();
+        // A full disk is the command's error as it is, so that it says how to continue.
+        let mut full_disk = None;
         for w in &mut self.workers {
             w.tx = None;
         }
         for w in self.workers.drain(..) {
             match w.handle.join() {
                 Ok(Ok(p)) => produced.extend(p),
-                Ok(Err(e)) => errors.push(format!("analysis {}: {e}", w.name)),
+                Ok(Err(e)) => {
+                    errors.push(format!("analysis {}: {e}", w.name));
+                    if e.is_disk_full() {
+                        full_disk.get_or_insert(e);
+                    }
+                }
                 Err(_) => errors.push(format!("analysis {} panicked", w.name)),
             }
         }
@@ -480,6 +488,9 @@ impl Analyzer {
             whole: damage.is_none(),
         };
         write_index(&head, &self.out, &produced, &warnings, &errors, self.frames, self.first_step, self.last_step)?;
+        if let Some(e) = full_disk {
+            return Err(e);
+        }
         if !errors.is_empty() {
             return Err(Error::Other(errors.join("; ")));
         }
