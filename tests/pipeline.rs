@@ -456,7 +456,14 @@ fn vectors_for_every_mth_frame_give_the_analyses_of_the_full_stream() {
         args.extend(every.iter().flat_map(|m| ["--every", m]));
         let err = common::stderr(&ok(clv(&args)));
         assert!(err.contains("had no frame to read") && err.contains("write them again with smaller strides") && !err.contains("give a smaller"), "{every:?}: {err}");
+        // Left out, not a table of NaN under a caption that states results.
+        assert!(!report.join("localization.csv").exists() && !read(&report.join("summary.json")).contains("Localization"), "{every:?}");
     }
+    // A frame file with no step of the window on its stride is refused before it is written.
+    let empty = base.join("empty.mcap");
+    let out = clv(&["backward", r, "--out", empty.to_str().unwrap(), "--quiet", "--save-every", "1000000"]);
+    let err = common::stderr(&out);
+    assert!(!out.status.success() && err.contains("invalid --save-every") && err.contains("would hold no frame") && !empty.exists(), "{err}");
     // A window length longer than the stream measures nothing, and the verdict on domination
     // is taken from the lengths that fit.
     let z = base.join("z");

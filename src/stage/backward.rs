@@ -742,6 +742,18 @@ pub fn run(
         return Err(Error::param("vectors-every", "must be at least 1 (1: every frame carries V_n)"));
     }
     let window = Window::of(&meta, opts)?;
+    if matches!(opts.destination(), Destination::File { every, .. } if window.last / every * every < window.first) {
+        return Err(Error::param(
+            "save-every",
+            format!(
+                "no step of the CLV window {}..{} is a multiple of {}: the frame file would hold no frame; give a --save-every of at most {}",
+                window.first,
+                window.last,
+                opts.save_every,
+                window.last - window.first + 1
+            ),
+        ));
+    }
     let c_every = store.checkpoint_every;
     let mut bounds: Vec<u64> = (window.first / c_every * c_every..total).step_by(c_every as usize).collect();
     bounds.push(total);

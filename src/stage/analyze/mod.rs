@@ -388,6 +388,12 @@ impl Analyzer {
                             used += 1;
                         }
                     }
+                    // With no sampled frame an analysis of them has nothing to show, and its
+                    // captions would state results of no data: left out, as the report's head
+                    // says ([`Analyzer::finish`]).
+                    if wants_sample && used == 0 {
+                        return Ok(Vec::new());
+                    }
                     analysis.finish(&dir, used)
                 })
                 .map_err(|e| Error::Other(format!("cannot start analysis {name}: {e}")))?;
@@ -469,7 +475,7 @@ impl Analyzer {
                 format!("give a smaller --every (a multiple of {with_v})")
             };
             format!(
-                "No frame of this stream (steps {}..{}) is on the stride --every {}: the analyses of vector statistics had no frame to read, and their tables are empty; {remedy}.",
+                "No frame of this stream (steps {}..{}) is on the stride --every {}: the analyses of vector statistics had no frame to read and are left out; {remedy}.",
                 self.first_step, self.last_step, self.ctx.options.every
             )
         });

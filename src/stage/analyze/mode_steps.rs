@@ -156,15 +156,20 @@ pub fn resolve_steps(detected: &[Step], frame: &Frame, candidates: &Candidates, 
     }
     // Away from the mode region that borders the null space, two or four exponents equal
     // within their errors may be chance in a smooth stretch of a short run's spectrum: such a
-    // step stays only if its vectors are a mode.
+    // step stays only if its vectors are a mode. The region is the step at the null space
+    // (whatever its vectors) and the steps beyond it, each next to the last, as long as they
+    // are modes: a chance pair next to it is no more a mode than one further out (N = 8:
+    // an unclassified pair at i = 9..10, 0.07 beyond chance, next to the T pair, had cut
+    // F^(J) to J = 8).
+    let is_mode = |(s, found): &(Step, Found)| *found != Found::Exponents || classify_clearly(frame, s, candidates).is_some();
     let bordering = |out: &[(Step, Found)]| {
         let (mut lo, mut hi) = (null_lo, null_hi);
         let mut keep = vec![false; out.len()];
-        while let Some(i) = out.iter().position(|(s, _)| s.start + s.len == lo) {
+        while let Some(i) = out.iter().position(|(s, _)| s.start + s.len == lo).filter(|&i| lo == null_lo || is_mode(&out[i])) {
             keep[i] = true;
             lo = out[i].0.start;
         }
-        while let Some(i) = out.iter().position(|(s, _)| s.start == hi) {
+        while let Some(i) = out.iter().position(|(s, _)| s.start == hi).filter(|&i| hi == null_hi || is_mode(&out[i])) {
             keep[i] = true;
             hi = out[i].0.start + out[i].0.len;
         }
@@ -172,7 +177,7 @@ pub fn resolve_steps(detected: &[Step], frame: &Frame, candidates: &Candidates, 
     };
     let keep = bordering(&out);
     let mut kept = keep.iter();
-    out.retain(|(s, found)| kept.next().is_some_and(|&k| k) || *found != Found::Exponents || classify_clearly(frame, s, candidates).is_some());
+    out.retain(|step| kept.next().is_some_and(|&k| k) || is_mode(step));
     // Outwards from the null space: the edge is the first index of the mode region so far.
     let mut edge = null_lo;
     loop {
