@@ -255,7 +255,7 @@ fn a_resumed_stream_is_reported_as_covering_part_of_the_window() {
     let warning = format!("covers steps {first}..{last} of the window {first}..1900");
     assert!(err.contains(&format!("clv analyze: warning: This stream {warning}")), "analyze: {err}");
     assert!(summary["warnings"][0].as_str().unwrap().contains(&warning), "{summary}");
-    assert!(read(&report.join("index.html")).contains("Incomplete stream"));
+    assert!(read(&report.join("index.html")).contains(&format!("<strong>Warning.</strong> This stream {warning}")));
     // The whole stream, started again: no warning.
     let whole = base.join("whole");
     let pipe = format!("{} backward {r} --out - --quiet | {} analyze - --out {}", env!("CARGO_BIN_EXE_clv"), env!("CARGO_BIN_EXE_clv"), whole.display());
@@ -263,7 +263,9 @@ fn a_resumed_stream_is_reported_as_covering_part_of_the_window() {
     assert!(out.status.success() && !String::from_utf8_lossy(&out.stderr).contains("warning"));
     let summary: serde_json::Value = serde_json::from_str(&read(&whole.join("summary.json"))).unwrap();
     assert_eq!((summary["first_step"].as_u64(), summary["last_step"].as_u64(), summary["warnings"].as_array().map(Vec::len)), (Some(first), Some(1900), Some(0)));
-    assert!(!read(&whole.join("index.html")).contains("Incomplete stream"));
+    assert!(!read(&whole.join("index.html")).contains("<strong>Warning.</strong>"));
+    // Frames without GS vectors: the report says what it leaves out for that, once.
+    assert!(summary["left_out"].as_array().is_some_and(|l| l.len() == 1 && l[0].as_str().unwrap().starts_with("The frames carry no Gram-Schmidt vectors")), "{summary}");
     // With no backward transient the window ends one step before the run's last step (that
     // step is never a frame): a whole stream, and no warning.
     let t0 = base.join("t0");
@@ -855,4 +857,20 @@ fn hard_disk_vectors_are_covariant_by_finite_differences() {
     let forward = ["forward", "--n", "8", "--aspect", "2/11", "--steps", "600", "--relax-steps", "100", "--clv-steps", "100"];
     let Some(v) = independent_check("verify_disks.py", &forward) else { return };
     assert!(v["agree"] == true && v["sampled"].as_u64() == Some(8), "{v}");
+}
+
+/// Frames of the k < D leading vectors: the report says once what needs all D and is left
+/// out (the mode steps, the Oseledec angles), rather than figures going missing unsaid.
+#[test]
+fn a_report_of_k_leading_vectors_says_what_it_leaves_out() {
+    let base = scratch("k-leading");
+    let run = base.join("run");
+    ok(clv(&["forward", "--n", "4", "--aspect", "1", "--steps", "300", "--relax-steps", "20", "--vectors", "8", "--quiet", "--out", run.to_str().unwrap()]));
+    ok(clv(&["backward", run.to_str().unwrap(), "--with-gs", "--quiet"]));
+    let report = base.join("report");
+    ok(clv(&["analyze", run.to_str().unwrap(), "--out", report.to_str().unwrap(), "--quiet"]));
+    let summary: serde_json::Value = serde_json::from_str(&read(&report.join("summary.json"))).unwrap();
+    let left_out = summary["left_out"].as_array().unwrap();
+    assert!(left_out.len() == 1 && left_out[0].as_str().unwrap().contains("k = 8 leading of D = 16"), "{summary}");
+    assert!(read(&report.join("index.html")).contains("<strong>Not in this report.</strong>"));
 }

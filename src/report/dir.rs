@@ -115,6 +115,8 @@ pub struct Head<'a> {
     /// The stream was read to its end, undamaged: else the report, of the frames before the
     /// damage, stays unfinished (no summary.json), as where an analysis failed.
     pub whole: bool,
+    /// What the frames cannot give (no GS vectors, k < D), and so this report leaves out.
+    pub left_out: Vec<String>,
 }
 
 /// Write index.html (every entry of `produced` with its figures, caption and small tables)
@@ -143,7 +145,10 @@ pub fn write_index(head: &Head, out: &Path, produced: &[Produced], warnings: &[S
         }
     );
     for w in warnings {
-        html += &format!("<p style=\"border:2px solid #c00;padding:0.5em\"><strong>Incomplete stream.</strong> {}</p>\n", escape(w));
+        html += &format!("<p style=\"border:2px solid #c00;padding:0.5em\"><strong>Warning.</strong> {}</p>\n", escape(w));
+    }
+    for l in &head.left_out {
+        html += &format!("<p><strong>Not in this report.</strong> {}</p>\n", escape(l));
     }
     for f in failed {
         html += &format!("<p style=\"border:2px solid #c00;padding:0.5em\"><strong>Incomplete report.</strong> {}: its section is missing; give the command again with <code>--overwrite</code> once the cause is mended.</p>\n", escape(f));
@@ -173,7 +178,7 @@ pub fn write_index(head: &Head, out: &Path, produced: &[Produced], warnings: &[S
         return Ok(());
     }
     // Last: a report with a summary.json is finished.
-    let summary = serde_json::json!({ "frames": frames, "first_step": first, "last_step": last, "options": head.options, "warnings": warnings, "produced": produced });
+    let summary = serde_json::json!({ "frames": frames, "first_step": first, "last_step": last, "options": head.options, "warnings": warnings, "left_out": head.left_out, "produced": produced });
     write_report_file(&out.join("summary.json"), &serde_json::to_vec_pretty(&summary).unwrap_or_default())?;
     let manifest = out.join(WRITING);
     std::fs::remove_file(&manifest).map_err(|e| Error::io(&manifest, e))

@@ -480,6 +480,19 @@ impl Analyzer {
             )
         });
         let forward = self.ctx.gs.iter().flat_map(|g| &g.warnings).map(|w| format!("The forward stage warned: {w}."));
+        // What the frames cannot give, said once here rather than by figures gone missing.
+        let without_gs = (!self.ctx.with_gs && self.frames > 0).then(|| {
+            "The frames carry no Gram-Schmidt vectors (written by `clv backward` without --with-gs): the comparisons of GS and covariant vectors \
+             (Figs. 3, 4, the GS curves of Figs. 6 and 9, the GS columns of the tables) are left out; write the frames again with --with-gs for them."
+                .to_string()
+        });
+        let partial = (self.ctx.is_disks() && self.ctx.k < self.ctx.d && self.frames > 0).then(|| {
+            format!(
+                "The frames carry the k = {} leading of D = {} vectors: what needs all of them (the mode steps of Fig. 8 and Table IV, the angles between \
+                 Oseledec subspaces of Figs. 15-17, conjugate pairs, the null space) is left out.",
+                self.ctx.k, self.ctx.d
+            )
+        });
         let warnings: Vec<String> = forward.chain(damaged).chain(coverage).chain(unsampled).collect();
         let ctx = &self.ctx;
         let head = Head {
@@ -492,6 +505,7 @@ impl Analyzer {
             disks: ctx.is_disks(),
             options: serde_json::to_value(&ctx.options).unwrap_or_default(),
             whole: damage.is_none(),
+            left_out: without_gs.into_iter().chain(partial).collect(),
         };
         write_index(&head, &self.out, &produced, &warnings, &errors, self.frames, self.first_step, self.last_step)?;
         if let Some(e) = full_disk {

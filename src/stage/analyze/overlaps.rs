@@ -198,7 +198,7 @@ impl Analysis for Overlaps {
                         let n = ctx.n;
                         let kept = (2 * n - 2..2 * n).all(|i| (mean[i] - 1.0).abs() < 1e-9);
                         format!(
-                            " It is 1 at i = 1 and i = 2N-2 = {}, where v^i = g^i for any start (the paper).{} It vanishes at i = {}..{}: those covariant vectors are E_(k+3) - s E_k after a backward time s (see Fig. 2), turned towards the position shifts E_k, while those GS vectors are the momentum shifts E_(k+3).",
+                            " It is 1 at i = 1 and i = 2N-2 = {}, where v^i = g^i for any start (the paper).{} At i = {}..{} it is {}: those covariant vectors are E_(k+3) - s E_k after a backward time s (see Fig. 2), turned towards the position shifts E_k as s grows, while those GS vectors are the momentum shifts E_(k+3), so that it vanishes like 1/s in a long window.",
                             2 * n - 2,
                             if kept {
                                 format!(
@@ -210,7 +210,8 @@ impl Analysis for Overlaps {
                                 String::new()
                             },
                             2 * n + 1,
-                            2 * n + 3
+                            2 * n + 3,
+                            (2 * n..2 * n + 3).map(|i| format!("{:.2e}", mean[i])).collect::<Vec<_>>().join(", ")
                         )
                     } else {
                         String::new()
