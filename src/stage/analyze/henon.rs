@@ -47,7 +47,8 @@ pub struct HenonPicture {
 }
 
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
-    if ctx.system != "henon" || ctx.d != 2 {
+    // The stable manifold is drawn along v^2: both vectors are needed.
+    if ctx.system != "henon" || ctx.d != 2 || ctx.k != 2 {
         return None;
     }
     let (a, b) = match ctx.run.config.system {

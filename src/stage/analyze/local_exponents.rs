@@ -279,7 +279,10 @@ impl Analysis for LocalExponents {
             tables: vec!["finite_time_exponents.csv".into()],
         });
 
-        // Domination test.
+        // Domination test: of pairs of neighbouring exponents, none with one vector.
+        if ctx.k < 2 {
+            return Ok(produced);
+        }
         let overall = self.test.overall();
         let pairs: Vec<Vec<f64>> = (0..self.deltas.len()).map(|w| self.test.pair_fractions(w)).collect();
         let outside: Vec<f64> = pairs.iter().map(|p| finite_mean(p.iter().enumerate().filter(|(i, _)| !self.in_null(*i)).map(|(_, &x)| x))).collect();

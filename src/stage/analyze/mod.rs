@@ -486,12 +486,13 @@ impl Analyzer {
              (Figs. 3, 4, the GS curves of Figs. 6 and 9, the GS columns of the tables) are left out; write the frames again with --with-gs for them."
                 .to_string()
         });
-        let partial = (self.ctx.is_disks() && self.ctx.k < self.ctx.d && self.frames > 0).then(|| {
-            format!(
-                "The frames carry the k = {} leading of D = {} vectors: what needs all of them (the mode steps of Fig. 8 and Table IV, the angles between \
-                 Oseledec subspaces of Figs. 15-17, conjugate pairs, the null space) is left out.",
-                self.ctx.k, self.ctx.d
-            )
+        let partial = (self.ctx.k < self.ctx.d && self.frames > 0).then(|| {
+            let what = match self.ctx.system.as_str() {
+                "disks" => " (the mode steps of Fig. 8 and Table IV, the angles between Oseledec subspaces of Figs. 15-17, conjugate pairs, the null space)",
+                "henon" => " (Fig. 1: the stable manifold is drawn along v^2)",
+                _ => "",
+            };
+            format!("The frames carry the k = {} leading of D = {} vectors: what needs all of them{what} is left out.", self.ctx.k, self.ctx.d)
         });
         let warnings: Vec<String> = forward.chain(damaged).chain(coverage).chain(unsampled).collect();
         let ctx = &self.ctx;
