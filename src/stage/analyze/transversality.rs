@@ -265,8 +265,12 @@ impl Analysis for Transversality {
             tables: vec!["transversality.csv".into()],
         });
 
-        // Fig. 16
+        // Figs. 16, 17: of pairs of vectors in F^(J), none where it holds fewer than two.
         let th = &self.theta.clone().unwrap_or_else(|| ThetaStats::new(0, Vec::new()));
+        if th.seps.is_empty() {
+            produced[0].caption += " Figs. 16 and 17 (angles between pairs of covariant vectors in F^(J)) are left out: F^(J) holds fewer than two vectors here.";
+            return Ok(produced);
+        }
         let w = ThetaStats::bin_width();
         let mut header = vec!["theta_lo".to_string(), "theta_hi".to_string()];
         header.extend(th.seps.iter().map(|s| format!("density_sep_{s}")));
