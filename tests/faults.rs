@@ -1263,6 +1263,12 @@ fn a_cut_frame_file_is_named_and_written_whole_again() {
     ok(clv(&args));
     assert!(frames(&file) == whole, "the frames written again differ");
     ok(clv(&["inspect", d]));
+    // A file of every 5th step measures no windows of consecutive frames, and its report's
+    // options say so (they listed the default lengths).
+    let every_fifth = dir.parent().unwrap().join("every-fifth");
+    ok(clv(&["analyze", d, "--out", every_fifth.to_str().unwrap(), "--only", "local_exponents", "--quiet"]));
+    let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(every_fifth.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["options"]["deltas"], serde_json::json!([]), "{summary}");
     // Damaged from its start (no complete frame, or no MCAP at all): the same command.
     for bytes in [&b""[..], b"hello\n"] {
         std::fs::write(&file, bytes).unwrap();

@@ -173,6 +173,11 @@ impl Context {
         if deltas.contains(&0) {
             return Err(Error::param("deltas", "window lengths must be at least 1 step"));
         }
+        // A file of every m-th step has no windows of consecutive frames: none are measured,
+        // and summary.json's options say so.
+        if saved_every > 1 {
+            deltas.clear();
+        }
         let frame_steps = backward.as_ref().and_then(|o| Window::of(&run, o).ok()?.frame_steps(o));
         // Windows of Delta consecutive frames (not computed for a file of every m-th step):
         // lengths of which none fits would give a table of NaN only.
