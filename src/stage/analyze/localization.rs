@@ -72,9 +72,12 @@ impl Analysis for Localization {
         Ok(vec![Produced {
             title: "Localization (Fig. 5)".into(),
             caption: format!(
-                "W = exp(<S>)/N, S = -sum_n mu_n ln mu_n, mu_n = |dq_n|^2 + |dp_n|^2, averaged over {frames} frames{}; standard errors from blocks of {} frames. Small W: the perturbation lives on few disks.{}",
+                "W = exp(<S>)/N, S = -sum_n mu_n ln mu_n, mu_n = |dq_n|^2 + |dp_n|^2, averaged over {frames} frames{}; {}. Small W: the perturbation lives on few disks.{}",
                 if self.gs.is_some() { " for GS and covariant vectors" } else { " for covariant vectors (run the backward stage with --with-gs for GS vectors)" },
-                ctx.block_len(true),
+                match ctx.block_len(true) {
+                    b if frames < 2 * b => format!("no standard errors (NaN in the table): they need at least two blocks of {b} frames"),
+                    b => format!("standard errors from blocks of {b} frames"),
+                },
                 central.map_or(String::new(), |(a, b)| format!(" The second plot enlarges the central part, i = {}..{} (the paper's inset).", a + 1, b + 1))
             ),
             figures,
