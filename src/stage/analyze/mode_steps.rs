@@ -161,7 +161,13 @@ pub fn resolve_steps(detected: &[Step], frame: &Frame, candidates: &Candidates, 
     // are modes: a chance pair next to it is no more a mode than one further out (N = 8:
     // an unclassified pair at i = 9..10, 0.07 beyond chance, next to the T pair, had cut
     // F^(J) to J = 8).
-    let is_mode = |(s, found): &(Step, Found)| *found != Found::Exponents || classify_clearly(frame, s, candidates).is_some();
+    // Half of an LP mode that could not be widened to its quadruplet (above) is no step: a
+    // chance pair (N = 8, 800 steps: i = 9..10 as "LP" at 0.38 beyond chance in the first
+    // frame, unclassified over the frames, had cut F^(J) to J = 8).
+    let is_mode = |(s, found): &(Step, Found)| {
+        *found != Found::Exponents
+            || classify_clearly(frame, s, candidates).is_some_and(|m| m.kind == ModeKind::T || s.len >= candidates.families[m.family].dim(ModeKind::LP))
+    };
     let bordering = |out: &[(Step, Found)]| {
         let (mut lo, mut hi) = (null_lo, null_hi);
         let mut keep = vec![false; out.len()];

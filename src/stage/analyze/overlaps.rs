@@ -467,14 +467,21 @@ mod tests {
     /// 2N-3.
     #[test]
     fn the_mode_figure_follows_the_detected_steps() {
-        let (n, d) = (10, 40);
+        let (n, d, lx, ly) = (10, 40, 14.0, 3.0);
+        // Random vectors but for an LP(1,0) quadruplet at 0-based 9..12: a step of the
+        // exponents there stays only if its vectors are a mode of its size.
+        let mut rng = testing::Rng::new(3);
+        let phase = testing::phase(n, lx, ly, &mut rng);
+        let mut v = testing::random_set(d, &mut rng);
+        testing::plant(&mut v, d, 9, &testing::mode_vectors(lx, ly, crate::stage::analyze::kernels::modes::ModeKind::LP, 1, &phase, 0.5, &[0, 1, 2, 3]));
         // The captions of Figs. 14 and 13, with the default j.
         let captions = |gs: crate::report::SpectrumSummary| {
-            let mut ctx = context("disks", n, d, false, vec![1]);
+            let mut ctx = testing::context("disks", n, d, lx, ly, None, false);
+            ctx.options = Options { every: 1, j: vec![1], deltas: vec![1, 2] };
             ctx.gs = Some(gs);
             ctx.j_default = true;
             let mut a = new(&ctx).unwrap();
-            a.consume(&frame(0, d, identity(d), None)).unwrap();
+            a.consume(&Frame { phase: phase.clone(), ..frame(0, d, v.clone(), None) }).unwrap();
             let out = scratch(&format!("overlaps-steps-{}", ctx.gs.as_ref().unwrap().exponents[9]));
             let produced = a.finish(&out, 1).unwrap();
             let caption = |stem: &str| produced.iter().find(|p| p.figures.iter().any(|f| f == stem)).unwrap_or_else(|| panic!("{stem}")).caption.clone();

@@ -22,6 +22,31 @@ pub fn phase(n: usize, lx: f64, ly: f64, rng: &mut Rng) -> Vec<f64> {
     g
 }
 
+/// Place `cols` (D each) into a full set (column-major) at 0-based index `at` onwards.
+pub fn plant(set: &mut [f64], d: usize, at: usize, cols: &[Vec<f64>]) {
+    for (j, c) in cols.iter().enumerate() {
+        set[(at + j) * d..(at + j + 1) * d].copy_from_slice(c);
+    }
+}
+
+/// dq = pattern (2N), dp = c dq; returns the unit vector and the factor 1/norm.
+pub fn tangent(dq: &[f64], c: f64) -> (Vec<f64>, f64) {
+    let mut v = dq.to_vec();
+    v.extend(dq.iter().map(|x| c * x));
+    let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    (unit(v), 1.0 / norm)
+}
+
+/// Unit tangent vectors of the `kind` mode of wave vector (n_x, 0) in an lx x ly box at
+/// `phase`, columns `which` of its Table IV basis, with dp = c dq.
+pub fn mode_vectors(lx: f64, ly: f64, kind: super::kernels::modes::ModeKind, n_x: i32, phase: &[f64], c: f64, which: &[usize]) -> Vec<Vec<f64>> {
+    use super::kernels::modes::{mode_patterns, Family, Wave};
+    let w = Wave { n_x, n_y: 0 };
+    let pat = mode_patterns(kind, &Family { waves: vec![w], k: w.norm(lx, ly) }, phase, lx, ly);
+    let h = phase.len() / 2;
+    which.iter().map(|&j| tangent(&pat[j * h..(j + 1) * h], c).0).collect()
+}
+
 /// A full set of d random unit vectors (column-major).
 pub fn random_set(d: usize, rng: &mut Rng) -> Vec<f64> {
     (0..d).flat_map(|_| unit((0..d).map(|_| rng.normal()).collect())).collect()
