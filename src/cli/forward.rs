@@ -10,7 +10,7 @@ use clv::stage::forward::Forward;
 use clv::stage::forward_run::{self, Extension, Feedback};
 use clv::store::run::{BuildInfo, RunMeta, StoreConfig, StoreR, FORMAT};
 use clv::{Error, Result};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -289,21 +289,6 @@ fn on_command_line(name: &str) -> bool {
     super::names_flag(std::env::args(), name)
 }
 
-/// The clv reports kept inside the run directory `run` (as `clv analyze RUN --out RUN/report`
-/// does): they describe the run as it was, and go with its other results when it is made
-/// longer.
-fn reports_inside(run: &Path) -> Vec<PathBuf> {
-    let Ok(entries) = std::fs::read_dir(run) else { return Vec::new() };
-    let mut found: Vec<PathBuf> = entries
-        .flatten()
-        .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()) && !e.file_name().to_string_lossy().starts_with("previous-"))
-        .map(|e| e.path())
-        .filter(|p| matches!(clv::report::dir::report_in(p), clv::report::dir::ReportDir::Report { .. }))
-        .collect();
-    found.sort();
-    found
-}
-
 fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
     let in_file = |name: &str| matches.value_source(name) == Some(ValueSource::CommandLine) && !on_command_line(name);
     let args = &args.box_from_command_line(on_command_line, in_file)?;
@@ -317,10 +302,7 @@ fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
             clv::config::check_threads(threads)?;
         }
         let outcome = match extension {
-            Some(ext) => {
-                let reports = reports_inside(dir);
-                forward_run::extend(dir, ext, threads, &reports.iter().map(PathBuf::as_path).collect::<Vec<_>>(), &mut feedback)?
-            }
+            Some(ext) => forward_run::extend(dir, ext, threads, &[], &mut feedback)?,
             None => forward_run::resume(dir, threads, &mut feedback)?,
         };
         if let Some(bar) = &feedback.bar {

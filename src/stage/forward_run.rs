@@ -166,7 +166,8 @@ pub struct Extension {
 /// computed for the shorter run and no longer describes this one (spectrum.json, and the
 /// covariant vectors of the old window: clv_spectrum.json, backward.json, frames.mcap) is
 /// moved into `path/previous-STEPS-steps/`, never overwritten, and so are the files or
-/// directories in `also` (a report made from them, say).
+/// directories in `also` (a report made from them, say) and the clv reports kept inside the
+/// run (`clv analyze RUN --out RUN/report`).
 pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path], feedback: &mut Feedback) -> Result<Outcome> {
     let (dir, mut meta, _lock) = open_to_continue(path, feedback)?;
     let old = meta.clone();
@@ -225,13 +226,11 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
             ));
         }
     }
+    let inside = std::fs::read_dir(path).map_err(|e| Error::io(path, e))?.flatten().filter(|e| !e.file_name().to_string_lossy().starts_with("previous-")).map(|e| e.path());
+    with_sweep.extend(inside.filter(|p| p.is_dir() && is_report(p)));
     let with_sweep: Vec<&Path> = with_sweep.iter().map(PathBuf::as_path).collect();
-    // A report in `also` is moved under its lock: one being written now is refused, not torn.
-    let report_locks = also
-        .iter()
-        .filter(|p| matches!(crate::report::dir::report_in(p), crate::report::dir::ReportDir::Report { .. }))
-        .map(|p| crate::report::dir::lock_report(p))
-        .collect::<Result<Vec<_>>>()?;
+    // A report is moved under its lock: one being written now is refused, not torn.
+    let report_locks = with_sweep.iter().filter(|p| is_report(p)).map(|p| crate::report::dir::lock_report(p)).collect::<Result<Vec<_>>>()?;
     let kept = archive_results(&dir, &previous_results(path, old.config.steps), &with_sweep)?;
     drop(report_locks);
     write_atomic(&dir.meta_path(), &crate::store::checked_json::to_vec(&meta)?)?;
@@ -249,6 +248,10 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
     feedback.notice(msg);
     meta.config.set_threads(threads);
     continue_locked(&dir, &meta, feedback)
+}
+
+fn is_report(dir: &Path) -> bool {
+    matches!(crate::report::dir::report_in(dir), crate::report::dir::ReportDir::Report { .. })
 }
 
 /// Where [`extend`] keeps the results of the run in `run` as it was with `steps` steps.

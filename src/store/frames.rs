@@ -51,17 +51,13 @@ struct McapOut<W: Write + Seek> {
 
 impl<W: Write + Seek> McapOut<W> {
     /// `w` writes through a writer `witness` watches.
-    fn new(w: W, witness: Witness, seekable: bool, metadata: &BTreeMap<String, String>) -> std::result::Result<Self, (Witness, mcap::McapError)> {
-        Self::start(w, seekable, metadata).map(|(writer, channel)| McapOut { writer, channel, sequence: 0, witness: witness.clone() }).map_err(|e| (witness, e))
-    }
-
-    fn start(w: W, seekable: bool, metadata: &BTreeMap<String, String>) -> mcap::McapResult<(Writer<W>, u16)> {
+    fn new(w: W, witness: &Witness, seekable: bool, metadata: &BTreeMap<String, String>) -> mcap::McapResult<Self> {
         let mut writer = options(seekable).create(w)?;
         let meta = Metadata { name: RUN_METADATA.into(), metadata: metadata.clone() };
         writer.write_metadata(&meta)?;
         let schema = writer.add_schema(FRAME.name, "jsonschema", FRAME.text.as_bytes())?;
         let channel = writer.add_channel(schema, FRAME.topic, "cbor", &BTreeMap::new())?;
-        Ok((writer, channel))
+        Ok(McapOut { writer, channel, sequence: 0, witness: witness.clone() })
     }
 
     fn write(&mut self, step: u64, data: &[u8]) -> mcap::McapResult<()> {
@@ -176,7 +172,7 @@ impl FrameFile {
         };
         let sync_handle = file.try_clone().map_err(|e| Error::io(&tmp, e))?;
         let witness = Witness::default();
-        let out = McapOut::new(BufWriter::with_capacity(1 << 20, witness.watch(super::fault::Output(file))), witness, true, metadata).map_err(|(w, e)| w.mcap_error(&tmp, e))?;
+        let out = McapOut::new(BufWriter::with_capacity(1 << 20, witness.watch(super::fault::Output(file))), &witness, true, metadata).map_err(|e| witness.mcap_error(&tmp, e))?;
         Ok(FrameFile { path: path.to_path_buf(), tmp, out, sync_handle, frames: 0 })
     }
 
@@ -338,8 +334,8 @@ fn is_broken_pipe(e: &mcap::McapError, witness: &Witness) -> bool {
 impl FrameStdout {
     pub fn new(metadata: &BTreeMap<String, String>) -> Result<Self> {
         let witness = Witness::default();
-        let out = McapOut::new(NoSeek::new(BufWriter::with_capacity(1 << 20, witness.watch(std::io::stdout()))), witness, false, metadata)
-            .map_err(|(w, e)| w.mcap_error(Path::new("<stdout>"), e))?;
+        let out = McapOut::new(NoSeek::new(BufWriter::with_capacity(1 << 20, witness.watch(std::io::stdout()))), &witness, false, metadata)
+            .map_err(|e| witness.mcap_error(Path::new("<stdout>"), e))?;
         Ok(FrameStdout { out, closed: false })
     }
 
