@@ -35,15 +35,6 @@ impl Output {
     }
 }
 
-/// Account for `len` bytes about to be written; ENOSPC once the injected budget is spent.
-pub fn charge(len: usize) -> io::Result<()> {
-    if let Some(limit) = budget()
-        && WRITTEN.fetch_add(len as u64, Ordering::Relaxed) + len as u64 > limit {
-            return Err(io::Error::from_raw_os_error(28)); // ENOSPC
-        }
-    Ok(())
-}
-
 /// How many of `len` bytes fit in what is left of the injected budget (all without one):
 /// as a real file system does, a write that does not fit is short, and the next one fails.
 fn room_for(len: usize) -> io::Result<usize> {

@@ -570,8 +570,8 @@ impl RunDir {
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
     let tmp = path.with_extension("tmp");
-    let mut f = fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    super::fault::charge(bytes.len()).and_then(|_| f.write_all(bytes)).and_then(|_| f.sync_all()).map_err(|e| Error::io(&tmp, e))?;
+    let mut f = super::fault::Output(fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?);
+    f.write_all(bytes).and_then(|_| f.0.sync_all()).map_err(|e| Error::io(&tmp, e))?;
     super::fault::crash_point("atomic-synced");
     fs::rename(&tmp, path).map_err(|e| Error::io(path, e))?;
     super::fault::crash_point("atomic-renamed");
