@@ -82,7 +82,8 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     }))
 }
 
-/// Mean, standard deviation, minimum and maximum of the finite values.
+/// Mean, sample standard deviation (NaN for one value), minimum and maximum of the finite
+/// values.
 fn stats(x: &[f64]) -> [f64; 4] {
     let f: Vec<f64> = x.iter().copied().filter(|v| v.is_finite()).collect();
     if f.is_empty() {
@@ -90,7 +91,7 @@ fn stats(x: &[f64]) -> [f64; 4] {
     }
     let n = f.len() as f64;
     let mean = f.iter().sum::<f64>() / n;
-    let var = f.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    let var = f.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
     [mean, var.sqrt(), f.iter().copied().fold(f64::INFINITY, f64::min), f.iter().copied().fold(f64::NEG_INFINITY, f64::max)]
 }
 

@@ -532,7 +532,7 @@ pub struct Analysed {
     pub warnings: Vec<String>,
 }
 
-/// Running mean and standard error (from the spread over frames) of a set of quantities.
+/// Running mean and standard deviation over frames of a set of quantities.
 #[derive(Clone, Debug)]
 pub struct Mean {
     pub n: u64,
@@ -554,10 +554,15 @@ impl Mean {
     pub fn mean(&self) -> Vec<f64> {
         self.sum.iter().map(|s| s / self.n as f64).collect()
     }
-    /// Standard deviation over frames (frames are correlated: not an error of the mean).
+    /// Sample standard deviation over frames (frames are correlated: not an error of the
+    /// mean). NaN with fewer than two frames: one frame shows no spread, it does not show
+    /// that there is none.
     pub fn std(&self) -> Vec<f64> {
+        if self.n < 2 {
+            return vec![f64::NAN; self.sum.len()];
+        }
         let n = self.n as f64;
-        self.sum.iter().zip(&self.sum2).map(|(s, s2)| ((s2 / n - (s / n).powi(2)).max(0.0)).sqrt()).collect()
+        self.sum.iter().zip(&self.sum2).map(|(s, s2)| ((s2 - s * s / n) / (n - 1.0)).max(0.0).sqrt()).collect()
     }
 }
 
@@ -717,3 +722,20 @@ pub fn analyze_source(
     Ok(analysed)
 }
 
+
+#[cfg(test)]
+mod tests {
+    use super::Mean;
+
+    #[test]
+    fn mean_std_is_the_sample_deviation_and_unknown_from_one_frame() {
+        let mut m = Mean::new(2);
+        m.add([1.0, 5.0]);
+        assert_eq!(m.mean(), vec![1.0, 5.0]);
+        assert!(m.std().iter().all(|s| s.is_nan()), "one frame: {:?}", m.std());
+        m.add([3.0, 5.0]);
+        // Sample deviation of {1, 3}: sqrt(((1-2)^2 + (3-2)^2) / (2 - 1)) = sqrt(2).
+        let s = m.std();
+        assert!((s[0] - 2f64.sqrt()).abs() < 1e-15 && s[1] == 0.0, "{s:?}");
+    }
+}

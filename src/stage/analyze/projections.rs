@@ -263,9 +263,9 @@ mod tests {
                 assert!((c[j] - want_c[j]).abs() < 1e-15, "cos[{j}] = {} want {}", c[j], want_c[j]);
             }
         }
-        // eta_q std over the two frames: 0 for column 0, 1/4 for column 4
+        // eta_q sample std over the two frames: 0 for column 0, |1 - 1/2| / sqrt(2) for column 4 (eta_q = 1, then 1/2)
         let s = column(&t, "eta_q_clv_std");
-        assert!(s[0].abs() < 1e-15 && (s[4] - 0.25).abs() < 1e-15);
+        assert!(s[0].abs() < 1e-15 && (s[4] - 0.5 / 2f64.sqrt()).abs() < 1e-15, "{s:?}");
         let (qg, pg) = (column(&t, "eta_q_gs"), column(&t, "eta_p_gs"));
         for j in 0..5 {
             assert!((qg[j] - p[j]).abs() < 1e-15 && (pg[j] - q[j]).abs() < 1e-15);
