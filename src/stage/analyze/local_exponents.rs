@@ -392,10 +392,6 @@ mod tests {
         ctx
     }
 
-
-
-
-
     /// Deterministic noise in [-0.5, 0.5).
     fn noise(s: u64, i: usize) -> f64 {
         let mut z = s.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ (i as u64).wrapping_mul(0xBF58_476D_1CE4_E5B9);

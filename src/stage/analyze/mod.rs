@@ -722,7 +722,6 @@ pub fn analyze_source(
     Ok(analysed)
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::Mean;

@@ -198,8 +198,6 @@ mod tests {
         testing::context("disks", n, 4 * n, 5.0, 5.0, None, with_gs)
     }
 
-
-
     /// A phase point of n disks with zero total momentum (so e_1..e_6 are orthonormal).
     fn phase(n: usize, seed: u64) -> Vec<f64> {
         let mut g = vec![0.0; 4 * n];

@@ -330,18 +330,13 @@ mod tests {
         ctx
     }
 
-
     fn frame(step: u64, d: usize, v: Vec<f64>, g: Option<Vec<f64>>) -> Frame {
-        let k = v.len() / d;
-        Frame { step, time: step as f64, d, k, phase: vec![1.0; d], v, local: vec![0.0; k], gs_local: Vec::new(), g }
+        testing::frame(step, vec![1.0; d], v, g)
     }
 
     fn identity(d: usize) -> Vec<f64> {
         (0..d * d).map(|x| if x % (d + 1) == 0 { 1.0 } else { 0.0 }).collect()
     }
-
-
-
 
     #[test]
     fn equal_sets_overlap_one_and_gs_basis_is_triangular() {

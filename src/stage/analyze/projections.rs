@@ -196,10 +196,6 @@ mod tests {
         testing::context("disks", n, 4 * n, 5.0, 5.0, None, with_gs)
     }
 
-
-
-
-
     /// A unit vector of dimension d = 4N with dq = a u and dp = b w (u, w unit 2N-vectors).
     fn vector(d: usize, a: f64, u: &[f64], b: f64, w: &[f64]) -> Vec<f64> {
         let norm = (a * a + b * b).sqrt();

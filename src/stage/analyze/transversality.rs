@@ -34,7 +34,6 @@ pub const THETA_BINS: usize = 90;
 /// dot product near 1 loses digits).
 const SMALL: f64 = 1e-3;
 
-
 /// The separations of Fig. 16 for this D within F^(J): 1, 2, 4 as they are, the paper's
 /// larger ones scaled by D/792 (at least 1), without duplicates, all < J.
 pub fn separations(d: usize, j: usize) -> Vec<usize> {
