@@ -247,7 +247,7 @@ fn null_space_vectors_span_the_null_space() {
     );
     assert!(resid < 1e-9);
     // v^(2N-2) = g^(2N-2) (paper, Sec. 5.4 and conclusion); with C = identity also the next
-    // two (paper Table III): equal rows up to sign.
+    // two (paper Table II): equal rows up to sign.
     for r in 0..3 {
         let s = if alpha[r][0] * beta[r][0] < 0.0 { -1.0 } else { 1.0 };
         for k in 0..6 {

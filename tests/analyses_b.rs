@@ -1,4 +1,4 @@
-//! The mode, transversality and Henon analyses (paper Table IV, Figs. 1, 10-12, 15-17) on
+//! The mode, transversality and Henon analyses (paper Table III, Figs. 1, 10-12, 15-17) on
 //! small real runs: forward, backward --with-gs, analyze.
 
 mod common;

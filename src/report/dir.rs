@@ -51,7 +51,7 @@ pub fn csv_cells(line: &str) -> Vec<String> {
     cells
 }
 
-/// A small CSV table (the paper's Tables II-IV, the mode table) as HTML, numbers to six
+/// A small CSV table (the paper's Tables I-III, the mode table) as HTML, numbers to six
 /// significant digits; None for tables too large to read on a page (the CSV has them all).
 fn html_table(csv: &str) -> Option<String> {
     const MAX_ROWS: usize = 24;

@@ -493,7 +493,7 @@ impl Analyzer {
         });
         let partial = (self.ctx.k < self.ctx.d && self.frames > 0).then(|| {
             let what = match self.ctx.system.as_str() {
-                "disks" => " (the mode steps of Fig. 8 and Table IV, the angles between Oseledec subspaces of Figs. 15-17, conjugate pairs, the null space)",
+                "disks" => " (the mode steps of Fig. 8 and Table III, the angles between Oseledec subspaces of Figs. 15-17, conjugate pairs, the null space)",
                 "henon" => " (Fig. 1: the stable manifold is drawn along v^2)",
                 _ => "",
             };

@@ -226,7 +226,7 @@ pub fn group<'a>(set: &'a [f64], d: usize, step: &Step) -> &'a [f64] {
     &set[step.start * d..(step.start + step.len) * d]
 }
 
-/// Best Table IV match of a step in one frame, by its GS vectors if the frame has them, else
+/// Best Table III match of a step in one frame, by its GS vectors if the frame has them, else
 /// by its CLVs (paper Sec. 5.5: GS-based classification of the position perturbations).
 pub fn classify_step(frame: &Frame, step: &Step, candidates: &Candidates) -> Option<ModeMatch> {
     let set = frame.g.as_deref().unwrap_or(&frame.v);

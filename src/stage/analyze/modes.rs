@@ -1,4 +1,4 @@
-//! Lyapunov modes (paper Sec. 5.5: Table IV and Figs. 10, 11, 12; hard disks only).
+//! Lyapunov modes (paper Sec. 5.5: Table III and Figs. 10, 11, 12; hard disks only).
 //!
 //! 1. The degenerate steps of the forward Gram-Schmidt spectrum next to the null space are
 //!    found from the GS exponents and their standard errors carried by the frame stream
@@ -19,7 +19,7 @@
 //!    find the same steps. The table says which rule found each step.
 //! 2. Every step is classified in every (sampled) frame by projecting the position part of
 //!    its GS vectors (the paper classifies with GS vectors; CLVs when the frames carry no GS
-//!    vectors) onto the orthonormalised Table IV bases T, L, P, LP of every candidate wave
+//!    vectors) onto the orthonormalised Table III bases T, L, P, LP of every candidate wave
 //!    vector k = 2 pi (n_x / L_x, n_y / L_y), |k| <= 2 pi [`MAX_N`](super::mode_steps::MAX_N) / max(L_x, L_y), and of
 //!    those of equal |k| together. In the paper's box these are (n_x, 0), n_x = 1..=4. The
 //!    table reports the majority class, its mean fraction for GS and CLV groups, and the
@@ -378,14 +378,14 @@ impl Analysis for Modes {
                 step_window(d, cands)
             ),
             (None, false) => format!(
-                "Degenerate steps of the forward GS spectrum within {} indices of the null space (neighbours equal within {STEP_TOL} combined standard errors, or, next to the null space, set apart by gaps {:.0} times their spread; a shorter step classified L/P/LP is widened to the block of its LP mode's size that the LP basis explains best; next to the mode region, a block of a mode's size set apart from its neighbours is a step where its vectors are that mode at the first frame: the table's detection column says which rule found each), classified in each of {frames} frames by projecting the position perturbations of their {source} onto the orthonormalised Table IV bases T, L, P, LP of {}; majority class, mean fraction of the group in its span. Found: {}.",
+                "Degenerate steps of the forward GS spectrum within {} indices of the null space (neighbours equal within {STEP_TOL} combined standard errors, or, next to the null space, set apart by gaps {:.0} times their spread; a shorter step classified L/P/LP is widened to the block of its LP mode's size that the LP basis explains best; next to the mode region, a block of a mode's size set apart from its neighbours is a step where its vectors are that mode at the first frame: the table's detection column says which rule found each), classified in each of {frames} frames by projecting the position perturbations of their {source} onto the orthonormalised Table III bases T, L, P, LP of {}; majority class, mean fraction of the group in its span. Found: {}.",
                 step_window(d, cands),
                 1.0 / km::SEPARATION,
                 candidates_text(cands),
                 found.join("; ")
             ),
         };
-        produced.push(Produced { title: "Lyapunov modes (Table IV)".into(), caption, figures: vec![], tables });
+        produced.push(Produced { title: "Lyapunov modes (Table III)".into(), caption, figures: vec![], tables });
         produced.extend(pattern_entries);
         produced.extend(dispersion(ctx, &rows, out)?);
         Ok(produced)
@@ -704,7 +704,7 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
         Produced {
             title: format!("Longitudinal-momentum mode {name} (Figs. 11, 12)"),
             caption: format!(
-                "Pure L and P vectors reconstructed at step {} inside the four-dimensional {} of {name} (i = {}..{}) by least squares against the Table IV patterns, against {}: Fig. 11 from the position perturbations (sine patterns: δq_{a} of L, with δq_{t}, which vanishes for an ideal L pattern, as a check, here rms δq_{t} / rms δq_{a} = {}, and (δq·p)/p² of P, the momenta divided out), Fig. 12 likewise from the momentum perturbations (cosine patterns). Overlaps and sine fits are in modes_lp.csv.",
+                "Pure L and P vectors reconstructed at step {} inside the four-dimensional {} of {name} (i = {}..{}) by least squares against the Table III patterns, against {}: Fig. 11 from the position perturbations (sine patterns: δq_{a} of L, with δq_{t}, which vanishes for an ideal L pattern, as a check, here rms δq_{t} / rms δq_{a} = {}, and (δq·p)/p² of P, the momenta divided out), Fig. 12 likewise from the momentum perturbations (cosine patterns). Overlaps and sine fits are in modes_lp.csv.",
                 frame.step,
                 if frame.g.is_some() { "GS and covariant subspaces" } else { "covariant subspace" },
                 step.start + 1,

@@ -1,6 +1,6 @@
-//! The null space (paper Sec. 5.4, Tables II and III).
+//! The null space (paper Sec. 5.4, Tables I and II).
 //!
-//! * Tables II and III: the projection matrices alpha_{i,k} = g^i . e_k (GS vectors) and
+//! * Tables I and II: the projection matrices alpha_{i,k} = g^i . e_k (GS vectors) and
 //!   beta_{i,k} = v^i . e_k (CLVs) of the six null-space vectors i = 2N-2..2N+3 onto the
 //!   natural basis e_1..e_6, at one time: the earliest consumed frame, which plays the role of
 //!   the paper's t_0 (frames arrive newest first, so this is the last one consumed).
@@ -125,7 +125,7 @@ impl Analysis for NullSpace {
             "indices": (first + 1..=first + 6).collect::<Vec<_>>(),
             "step": table.step,
             "time": table.time,
-            "note": "alpha[r][k] = g^i . e_(k+1), beta[r][k] = v^i . e_(k+1) for i = indices[r] (paper Tables II and III), at the earliest frame consumed",
+            "note": "alpha[r][k] = g^i . e_(k+1), beta[r][k] = v^i . e_(k+1) for i = indices[r] (paper Tables I and II), at the earliest frame consumed",
             "alpha": table.alpha,
             "beta": table.beta,
         });
@@ -164,12 +164,12 @@ impl Analysis for NullSpace {
 
         let fmt_row = |m: &[[f64; 6]], r: usize| m[r].iter().map(|x| format!("{x:.3e}")).collect::<Vec<_>>().join(" ");
         let mut caption = format!(
-            "Projections of the six null-space vectors i = {}..{} (2N-2..2N+3) onto e_1..e_6 at the earliest consumed frame (step {}, t = {:.6}; the paper's t_0): β_(i,k) = v^i · e_k (Table III){}. Row i = {}: β = [{}]{}. The figure shows, for each of the {frames} consumed frames, log10 of the largest principal angle between span{{v^(2N-2)..v^(2N+3)}} and span{{e_1..e_6}}{} and of the largest deviation of a row norm from 1; both vanish up to round-off when the null vectors lie in the null space. The CLV angle sits above round-off because the six null CLVs are nearly linearly dependent: backward iteration turns e_(k+3) into e_(k+3) - T e_k, so the last three collapse onto span{{e_1, e_2, e_3}} like 1/T and the orthonormalisation amplifies round-off by about T. Maxima over time: CLV angle {:.2e}",
+            "Projections of the six null-space vectors i = {}..{} (2N-2..2N+3) onto e_1..e_6 at the earliest consumed frame (step {}, t = {:.6}; the paper's t_0): β_(i,k) = v^i · e_k (Table II){}. Row i = {}: β = [{}]{}. The figure shows, for each of the {frames} consumed frames, log10 of the largest principal angle between span{{v^(2N-2)..v^(2N+3)}} and span{{e_1..e_6}}{} and of the largest deviation of a row norm from 1; both vanish up to round-off when the null vectors lie in the null space. The CLV angle sits above round-off because the six null CLVs are nearly linearly dependent: backward iteration turns e_(k+3) into e_(k+3) - T e_k, so the last three collapse onto span{{e_1, e_2, e_3}} like 1/T and the orthonormalisation amplifies round-off by about T. Maxima over time: CLV angle {:.2e}",
             first + 1,
             first + 6,
             table.step,
             table.time,
-            if with_gs { " and α_(i,k) = g^i · e_k (Table II)" } else { "" },
+            if with_gs { " and α_(i,k) = g^i · e_k (Table I)" } else { "" },
             first + 1,
             fmt_row(&table.beta, 0),
             table.alpha.as_ref().map(|a| format!(", α = [{}]", fmt_row(a, 0))).unwrap_or_default(),
@@ -184,7 +184,14 @@ impl Analysis for NullSpace {
             );
         }
         caption += ".";
-        Ok(vec![Produced { title: "Null space (Tables II, III)".into(), caption, figures: vec!["nullspace_angle".into()], tables }])
+        if let Some(alpha) = &table.alpha {
+            // The paper's Table I has entries of about 1e-6 here, "related to the duration of
+            // the relaxation phase".
+            let corner = alpha[..3].iter().flat_map(|row| row[3..].iter()).fold(0.0f64, |m, x| m.max(x.abs()));
+            caption += &format!(" The entries α_(i,4..6) of rows i = {}..{}, which the paper prints at about 1e-6, are at most {corner:.1e} here", first + 1, first + 3);
+            caption += if corner < 1e-10 { ": round-off, with the forward pass's start G_0 = identity (an independent implementation finds the same)." } else { "." };
+        }
+        Ok(vec![Produced { title: "Null space (Tables I, II)".into(), caption, figures: vec!["nullspace_angle".into()], tables }])
     }
 }
 
@@ -263,6 +270,8 @@ mod tests {
         let produced = a.finish(&out, 3).unwrap();
         assert_eq!(produced[0].figures, ["nullspace_angle"]);
         assert!(produced[0].caption.contains("step 10"), "{}", produced[0].caption);
+        // The reversed GS vectors put e_6, e_5, e_4 into rows 2N-2..2N: not the paper's 1e-6.
+        assert!(produced[0].caption.contains("which the paper prints at about 1e-6, are at most 1.0e0 here.") && !produced[0].caption.contains("round-off, with"), "{}", produced[0].caption);
         let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("nullspace_tables.json")).unwrap()).unwrap();
         assert_eq!(json["step"], 10, "the table is taken at the earliest frame");
         assert_eq!(json["indices"], serde_json::json!([8, 9, 10, 11, 12, 13]));
@@ -286,6 +295,18 @@ mod tests {
         assert!(beta_csv.starts_with("i,e1,e2,e3,e4,e5,e6,row_norm\n8,"), "{beta_csv}");
         let first: Vec<f64> = beta_csv.lines().nth(1).unwrap().split(',').map(|x| x.parse().unwrap()).collect();
         assert!((first[1] - 1.0).abs() < 1e-14 && (first[7] - 1.0).abs() < 1e-14, "{first:?}");
+    }
+
+    #[test]
+    fn gs_rows_in_the_span_of_e1_to_e3_are_called_round_off() {
+        let n = 4;
+        let p = phase(n, 5);
+        let e = null_vectors(&p);
+        let mut a = new(&context(n, true)).unwrap();
+        a.consume(&frame(3, n, p, &e, Some(&e))).unwrap();
+        let out = scratch("corner");
+        let caption = a.finish(&out, 1).unwrap().remove(0).caption;
+        assert!(caption.contains("are at most 0.0e0 here: round-off, with the forward pass's start G_0 = identity"), "{caption}");
     }
 
     #[test]

@@ -38,7 +38,7 @@ pub fn tangent(dq: &[f64], c: f64) -> (Vec<f64>, f64) {
 }
 
 /// Unit tangent vectors of the `kind` mode of wave vector (n_x, 0) in an lx x ly box at
-/// `phase`, columns `which` of its Table IV basis, with dp = c dq.
+/// `phase`, columns `which` of its Table III basis, with dp = c dq.
 pub fn mode_vectors(lx: f64, ly: f64, kind: super::kernels::modes::ModeKind, n_x: i32, phase: &[f64], c: f64, which: &[usize]) -> Vec<Vec<f64>> {
     use super::kernels::modes::{mode_patterns, Family, Wave};
     let w = Wave { n_x, n_y: 0 };

@@ -1,4 +1,4 @@
-//! Lyapunov modes (paper Sec. 5.5, Table IV, Figs. 8, 10-12).
+//! Lyapunov modes (paper Sec. 5.5, Table III, Figs. 8, 10-12).
 //!
 //! The small positive (and conjugate negative) exponents come in degenerate steps: pairs are
 //! transverse T modes, quadruplets longitudinal-momentum LP modes, per wave vector
@@ -7,7 +7,7 @@
 //! in a square; (1,1) and (1,-1) in any rectangle) make one step of 2 or 4 exponents per wave
 //! vector, so they are candidates together as well as alone ([`Family`]). Mode vectors are
 //! sampled sinusoids over the disk positions, so a vector is classified by the fraction of
-//! its position (or momentum) part lying in the span of the Table IV basis of each candidate.
+//! its position (or momentum) part lying in the span of the Table III basis of each candidate.
 //! The sampled basis is orthonormalised over the disks first: sin and cos at random
 //! positions are not exactly orthogonal. T modes of one wave vector are further
 //! characterised by a sine fit of the perturbation across k against the position along k
@@ -17,7 +17,7 @@
 use super::vecset;
 use std::f64::consts::TAU;
 
-/// Mode type of paper Table IV; LP is the 4-dimensional sum L + P of a degenerate quadruplet.
+/// Mode type of paper Table III; LP is the 4-dimensional sum L + P of a degenerate quadruplet.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ModeKind {
     /// Transverse: dq_n = (0, c), (0, s).
@@ -164,7 +164,7 @@ pub fn mode_steps(exponents: &[f64], errors: &[f64], tol: f64, window: usize, le
 }
 
 // ---------------------------------------------------------------------------------------
-// (b) Candidates and their Table IV bases
+// (b) Candidates and their Table III bases
 
 /// A wave vector k = 2 pi (n_x / L_x, n_y / L_y) of the periodic box, taken up to sign
 /// (n_x > 0, or n_x = 0 and n_y > 0): k and -k give the same cos and sin patterns.
@@ -188,7 +188,7 @@ impl Wave {
 
     /// Unit vectors along k (the displacement of L modes) and across it (T modes), the
     /// latter signed so that its first nonzero component is positive: (1, 0) and (0, 1) for
-    /// (n_x, 0), as in Table IV.
+    /// (n_x, 0), as in Table III.
     pub fn axes(self, lx: f64, ly: f64) -> ([f64; 2], [f64; 2]) {
         let (kx, ky) = self.k(lx, ly);
         let k = kx.hypot(ky);
@@ -290,11 +290,11 @@ impl Candidates {
     }
 }
 
-/// The raw Table IV patterns of a family's modes at phase point `phase` (4N), as column-major
+/// The raw Table III patterns of a family's modes at phase point `phase` (4N), as column-major
 /// 2N x dim, per wave vector T = [e_t c, e_t s], L = [e_k c, e_k s], P = [p_n c, p_n s], and
 /// LP = [L of every wave vector, P of every wave vector], with c = cos(k . q_n),
 /// s = sin(k . q_n) and e_k, e_t the unit vectors along and across k ([`Wave::axes`]; for
-/// (n_x, 0): T = [(0, c), (0, s)], L = [(c, 0), (s, 0)], paper Table IV; we order cos before
+/// (n_x, 0): T = [(0, c), (0, s)], L = [(c, 0), (s, 0)], paper Table III; we order cos before
 /// sin throughout).
 pub fn mode_patterns(kind: ModeKind, family: &Family, phase: &[f64], lx: f64, ly: f64) -> Vec<f64> {
     if kind == ModeKind::LP {
@@ -336,7 +336,7 @@ fn wave_patterns(kind: ModeKind, wave: Wave, phase: &[f64], lx: f64, ly: f64) ->
     out
 }
 
-/// Orthonormal basis (column-major 2N x dim) of the span of the Table IV patterns of a
+/// Orthonormal basis (column-major 2N x dim) of the span of the Table III patterns of a
 /// family's modes, orthonormalised over the disks by a thin QR. Columns are NaN if `phase`
 /// is not finite.
 pub fn mode_basis(kind: ModeKind, family: &Family, phase: &[f64], lx: f64, ly: f64) -> Vec<f64> {
@@ -375,7 +375,7 @@ pub struct ModeMatch {
 
 /// Fractions of the normalised `part` of the given vectors (column-major 4N x k, e.g. one
 /// vector or a degenerate group) in every candidate T, L, P, LP of every family (paper Sec.
-/// 5.5: GS-based classification by the position part, Table IV basis), family by family.
+/// 5.5: GS-based classification by the position part, Table III basis), family by family.
 /// The fraction of a group is the mean over its vectors; vectors with a zero part are skipped.
 pub fn mode_fractions(vectors: &[f64], phase: &[f64], candidates: &Candidates, part: Part) -> Vec<ModeMatch> {
     let d = phase.len();
@@ -542,7 +542,7 @@ pub fn reconstruct(vectors: &[f64], d: usize, target: &[f64], part: Part) -> Rec
 }
 
 /// Pure L and P vectors reconstructed inside a degenerate LP group of one wave vector
-/// (column-major 4N x 4) against the four Table IV patterns read from `part`.
+/// (column-major 4N x 4) against the four Table III patterns read from `part`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LpReconstruction {
     pub l_cos: Reconstruction,
@@ -605,7 +605,7 @@ mod tests {
         normalized([dq, &dp[..]].concat())
     }
 
-    /// The paper's box has the (n_x, 0) candidates only, as Table IV; a square box has every
+    /// The paper's box has the (n_x, 0) candidates only, as Table III; a square box has every
     /// wave vector up to the same |k|, alone and, where the symmetry makes them degenerate,
     /// together, in the order of |k|.
     #[test]
@@ -622,7 +622,7 @@ mod tests {
         );
         assert_eq!(square.step_lengths(), [8, 4, 2]);
         assert!(square.families.windows(2).all(|w| w[0].k <= w[1].k));
-        // T across k, L along it; (n_x, 0) as Table IV
+        // T across k, L along it; (n_x, 0) as Table III
         assert_eq!(wave(3, 0).axes(12.0, 3.0), ([1.0, 0.0], [0.0, 1.0]));
         assert_eq!(wave(0, 2).axes(12.0, 3.0), ([0.0, 1.0], [1.0, 0.0]));
         let (along, across) = wave(1, -1).axes(10.0, 10.0);

@@ -1,5 +1,5 @@
 //! The null space (central manifold) N of the six vanishing exponents (paper Sec. 5.4,
-//! Tables II and III).
+//! Tables I and II).
 //!
 //! Time translation, the two space translations and their conjugates (energy and total
 //! momentum changes) generate six vectors e_1..e_6 that span N; the six GS or covariant
@@ -42,8 +42,8 @@ pub fn null_vectors(phase: &[f64]) -> Vec<f64> {
 
 /// Projection matrix of a set of tangent vectors onto the null vectors: row j is
 /// [x_j . e_1, ..., x_j . e_6] for vector j of `vectors` (column-major 4N x k). This is the
-/// paper's signed alpha_{i,k} = g^i . e_k for GS vectors (Table II) and beta_{i,k} = v^i . e_k
-/// for CLVs (Table III), Sec. 5.4: "alpha_{i,k} = g^i . e_k; beta_{i,k} = v^i . e_k". For the
+/// paper's signed alpha_{i,k} = g^i . e_k for GS vectors (Table I) and beta_{i,k} = v^i . e_k
+/// for CLVs (Table II), Sec. 5.4: "alpha_{i,k} = g^i . e_k; beta_{i,k} = v^i . e_k". For the
 /// six null vectors the squared entries of each row sum to 1; for all others they vanish.
 pub fn null_projections(vectors: &[f64], phase: &[f64]) -> Vec<[f64; 6]> {
     let d = phase.len();
@@ -133,7 +133,7 @@ mod tests {
 
     #[test]
     fn rotated_null_basis_spans_null_space() {
-        // six orthonormal mixtures of e_1..e_6, like the GS null vectors of Table II
+        // six orthonormal mixtures of e_1..e_6, like the GS null vectors of Table I
         let (g, mut rng) = setup(8, 9);
         let d = g.len();
         let e = null_vectors(&g);
