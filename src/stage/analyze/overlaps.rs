@@ -18,6 +18,7 @@
 //! paper, Sec. 5.1). Averages run over the consumed frames (those of every m-th step, `--every`).
 
 use super::kernels::angles::{abs_dots_pairwise, abs_dots_with};
+use super::kernels::modes::Step;
 use super::{save_figure, write_csv, Analysis, Context, Mean, Produced};
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
@@ -35,9 +36,9 @@ pub struct Overlaps {
     fig4_js: Vec<usize>,
     /// Mode indices j (0-based) of Fig. 14, from the first frame on.
     mode_js: Vec<usize>,
-    /// `mode_js` end the positive mode steps found, at least two (else they are the fixed
-    /// 2N-5, 2N-3).
-    mode_js_from_steps: bool,
+    /// The positive mode steps that `mode_js` end, at least two; empty where fewer were found
+    /// and `mode_js` are the fixed 2N-5, 2N-3.
+    mode_steps: Vec<Step>,
     /// The indices are chosen ([`Overlaps::settle`]).
     settled: bool,
     /// The conjugate partners 4N+1-j of `js` (0-based), Fig. 13's second plot.
@@ -62,7 +63,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
         js: Vec::new(),
         fig4_js: Vec::new(),
         mode_js: Vec::new(),
-        mode_js_from_steps: false,
+        mode_steps: Vec::new(),
         settled: false,
         conjugate_js: Vec::new(),
         vv_js: Vec::new(),
@@ -82,10 +83,12 @@ impl Overlaps {
         }
         // Fig. 14's j: a vector of each unstable mode (the paper's six panels: T and LP for
         // n_x = 1, 2, 3).
-        let step_ends: Vec<usize> = super::mode_steps::positive(&ctx.modes, ctx.d).iter().map(|s| s.start + s.len - 1).collect();
-        self.mode_js_from_steps = step_ends.len() >= 2;
+        let steps = super::mode_steps::positive(&ctx.modes, ctx.d);
+        if steps.len() >= 2 {
+            self.mode_steps = steps;
+        }
         self.mode_js = match ctx.central_range() {
-            Some(_) if self.mode_js_from_steps => step_ends,
+            Some(_) if !self.mode_steps.is_empty() => self.mode_steps.iter().map(|s| s.start + s.len - 1).collect(),
             Some(_) if ctx.n >= 3 => vec![2 * ctx.n - 6, 2 * ctx.n - 4],
             _ => Vec::new(),
         };
@@ -282,7 +285,13 @@ impl Analysis for Overlaps {
                     tables: vec!["overlap_clv_clv.csv".into()],
                 });
             }
-            if let (Some((a, b)), false) = (central, self.mode_js.is_empty()) {
+            if let (Some(central), false) = (central, self.mode_js.is_empty()) {
+                // The paper restricts the abscissa to the mode regime: the steps, their
+                // conjugates and the null space between them, with a margin.
+                let (a, b) = match self.mode_steps.iter().map(|s| s.start).min() {
+                    Some(first) => (first.saturating_sub(4), ctx.d - 1 - first.saturating_sub(4)),
+                    None => central,
+                };
                 let mut fig = Figure::new("Mode vectors: <|v^j · v^i|> in the central part, i != j").x_label("i").y_label("<|v^j · v^i|>");
                 for &j in &self.mode_js {
                     if let Some(m) = pick(j) {
@@ -294,15 +303,16 @@ impl Analysis for Overlaps {
                 produced.push(Produced {
                     title: "Scalar products of mode vectors (Fig. 14)".into(),
                     caption: format!(
-                        "Time average of |v^j · v^i| for j = {} ({}) against i = {}..{} (i != j), {avg}. Mode vectors overlap with the vectors of the same degenerate exponent and, less, with the conjugate ones.",
+                        "Time average of |v^j · v^i| for j = {} ({}) against i = {}..{} (i != j), {avg}.{}",
                         list(&self.mode_js),
-                        if self.mode_js_from_steps {
+                        if !self.mode_steps.is_empty() {
                             "the last index of each positive mode step, found as the mode table finds them, which says what they are"
                         } else {
                             "2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any; fewer than two mode steps were found to choose by"
                         },
                         a + 1,
-                        b + 1
+                        b + 1,
+                        mode_overlaps(ctx.d, &self.mode_steps, |j| pick(j)),
                     ),
                     figures: vec!["fig14_mode_overlap".into()],
                     tables: vec!["overlap_clv_clv.csv".into()],
@@ -314,6 +324,36 @@ impl Analysis for Overlaps {
 }
 
 /// "1, 8, 15": 1-based indices for captions.
+/// Fig. 14's finding measured, where the paper states it (Sec. 6): "each vector representing
+/// a T or LP-mode has significant contributions to the scalar product only for covariant
+/// vectors belonging to the same degenerate exponent and -- to a lesser extent -- the
+/// corresponding conjugate (negative) exponents". For the last vector j of each step: its
+/// largest average overlap inside its step, inside the conjugate step, and anywhere else.
+fn mode_overlaps(d: usize, steps: &[Step], mean_of: impl Fn(usize) -> Option<Vec<f64>>) -> String {
+    let mut rows = Vec::new();
+    let (mut as_paper, mut not) = (Vec::new(), Vec::new());
+    for step in steps {
+        let j = step.start + step.len - 1;
+        let Some(m) = mean_of(j) else { continue };
+        let own = step.start..step.start + step.len;
+        let conjugate = d - step.start - step.len..d - step.start;
+        let max_over = |keep: &dyn Fn(usize) -> bool| (0..d).filter(|&i| i != j && keep(i)).map(|i| m[i]).fold(f64::NAN, f64::max);
+        let (same, conj, rest) = (max_over(&|i| own.contains(&i)), max_over(&|i| conjugate.contains(&i)), max_over(&|i| !own.contains(&i) && !conjugate.contains(&i)));
+        rows.push(format!("j = {}: {same:.3}, {conj:.3}, {rest:.3}", j + 1));
+        if same > conj && conj > rest { as_paper.push(j) } else { not.push(j) }
+    }
+    if rows.is_empty() {
+        return String::new();
+    }
+    let mut s = format!(" Largest average overlap of each j inside its own step, inside the conjugate step and anywhere else: {}.", rows.join("; "));
+    match (as_paper.is_empty(), not.is_empty()) {
+        (_, true) => s += " In that order for every j, as the paper finds.",
+        (true, false) => s += " In the paper's order (own step, then conjugate step, then the rest) for no j.",
+        (false, false) => s += &format!(" In the paper's order (own step, then conjugate step, then the rest) for j = {}, not for j = {} (the paper has an exception too, LP(3,0) without a conjugate peak).", list(&as_paper), list(&not)),
+    }
+    s
+}
+
 fn list(js: &[usize]) -> String {
     js.iter().map(|j| (j + 1).to_string()).collect::<Vec<_>>().join(", ")
 }
@@ -375,6 +415,25 @@ mod tests {
             assert_eq!(c.iter().sum::<f64>(), 1.0);
             assert_eq!(c[j - 1], 1.0);
         }
+    }
+
+    #[test]
+    fn fig14_states_the_papers_order_only_where_it_is_measured() {
+        // D = 12; steps 3..4 (j = 4, conjugate 9..10) and 5..6 (j = 6, conjugate 7..8).
+        let d = 12;
+        let steps = [Step { start: 2, len: 2, mean: 0.2 }, Step { start: 4, len: 2, mean: 0.1 }];
+        let mut means = vec![vec![0.05; d], vec![0.05; d]];
+        means[0][2] = 0.5; // own step of j = 4
+        means[0][9] = 0.3; // its conjugate step
+        means[1][4] = 0.2; // own step of j = 6
+        means[1][6] = 0.4; // its conjugate step, larger: not the paper's order
+        let caption = mode_overlaps(d, &steps, |j| Some(means[usize::from(j == 5)].clone()));
+        assert!(caption.contains("j = 4: 0.500, 0.300, 0.050; j = 6: 0.200, 0.400, 0.050."), "{caption}");
+        assert!(caption.contains("for j = 4, not for j = 6"), "{caption}");
+        means[1][6] = 0.1;
+        let caption = mode_overlaps(d, &steps, |j| Some(means[usize::from(j == 5)].clone()));
+        assert!(caption.contains("In that order for every j, as the paper finds."), "{caption}");
+        assert_eq!(mode_overlaps(d, &[], |_| None), "");
     }
 
     #[test]

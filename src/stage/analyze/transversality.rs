@@ -302,11 +302,7 @@ impl Analysis for Transversality {
                 th.seps.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(", "),
                 ctx.d,
                 match (th.seps.first(), dens.first()) {
-                    (Some(1), Some(d)) => format!(
-                        " For i - j = 1 the density in the first bin (Θ < {:.1}°) is {:.3}: the paper's, for N = 198, goes to zero as Θ → 0, which in smaller systems it need not (Fig. 17 gives the smallest Θ).",
-                        w.to_degrees(),
-                        d[0]
-                    ),
+                    (Some(1), Some(d)) => first_bin(d, w),
                     _ => String::new(),
                 }
             ),
@@ -336,10 +332,37 @@ impl Analysis for Transversality {
     }
 }
 
+/// Whether the density of Θ for i - j = 1 falls toward Θ = 0, the paper's finding for N = 198
+/// (Sec. 6: "the distribution for i-j = 1 seems to converge to zero for Θ → 0"): its first bin
+/// against the mean of the next four.
+fn first_bin(density: &[f64], width: f64) -> String {
+    let next = &density[1..density.len().min(5)];
+    let mean = next.iter().sum::<f64>() / next.len() as f64;
+    let finding = if density[0] < 0.5 * mean {
+        "it falls toward Θ = 0, as the paper's for N = 198"
+    } else {
+        "it does not fall toward Θ = 0 here, where the paper's (N = 198) does; a small system's need not"
+    };
+    format!(
+        " For i - j = 1 the density in the first bin (Θ < {:.1}°) is {:.3}, against {mean:.3} in the next {} bins: {finding} (Fig. 17 gives the smallest Θ).",
+        width.to_degrees(),
+        density[0],
+        next.len()
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::testing::*;
     use super::*;
+
+    #[test]
+    fn first_bin_says_whether_the_density_falls_toward_zero() {
+        let falls = first_bin(&[0.137, 0.270, 0.292, 0.358, 0.4, 0.5], 0.0175);
+        assert!(falls.contains("is 0.137, against 0.330 in the next 4 bins: it falls toward Θ = 0, as the paper's"), "{falls}");
+        let flat = first_bin(&[0.564, 0.5, 0.6, 0.55, 0.5], 0.0175);
+        assert!(flat.contains("it does not fall toward Θ = 0 here"), "{flat}");
+    }
 
     #[test]
     fn separations_follow_the_paper_and_scale() {
