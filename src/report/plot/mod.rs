@@ -185,7 +185,16 @@ pub enum Marker {
     LinePoints,
     /// Post-step line: horizontal from each point to the next x, then vertical.
     Steps,
+    /// A dense cloud of points (an attractor): small grey dots, whatever the series' place,
+    /// so that series added after it stay visible on top of it.
+    Cloud,
 }
+
+/// Base width of arrows in pixels (before [`pen`]): what they point at is the figure's message.
+const ARROW_W: f64 = 3.0;
+
+/// Radius of the dots of a [`Marker::Cloud`] in pixels.
+const CLOUD_R: f64 = 1.0;
 
 enum Kind {
     /// Points in data order; non-finite points break lines.
@@ -212,6 +221,8 @@ pub struct Figure {
     y_range: Option<(f64, f64)>,
     series: Vec<Series>,
     hlines: Vec<f64>,
+    /// One data unit is as many pixels along x as along y ([`Figure::equal_aspect`]).
+    equal_aspect: bool,
 }
 
 /// Pixel rectangle of the plot frame, the data ranges, and the ticks.
@@ -262,7 +273,16 @@ impl Figure {
             y_range: None,
             series: Vec::new(),
             hlines: Vec::new(),
+            equal_aspect: false,
         }
+    }
+
+    /// Equal scales on both axes (a geometric picture, where angles must be seen as they
+    /// are): the range of the axis that would be drawn with more pixels per unit is widened
+    /// about its centre.
+    pub fn equal_aspect(mut self) -> Self {
+        self.equal_aspect = true;
+        self
     }
 
     /// Image size in pixels (clamped to 120..=8000 on each side).
@@ -311,7 +331,13 @@ impl Figure {
     /// Colours come from a colour-blind-safe palette in order of addition.
     pub fn series(&mut self, label: &str, xs: &[f64], ys: &[f64], marker: Marker) -> &mut Self {
         let pts = xs.iter().copied().zip(ys.iter().copied()).collect();
-        self.push(label, Kind::Xy(pts, marker))
+        self.push(label, Kind::Xy(pts, marker));
+        if marker == Marker::Cloud {
+            if let Some(s) = self.series.last_mut() {
+                s.color = GREY;
+            }
+        }
+        self
     }
 
     /// Add arrows from each point of `from` by the vector in `delta`
@@ -468,11 +494,26 @@ impl Figure {
     /// Frame, ranges and ticks, leaving `right` and `bottom` pixels of the
     /// image free for a legend outside the axis box.
     fn frame_layout(&self, right: f64, bottom: f64) -> Layout {
+        let x = axis_range(self.x_range, self.data_bounds(0));
+        let y = axis_range(self.y_range, self.data_bounds(1));
+        let mut lay = self.frame_geometry(x, y, right, bottom);
+        if self.equal_aspect {
+            // The frame moves a little with the tick labels of the new ranges: a few rounds.
+            for _ in 0..3 {
+                let (ux, uy) = ((lay.x.1 - lay.x.0) / (lay.r - lay.l), (lay.y.1 - lay.y.0) / (lay.b - lay.t));
+                let widen = |(lo, hi): (f64, f64), half: f64| ((lo + hi) / 2.0 - half, (lo + hi) / 2.0 + half);
+                let (x, y) = if ux > uy { (lay.x, widen(lay.y, ux * (lay.b - lay.t) / 2.0)) } else { (widen(lay.x, uy * (lay.r - lay.l) / 2.0), lay.y) };
+                lay = self.frame_geometry(x, y, right, bottom);
+            }
+        }
+        lay
+    }
+
+    /// Frame and ticks for the data ranges `x` and `y`.
+    fn frame_geometry(&self, x: (f64, f64), y: (f64, f64), right: f64, bottom: f64) -> Layout {
         let scale = if self.w.min(self.h) < 400 { 1 } else { 2 };
         let ch = f64::from(8 * scale); // text line height in pixels
         let (w, h) = (f64::from(self.w), f64::from(self.h));
-        let x = axis_range(self.x_range, self.data_bounds(0));
-        let y = axis_range(self.y_range, self.data_bounds(1));
         // Room for the title and the x label (height) and the y label (width).
         let room = |s: &String, v: f64| if s.is_empty() { 0.0 } else { v };
         let t = room(&self.title, (2.5 * ch).round()).max(16.0);
@@ -624,13 +665,16 @@ impl Figure {
                 Kind::Xy(_, m) => m,
                 Kind::Arrows(_) => Marker::Line,
             };
-            if marker != Marker::Points {
-                let width = (2.0 + pen.widen).max(1.0);
-                prims.push(Prim::Line(a, b, s.color, width, pen.dash));
+            let dot = vec![((a.0 + b.0) / 2.0, cy)];
+            match marker {
+                Marker::Points | Marker::LinePoints => prims.push(Prim::Dots(dot, s.color, pen.dot_r, pen.ring, false)),
+                Marker::Cloud => prims.push(Prim::Dots(dot, s.color, 2.0 * CLOUD_R, false, false)),
+                Marker::Line | Marker::Steps => {}
             }
-            if matches!(marker, Marker::Points | Marker::LinePoints) {
-                let dot = vec![((a.0 + b.0) / 2.0, cy)];
-                prims.push(Prim::Dots(dot, s.color, pen.dot_r, pen.ring, false));
+            if !matches!(marker, Marker::Points | Marker::Cloud) {
+                let base = if matches!(s.kind, Kind::Arrows(_)) { ARROW_W } else { 2.0 };
+                let width = (base + pen.widen).max(1.0);
+                prims.push(Prim::Line(a, b, s.color, width, pen.dash));
             }
             prims.push(Prim::Text(Label::new(
                 b.0 + 8.0,
@@ -683,7 +727,7 @@ fn series_prims(lay: &Layout, s: &Series, pen: Pen, prims: &mut Vec<Prim>) {
     let finite = |p: &(f64, f64)| p.0.is_finite() && p.1.is_finite();
     match &s.kind {
         Kind::Xy(pts, marker) => {
-            if *marker != Marker::Points {
+            if !matches!(marker, Marker::Points | Marker::Cloud) {
                 // Split into runs of finite points: NaN/inf break the line.
                 let mut parts: Vec<Vec<(f64, f64)>> = Vec::new();
                 for run in pts.split(|p| !finite(p)).filter(|r| !r.is_empty()) {
@@ -705,14 +749,15 @@ fn series_prims(lay: &Layout, s: &Series, pen: Pen, prims: &mut Vec<Prim>) {
                     prims.push(Prim::Path(parts, color, width(base), pen.dash));
                 }
             }
-            if matches!(marker, Marker::Points | Marker::LinePoints) {
+            if matches!(marker, Marker::Points | Marker::LinePoints | Marker::Cloud) {
                 let pts: Vec<_> = pts
                     .iter()
                     .filter(|p| finite(p))
                     .map(|&p| lay.map(p))
                     .collect();
+                let (r, ring) = if *marker == Marker::Cloud { (CLOUD_R, false) } else { (pen.dot_r, pen.ring) };
                 if !pts.is_empty() {
-                    prims.push(Prim::Dots(pts, color, pen.dot_r, pen.ring, true));
+                    prims.push(Prim::Dots(pts, color, r, ring, true));
                 }
             }
         }
@@ -742,10 +787,10 @@ fn series_prims(lay: &Layout, s: &Series, pen: Pen, prims: &mut Vec<Prim>) {
                 }
             }
             if !parts.is_empty() {
-                prims.push(Prim::Path(parts, color, width(1.5), pen.dash));
+                prims.push(Prim::Path(parts, color, width(ARROW_W), pen.dash));
             }
             if !heads.is_empty() {
-                prims.push(Prim::Path(heads, color, width(1.5), None));
+                prims.push(Prim::Path(heads, color, width(ARROW_W), None));
             }
         }
     }

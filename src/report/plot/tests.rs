@@ -699,3 +699,27 @@ fn five_or_six_coinciding_series_all_stay_visible() {
     let (w, _, _) = parse_png(&fig.to_png()).expect("valid PNG");
     assert_eq!(w, 900);
 }
+
+#[test]
+fn equal_aspect_draws_one_unit_as_many_pixels_along_both_axes() {
+    // A unit square and its diagonal: with equal scales the diagonal is at 45 degrees.
+    for (w, h) in [(900, 700), (500, 900)] {
+        let mut fig = Figure::new("square").size(w, h).x_range(0.0, 2.0).y_range(0.0, 1.0).equal_aspect();
+        fig.series("diagonal", &[0.0, 1.0], &[0.0, 1.0], Marker::Line);
+        let lay = fig.layout();
+        let (ux, uy) = ((lay.r - lay.l) / (lay.x.1 - lay.x.0), (lay.b - lay.t) / (lay.y.1 - lay.y.0));
+        assert!((ux / uy - 1.0).abs() < 0.01, "{w}x{h}: {ux} px per unit along x, {uy} along y");
+        // The data stay inside the widened ranges.
+        assert!(lay.x.0 <= 0.0 && lay.x.1 >= 2.0 && lay.y.0 <= 0.0 && lay.y.1 >= 1.0, "{:?} {:?}", lay.x, lay.y);
+    }
+}
+
+#[test]
+fn a_cloud_is_small_grey_dots_under_later_series() {
+    let mut fig = Figure::new("cloud");
+    fig.series("cloud", &[0.0, 1.0], &[0.0, 1.0], Marker::Cloud);
+    fig.series("line", &[0.0, 1.0], &[1.0, 0.0], Marker::Line);
+    let (_, prims) = fig.scene();
+    let dots: Vec<_> = prims.iter().filter_map(|p| if let Prim::Dots(_, c, r, _, true) = p { Some((*c, *r)) } else { None }).collect();
+    assert_eq!(dots, [(GREY, CLOUD_R)]);
+}

@@ -6,6 +6,7 @@
 
 use super::kernels::convergence::{diagnose, running, Diagnostics};
 use super::{save_figure, write_csv, Analysis, Context, Produced};
+use crate::config::SystemConfig;
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
 use crate::statistics::{standard_error, Accumulator};
@@ -96,7 +97,12 @@ impl Analysis for Convergence {
                  (all exponents in the tables). A converged run with independent blocks stays within ±2 sqrt(T/t - 1) of it, 95 % of the time. Drift test: z_i compares the newer half of the blocks with the older half; a stationary run with independent blocks has |z| > 2 for the fraction chance gives (a Student t with 2 (h - 1) degrees of freedom for halves of h blocks; about 5 % \
                  of the exponents for many blocks), and the run counts as drifting from four times that on (a margin for the exponents' correlations with each other, which make the count a poor measure), \
                  or where the same z of h_KS, the sum of the positive exponents, is as large by chance in less than 1 % of stationary runs (its own spread holds those correlations; it catches many exponents moving the same way, each within its errors). Independence test: r_1, the lag-1 autocorrelation of consecutive block averages, averaged over the exponents, is about -1/B for independent blocks; \
-                 above -1/B + 2/sqrt(B) the blocks are shorter than the correlation time. Exponents that vanish by symmetry (the null space, whose last three CLV exponents drift by construction: see Fig. 2) and any constant up to round-off are not tested. {}",
+                 above -1/B + 2/sqrt(B) the blocks are shorter than the correlation time. {} {}",
+                match ctx.run.config.system {
+                    SystemConfig::Disks { .. } => "Exponents that vanish by symmetry (the null space, whose last three CLV exponents drift by construction: see Fig. 2) and any constant up to round-off are not tested.",
+                    SystemConfig::Lorenz { .. } => "The exponent of the flow direction, zero by symmetry, and any constant up to round-off are not tested.",
+                    SystemConfig::Henon { .. } => "Exponents constant up to round-off are not tested.",
+                },
                 sentences.join(" ")
             ),
             figures,

@@ -212,8 +212,9 @@ impl Analysis for HenonPicture {
         let from = |m: usize| vec![(zero.x[0], zero.x[1]); m];
         let ax: Vec<f64> = pts.iter().map(|p| p.x[0]).collect();
         let ay: Vec<f64> = pts.iter().map(|p| p.x[1]).collect();
-        let mut fig = Figure::new("Henon attractor, stable manifold, GS and covariant vectors").x_label("x").y_label("y").x_range(bounds.x.0, bounds.x.1).y_range(bounds.y.0, bounds.y.1).size(900, 700);
-        fig.series("attractor (frames)", &ax, &ay, Marker::Points);
+        // Equal scales: g^1 and g^2 must be seen orthogonal, as they are.
+        let mut fig = Figure::new("Henon attractor, stable manifold, GS and covariant vectors").x_label("x").y_label("y").x_range(bounds.x.0, bounds.x.1).y_range(bounds.y.0, bounds.y.1).size(900, 700).equal_aspect();
+        fig.series("attractor (frames)", &ax, &ay, Marker::Cloud);
         if !kept.is_empty() {
             fig.series("stable manifold through point 0", &mx, &my, Marker::Line);
         }

@@ -229,7 +229,7 @@ impl Analysis for LocalExponents {
             caption: format!(
                 "Local covariant exponents Λ_i(t_n) = ln |Dφ^τ v^i(t_n)| / τ for i = {} (1, the selected indices{}) over all {frames} frames.{caveat}",
                 names.join(", "),
-                if smallest_positive(ctx).is_some() { " and the smallest positive exponent" } else { "" }
+                smallest_positive(ctx).map(|i| format!(" and the smallest positive exponent, i = {}", i + 1)).unwrap_or_default()
             ),
             figures: vec!["local_exponents".into()],
             tables: vec!["local_exponents.csv".into()],
@@ -366,9 +366,10 @@ impl Analysis for LocalExponents {
         produced.push(Produced {
             title: "Domination of the Oseledec splitting (Sec. 6)".into(),
             caption: format!(
-                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over all {} adjacent pairs{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0 (degenerate exponents, as in the null space and the modes, swap for every Δ). Overall fraction at Δ = {}: {:.3e}{}.{borders_text}{unfilled}{caveat}",
+                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over all {} adjacent pairs{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0{}. Overall fraction at Δ = {}: {:.3e}{}.{borders_text}{unfilled}{caveat}",
                 ctx.k.saturating_sub(1),
                 if ctx.is_disks() { ", averaged over the pairs outside the null space" } else { "" },
+                if ctx.is_disks() { " (degenerate exponents, as in the null space and the modes, swap for every Δ)" } else { "" },
                 self.deltas[0],
                 overall[0],
                 if longest > 0 { format!("; at Δ = {}: {:.3e} (from {} windows; domination.csv gives every Δ's count)", self.deltas[longest], overall[longest], self.test.windows(longest)) } else { String::new() },

@@ -276,10 +276,11 @@ impl Analysis for Overlaps {
                 produced.push(Produced {
                     title: "Scalar products between covariant vectors (Fig. 13)".into(),
                     caption: format!(
-                        "Time average of |v^j · v^i| against i (i != j) for the selected covariant vectors j = {}{}, {avg}.{} Vectors of the same (stable or unstable) subspace are not orthogonal.",
+                        "Time average of |v^j · v^i| against i (i != j) for the selected covariant vectors j = {}{}, {avg}.{}",
                         list(&self.js),
                         if self.conjugate_js.is_empty() { String::new() } else { format!(", and in the second plot for their conjugate partners j = {} (4N+1-j, as the paper's lower panel)", list(&self.conjugate_js)) },
-                        if ctx.is_disks() { " The null space 2N-2..2N+3 is orthogonal to all other covariant vectors." } else { "" }
+                        // A map's or Lorenz's stable and unstable subspaces are one vector each.
+                        if ctx.is_disks() { " The null space 2N-2..2N+3 is orthogonal to all other covariant vectors. Vectors of the same (stable or unstable) subspace are not orthogonal." } else { "" }
                     ),
                     figures,
                     tables: vec!["overlap_clv_clv.csv".into()],

@@ -3,6 +3,7 @@
 //! mode region with each positive exponent beside its conjugate partner.
 
 use super::{save_figure, write_csv, Analysis, Context, Produced};
+use crate::config::SystemConfig;
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
 use crate::statistics::{ks_entropy, Accumulator, Estimate};
@@ -139,6 +140,9 @@ impl Analysis for Spectrum {
             );
             produced[0].caption += " In spectrum.csv, zero_by_symmetry marks the null space, where the CLV errors measure this drift, not noise, and lambda_clv_null_shear gives the predicted values.";
         }
+        if ctx.k == ctx.d {
+            produced[0].caption += &exact_sum(&ctx.run.config.system, ctx.tau, &run_gs, &run_gs_err);
+        }
         if ctx.is_disks() && ctx.k == ctx.d {
             // The mode region: positive exponents next to the null space, with the negated
             // conjugate exponents at the same index (conjugate pairing: lambda_i = -lambda_{4N+1-i}).
@@ -169,6 +173,36 @@ impl Analysis for Spectrum {
     }
 }
 
+/// The sum of the whole run's GS exponents against the value the dynamics fixes exactly
+/// (the time average of ln |det J| per unit time): 0 for hard disks (symplectic: phase-space
+/// volume is kept), ln |b| per iteration for the Henon map, -(sigma + 1 + beta) for the Lorenz
+/// flow (its constant divergence); for the Henon map also lambda_1 against the literature.
+fn exact_sum(system: &SystemConfig, tau: f64, lambda: &[f64], err: &[f64]) -> String {
+    let (exact, why) = match *system {
+        SystemConfig::Disks { .. } => (0.0, "phase-space volume is kept".to_string()),
+        SystemConfig::Henon { b, .. } => (b.abs().ln() / tau, format!("ln |b| = ln {b}, det J = -b")),
+        SystemConfig::Lorenz { sigma, beta, .. } => (-(sigma + 1.0 + beta), format!("-(σ + 1 + β), the flow's divergence, with σ = {sigma}, β = {beta:.6}; the integrator's steps keep it up to their error")),
+    };
+    let sum: f64 = lambda.iter().sum();
+    if !sum.is_finite() {
+        return String::new();
+    }
+    let mut s = if exact == 0.0 {
+        format!(" Sum of the whole run's GS exponents: {sum:.2e}, exactly 0 ({why}).")
+    } else {
+        format!(" Sum of the whole run's GS exponents: {sum:.9}, exactly {exact:.9} ({why}).")
+    };
+    // J. C. Sprott, Chaos and Time-Series Analysis (Oxford, 2003), Appendix A: the Henon map
+    // at a = 1.4, b = 0.3 (in the form x' = 1 - a x^2 + y, y' = b x, conjugate to ours by
+    // a scaling, which keeps the exponents).
+    if let SystemConfig::Henon { a, b } = *system {
+        if a == 1.4 && b == 0.3 && tau == 1.0 {
+            s += &format!(" λ_1 = {:.6} ± {:.1e} against 0.41922 in the literature (Sprott, Chaos and Time-Series Analysis, 2003), {:.1} standard errors apart.", lambda[0], err[0], (lambda[0] - 0.41922).abs() / err[0]);
+        }
+    }
+    s
+}
+
 /// The median standard errors of the plotted exponents, in words: the figure has no error
 /// bars, and whether two neighbours differ is a question of them.
 fn typical_error(gs: &[f64], clv: &[f64]) -> String {
@@ -188,6 +222,17 @@ fn typical_error(gs: &[f64], clv: &[f64]) -> String {
 mod tests {
     use super::*;
     use crate::stage::analyze::testing::{context, frame, out_dir, spectrum};
+
+    #[test]
+    fn exact_sums_of_the_spectrum() {
+        let henon = exact_sum(&SystemConfig::henon(), 1.0, &[0.4185, 0.3f64.ln() - 0.4185], &[3.7e-4, 3.7e-4]);
+        assert!(henon.contains(&format!("exactly {:.9} (ln |b| = ln 0.3", 0.3f64.ln())) && henon.contains("1.9 standard errors apart"), "{henon}");
+        let disks = exact_sum(&SystemConfig::disks_in_box(4, 5.0, 5.0), 0.6, &[1.0, 0.0, -1.0 + 3e-12], &[0.0; 3]);
+        assert!(disks.contains("Sum of the whole run's GS exponents: 3.00e-12, exactly 0 (phase-space volume is kept)."), "{disks}");
+        let lorenz = exact_sum(&SystemConfig::lorenz(), 0.01, &[0.9, 0.0, -14.57], &[0.0; 3]);
+        assert!(lorenz.contains(&format!("exactly {:.9}", -(10.0 + 1.0 + 8.0 / 3.0))), "{lorenz}");
+        assert_eq!(exact_sum(&SystemConfig::henon(), 1.0, &[f64::NAN, 0.0], &[0.0; 2]), "", "no GS spectrum");
+    }
 
     /// h_KS of both spectra in the caption: the CLV one from the frames' local exponents with
     /// its block error; the GS one from a spectrum.json of a build before h_KS was recorded,
