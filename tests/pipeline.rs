@@ -365,7 +365,7 @@ fn the_scaling_study_tabulates_and_fits_its_runs() {
 
 /// scripts/hyperbolicity.py: one row per N with the quantiles of Psi (recomputed here from
 /// the report's transversality.csv), a random-subspace baseline below Psi's median (the
-/// splitting is more transversal than chance), the swaps across the null space's borders
+/// splitting is more transversal than chance), the violations of E^u + E^0 + E^s
 /// (from domination.csv), and the slopes of ln Psi against ln N; a second study into the
 /// same directory is refused.
 #[test]
@@ -383,12 +383,12 @@ fn the_hyperbolicity_study_tabulates_psi_against_n() {
         assert!((r[2] - psi[0]).abs() < 1e-9 && (r[4] - median).abs() < 1e-9, "min and median of {n}: {r:?}");
         assert!(r[2] <= r[3] && r[3] <= r[4] && r[2] > 0.0 && r[4] < 90.0, "{r:?}");
         assert!(r[7] > 0.0 && r[7] < r[4], "random subspaces of N = {n} are less transversal than E^u and E^s: {r:?}");
-        // The domination test at the borders of the null space, first and last window.
+        // The domination test of the splitting E^u + E^0 + E^s, first and last window.
         let dom = read(&base.join(format!("runs/n{n}-report/domination.csv")));
         let head: Vec<&str> = dom.lines().next().unwrap().split(',').collect();
         let rows: Vec<Vec<f64>> = dom.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
         let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
-        let worst = |row: &Vec<f64>| row[col("border_unstable_null")].max(row[col("border_null_stable")]);
+        let worst = |row: &Vec<f64>| row[col("split_unstable_null")].max(row[col("split_null_stable")]);
         assert_eq!((r[8], r[9], r[10]), (worst(&rows[0]), worst(rows.last().unwrap()), rows.last().unwrap()[0]), "N = {n}");
         medians.push((r[0].ln(), median.ln()));
     }
@@ -472,7 +472,7 @@ fn vectors_for_every_mth_frame_give_the_analyses_of_the_full_stream() {
     ok(clv(&["analyze", full.to_str().unwrap(), "--out", z.to_str().unwrap(), "--only", "local_exponents", "--deltas", "1,100000"]));
     let summary: serde_json::Value = serde_json::from_str(&read(&z.join("summary.json"))).unwrap();
     let caption = summary["produced"].as_array().unwrap().iter().find(|p| p["title"].as_str().is_some_and(|t| t.contains("Domination"))).unwrap()["caption"].as_str().unwrap().to_string();
-    assert!(!caption.contains(": NaN") && !caption.contains("NaN of the windows") && !caption.contains("at Δ = 100000") && caption.contains("never swap"), "{caption}");
+    assert!(!caption.contains(": NaN") && !caption.contains("NaN of the windows") && !caption.contains("at Δ = 100000") && caption.contains("never violated"), "{caption}");
 }
 
 #[test]

@@ -516,7 +516,8 @@ impl Figure {
         let (w, h) = (f64::from(self.w), f64::from(self.h));
         // Room for the title and the x label (height) and the y label (width).
         let room = |s: &String, v: f64| if s.is_empty() { 0.0 } else { v };
-        let t = room(&self.title, (2.5 * ch).round()).max(16.0);
+        let lines = self.title_lines(scale).len() as f64;
+        let t = room(&self.title, ((1.5 + lines) * ch).round()).max(16.0);
         let (xl_h, yl_w) = (
             room(&self.x_label, ch + 8.0),
             room(&self.y_label, ch + 10.0),
@@ -556,6 +557,23 @@ impl Figure {
             x_label_y: h - bottom - 10.0 - ch / 2.0,
             legend: None,
         }
+    }
+
+    /// The title broken at spaces into lines that fit the image's width (none without a
+    /// title): a long title is wrapped, never cut at the image's edges.
+    fn title_lines(&self, scale: u32) -> Vec<String> {
+        let room = f64::from(self.w) - 16.0;
+        let mut lines: Vec<String> = Vec::new();
+        for word in self.title.split(' ').filter(|w| !w.is_empty()) {
+            match lines.last_mut() {
+                Some(line) if text_w(&format!("{line} {word}"), scale) <= room => {
+                    line.push(' ');
+                    line.push_str(word);
+                }
+                _ => lines.push(word.to_string()),
+            }
+        }
+        lines
     }
 
     /// Labelled series with their positions; a legend needs two or more.
@@ -632,14 +650,12 @@ impl Figure {
             label.vertical = true;
             prims.push(Prim::Text(label));
         }
-        if !self.title.is_empty() {
-            // Centre on the plot frame if the title fits there, else on the image.
-            let cx = if text_w(&self.title, sc) < r - l {
-                (l + r) / 2.0
-            } else {
-                w / 2.0
-            };
-            let mut label = text(cx, (t / 2.0).round(), &self.title, Anchor::Middle);
+        let lines = self.title_lines(sc);
+        for (i, line) in lines.iter().enumerate() {
+            // Centre on the plot frame if the line fits there, else on the image.
+            let cx = if text_w(line, sc) < r - l { (l + r) / 2.0 } else { w / 2.0 };
+            let y = t / 2.0 + (i as f64 - (lines.len() as f64 - 1.0) / 2.0) * ch * 1.25;
+            let mut label = text(cx, y.round(), line, Anchor::Middle);
             label.bold = true;
             prims.push(Prim::Text(label));
         }

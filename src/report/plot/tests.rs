@@ -723,3 +723,19 @@ fn a_cloud_is_small_grey_dots_under_later_series() {
     let dots: Vec<_> = prims.iter().filter_map(|p| if let Prim::Dots(_, c, r, _, true) = p { Some((*c, *r)) } else { None }).collect();
     assert_eq!(dots, [(GREY, CLOUD_R)]);
 }
+
+#[test]
+fn a_long_title_is_wrapped_inside_the_image() {
+    let title = "Pure P (sin pattern) from the position perturbations, step 9024 (some disks off scale, see the caption)";
+    let mut fig = Figure::new(title).size(900, 600);
+    fig.series("a", &[0.0, 1.0], &[0.0, 1.0], Marker::Line);
+    let lines = fig.title_lines(2);
+    assert!(lines.len() >= 2, "{lines:?}");
+    assert_eq!(lines.join(" "), title, "every word kept, in order");
+    assert!(lines.iter().all(|l| text_w(l, 2) <= 900.0 - 16.0), "{lines:?}");
+    // The frame starts below the last line.
+    let lay = fig.layout();
+    assert!(lay.t >= (1.5 + lines.len() as f64) * 16.0 - 1.0, "top {}", lay.t);
+    let short = Figure::new("short").title_lines(2);
+    assert_eq!(short, ["short"]);
+}

@@ -73,7 +73,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
         js: Vec::new(),
         pending: Vec::new(),
         chosen: false,
-        test: DominationTest::new(ctx.k, &deltas),
+        test: DominationTest::new(ctx.k, &deltas).with_splits(&null_borders(ctx).iter().map(|&(_, i)| i).collect::<Vec<_>>()),
         deltas,
         steps: Vec::new(),
         times: Vec::new(),
@@ -132,16 +132,16 @@ impl LocalExponents {
     }
 }
 
-impl LocalExponents {
-    /// The pairs (i, i+1), 0-based i, at the borders of the null space of disks with all
-    /// vectors: (2N-3, 2N-2) between E^u and E^0 and (2N+3, 2N+4) between E^0 and E^s.
-    fn null_borders(&self) -> Vec<(&'static str, usize)> {
-        let n = self.ctx.n;
-        if !self.ctx.is_disks() || n < 2 || 2 * n + 3 >= self.ctx.k {
-            return Vec::new();
-        }
-        vec![("border_unstable_null", 2 * n - 4), ("border_null_stable", 2 * n + 2)]
+/// The pairs (i, i+1), 0-based i, at the borders of the null space of disks with all
+/// vectors: (2N-3, 2N-2) between E^u and E^0 and (2N+3, 2N+4) between E^0 and E^s. The same
+/// i are the last indices of the upper blocks of the splittings E^u | E^0 ⊕ E^s and
+/// E^u ⊕ E^0 | E^s.
+fn null_borders(ctx: &Context) -> Vec<(&'static str, usize)> {
+    let n = ctx.n;
+    if !ctx.is_disks() || n < 2 || 2 * n + 3 >= ctx.k {
+        return Vec::new();
     }
+    vec![("border_unstable_null", 2 * n - 4), ("border_null_stable", 2 * n + 2)]
 }
 
 impl Analysis for LocalExponents {
@@ -288,10 +288,12 @@ impl Analysis for LocalExponents {
         let pairs: Vec<Vec<f64>> = (0..self.deltas.len()).map(|w| self.test.pair_fractions(w)).collect();
         let outside: Vec<f64> = pairs.iter().map(|p| finite_mean(p.iter().enumerate().filter(|(i, _)| !self.in_null(*i)).map(|(_, &x)| x))).collect();
         let sel: Vec<usize> = self.js.iter().copied().filter(|&j| j + 1 < ctx.k).collect();
-        let borders = self.null_borders();
+        let borders = null_borders(ctx);
+        let splits: Vec<Vec<f64>> = (0..self.deltas.len()).map(|w| self.test.split_fractions(w)).collect();
         let mut header = vec!["delta".to_string(), "windows".to_string(), "overall".to_string(), "outside_null".to_string()];
         header.extend(sel.iter().map(|j| format!("pair_{}_{}", j + 1, j + 2)));
         header.extend(borders.iter().map(|(name, _)| name.to_string()));
+        header.extend(borders.iter().map(|(name, _)| name.replace("border", "split")));
         let h: Vec<&str> = header.iter().map(String::as_str).collect();
         write_csv(
             &out.join("domination.csv"),
@@ -300,6 +302,7 @@ impl Analysis for LocalExponents {
                 let mut row = vec![dl as f64, self.test.windows(w) as f64, overall[w], outside[w]];
                 row.extend(sel.iter().map(|&j| pairs[w][j]));
                 row.extend(borders.iter().map(|&(_, i)| pairs[w][i]));
+                row.extend(splits[w].iter().copied());
                 row
             }),
         )?;
@@ -321,12 +324,12 @@ impl Analysis for LocalExponents {
             let y: Vec<f64> = pairs.iter().map(|p| p[j]).collect();
             fig.series(&format!("pair ({}, {})", j + 1, j + 2), &x, &y, Marker::LinePoints);
         }
-        let border_curves: Vec<(String, Vec<f64>)> =
-            borders.iter().map(|(name, i)| (format!("{} ({}, {})", name.replace('_', " "), i + 1, i + 2), pairs.iter().map(|p| p[*i]).collect())).collect();
+        let split_names = ["E^u below E^0 somewhere", "E^0 below E^s somewhere"];
+        let border_curves: Vec<(String, Vec<f64>)> = (0..borders.len()).map(|c| (split_names[c].to_string(), splits.iter().map(|p| p[c]).collect())).collect();
         match border_curves.as_slice() {
             // one curve drawn over the other would hide it (both are zero once dominated)
-            [(a, ya), (b, yb)] if ya == yb => {
-                fig.series(&format!("{a} and {}", b.trim_start_matches("border ")), &x, ya, Marker::LinePoints);
+            [(_, ya), (_, yb)] if ya == yb => {
+                fig.series("E^u below E^0, or E^0 below E^s, somewhere", &x, ya, Marker::LinePoints);
             }
             curves => {
                 for (label, y) in curves {
@@ -338,28 +341,36 @@ impl Analysis for LocalExponents {
         save_figure(&fig, out, "domination")?;
         // The longest window length that fits in the frames (NaN rows measure nothing).
         let longest = (0..self.deltas.len()).rev().find(|&w| self.deltas[w] <= frames_n).unwrap_or(0);
-        // Domination at the borders of the null space: the smallest measured Delta from which
-        // neither border pair swaps again.
+        // Domination of E^u ⊕ E^0 ⊕ E^s: the smallest measured Delta from which neither
+        // splitting is violated again.
         let borders_text = if borders.is_empty() {
             String::new()
         } else {
-            let at = |w: usize| borders.iter().map(|&(_, i)| format!("{:.3e}", pairs[w][i])).collect::<Vec<_>>().join(" and ");
-            let quiet = |w: usize| borders.iter().all(|&(_, i)| pairs[w][i] == 0.0);
-            let names = format!("the pairs ({}, {}) between E^u and E^0 and ({}, {}) between E^0 and E^s", borders[0].1 + 1, borders[0].1 + 2, borders[1].1 + 1, borders[1].1 + 2);
+            let at = |w: usize| splits[w].iter().map(|x| format!("{x:.3e}")).collect::<Vec<_>>().join(" and ");
+            let quiet = |w: usize| splits[w].iter().all(|&x| x == 0.0);
+            let (u, s) = (borders[0].1 + 1, borders[1].1 + 2);
+            let names = format!(
+                "the splitting E^u ⊕ E^0 ⊕ E^s (every finite-time exponent of E^u = 1..{u} above every one of E^0 = {}..{}, and every one of E^0 above every one of E^s = {s}..{}, tested whole, not only the border pairs ({u}, {}) and ({}, {s}))",
+                u + 1,
+                s - 1,
+                ctx.k,
+                u + 1,
+                s - 1
+            );
             // Only the window lengths that fit in the frames measure anything.
             let measured: Vec<usize> = (0..self.deltas.len()).filter(|&w| self.deltas[w] <= frames_n).collect();
             match measured.iter().position(|&from| measured.iter().filter(|&&w| w >= from).all(|&w| quiet(w))) {
-                Some(0) => format!(" At the borders of the null space, {names} never swap, not even in single steps: E^u ⊕ E^0 ⊕ E^s is dominated in these frames."),
+                Some(0) => format!(" For {names}: never violated, not even in single steps; it is dominated in these frames."),
                 Some(p) => format!(
-                    " At the borders of the null space, {names} swap in {} of the windows at Δ = {} and in none from Δ = {} on: E^u ⊕ E^0 ⊕ E^s is dominated in these frames, with Δ_0 <= {}.",
+                    " For {names}: violated in {} of the windows at Δ = {} and in none from Δ = {} on; it is dominated in these frames, with Δ_0 <= {}.",
                     at(measured[0]),
                     self.deltas[measured[0]],
                     self.deltas[measured[p]],
                     self.deltas[measured[p]]
                 ),
                 None => match measured.last() {
-                    Some(&w) => format!(" At the borders of the null space, {names} still swap at Δ = {}, in {} of the windows: no domination of E^u ⊕ E^0 ⊕ E^s is seen in these frames.", self.deltas[w], at(w)),
-                    None => format!(" No window length Δ fits in the {frames_n} frames, so nothing is said about the borders of the null space."),
+                    Some(&w) => format!(" For {names}: still violated at Δ = {}, in {} of the windows; no domination is seen in these frames.", self.deltas[w], at(w)),
+                    None => format!(" No window length Δ fits in the {frames_n} frames, so nothing is said about the splitting E^u ⊕ E^0 ⊕ E^s."),
                 },
             }
         };
@@ -476,7 +487,9 @@ mod tests {
         assert_eq!(column(&dom, "border_unstable_null"), column(&dom, "pair_3_4"));
         assert!(column(&dom, "border_null_stable").iter().all(|&x| x == 0.0));
         let caption = &produced[2].caption;
-        assert!(caption.contains("(3, 4) between E^u and E^0 and (9, 10) between E^0 and E^s never swap") && caption.contains("is dominated"), "{caption}");
+        assert!(caption.contains("E^u = 1..3 above every one of E^0 = 4..9, and every one of E^0 above every one of E^s = 10..12, tested whole, not only the border pairs (3, 4) and (9, 10)): never violated") && caption.contains("it is dominated"), "{caption}");
+        assert_eq!(column(&dom, "split_unstable_null"), column(&dom, "border_unstable_null"), "lambda_3 is E^u's smallest");
+        assert!(column(&dom, "split_null_stable").iter().all(|&x| x == 0.0));
         // five null pairs of 11 swap about half the time at Delta = 1
         let overall = column(&dom, "overall");
         assert!((overall[0] - 0.5 * 5.0 / 11.0).abs() < 0.05, "{overall:?}");
@@ -511,7 +524,7 @@ mod tests {
     #[test]
     fn the_borders_of_the_null_space_are_tested_for_domination() {
         let (n, d) = (3, 12);
-        for (lambda_3, said) in [(0.3, "in none from Δ = 25 on"), (0.0, "still swap at Δ = 25")] {
+        for (lambda_3, said) in [(0.3, "in none from Δ = 25 on"), (0.0, "still violated at Δ = 25")] {
             let mut a = new(&context(n, vec![1], vec![1, 5, 25])).unwrap();
             for step in (0..500u64).rev() {
                 let local: Vec<f64> = (0..d)

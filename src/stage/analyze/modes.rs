@@ -106,6 +106,9 @@ pub struct ModeRow {
     pub detection: String,
     /// Mean forward GS exponent of the step.
     pub lambda: f64,
+    /// Largest minus smallest of its GS exponents: a step found by separation or by its
+    /// vectors need not be degenerate (a small system's LP exponents differ by many errors).
+    pub spread: f64,
     /// Majority class over the frames ("T", "L", "P", "LP"; "-" if unclassified).
     pub kind: String,
     /// The (first) wave vector of the majority candidate; none (empty cells, null) if
@@ -224,7 +227,9 @@ impl Analysis for Modes {
             let clear = beyond_chance >= MIN_FRACTION;
             let (kind, family) = candidate.filter(|_| clear).map_or((None, None), |(k, f)| (Some(k), Some(f)));
             let wave = family.map(|f| f.waves[0]);
-            let lambda = ctx.gs.as_ref().map_or(f64::NAN, |g| g.exponents[acc.step.start..acc.step.start + acc.step.len].iter().sum::<f64>() / acc.step.len as f64);
+            let of_step = ctx.gs.as_ref().map_or(&[][..], |g| &g.exponents[acc.step.start..acc.step.start + acc.step.len]);
+            let lambda = if of_step.is_empty() { f64::NAN } else { of_step.iter().sum::<f64>() / acc.step.len as f64 };
+            let spread = of_step.iter().copied().fold(f64::NEG_INFINITY, f64::max) - of_step.iter().copied().fold(f64::INFINITY, f64::min);
             rows.push(ModeRow {
                 side: if is_positive(&acc.step, d) { "+".into() } else { "-".into() },
                 first: acc.step.start + 1,
@@ -237,6 +242,7 @@ impl Analysis for Modes {
                     _ => "degenerate".into(),
                 },
                 lambda,
+                spread: if of_step.is_empty() { f64::NAN } else { spread },
                 kind: kind.map_or("-".into(), |k| format!("{k:?}")),
                 n_x: wave.map(|w| w.n_x),
                 n_y: wave.map(|w| w.n_y),
@@ -254,7 +260,7 @@ impl Analysis for Modes {
         }
 
         // The mode table.
-        let header = ["side", "first", "last", "degeneracy", "detection", "lambda", "kind", "n_x", "n_y", "k", "name", "best", "beyond_chance", "fraction_gs", "fraction_clv", "agreement", "consistent", "frames"];
+        let header = ["side", "first", "last", "degeneracy", "detection", "lambda", "spread", "kind", "n_x", "n_y", "k", "name", "best", "beyond_chance", "fraction_gs", "fraction_clv", "agreement", "consistent", "frames"];
         let text: Vec<Vec<String>> = rows
             .iter()
             .map(|r| {
@@ -265,6 +271,7 @@ impl Analysis for Modes {
                     r.degeneracy.to_string(),
                     r.detection.clone(),
                     fmt(r.lambda),
+                    fmt(r.spread),
                     r.kind.clone(),
                     r.n_x.map_or(String::new(), |n| n.to_string()),
                     r.n_y.map_or(String::new(), |n| n.to_string()),
@@ -354,13 +361,14 @@ impl Analysis for Modes {
             .map(|r| {
                 let weak = if r.name != r.best { format!(" of the best candidate {}, {:.2} beyond chance, below {MIN_FRACTION}", r.best, r.beyond_chance) } else { String::new() };
                 format!(
-                    "{} at i = {}..{} ({}-fold{}, λ = {:.4}, fraction {:.2}{weak}, {:.0}% of frames agree)",
+                    "{} at i = {}..{} ({}-fold{}, λ = {:.4}{}, fraction {:.2}{weak}, {:.0}% of frames agree)",
                     r.name,
                     r.first,
                     r.last,
                     r.degeneracy,
                     if r.detection == "degenerate" { String::new() } else { format!(", {}", r.detection) },
                     r.lambda,
+                    if r.detection == "degenerate" { String::new() } else { format!(" with its exponents spread over {:.4}", r.spread) },
                     r.fraction_gs.or(r.fraction_clv).unwrap_or(f64::NAN),
                     100.0 * r.agreement
                 )
@@ -430,8 +438,8 @@ fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Prod
     let wave_number = |r: &ModeRow| r.k;
     let stderr = |r: &ModeRow| ctx.gs.as_ref().map_or(f64::NAN, |g| g.stderr[r.first - 1..r.last].iter().sum::<f64>() / r.degeneracy as f64);
     let number = |n: Option<i32>| n.map_or(String::new(), |n| n.to_string());
-    let table: Vec<Vec<String>> = modes.iter().map(|r| vec![r.kind.clone(), r.name.clone(), number(r.n_x), number(r.n_y), fmt(wave_number(r)), fmt(r.lambda), fmt(stderr(r)), fmt(r.lambda / wave_number(r))]).collect();
-    write_text_csv(&out.join("modes_dispersion.csv"), &["kind", "name", "n_x", "n_y", "k", "lambda", "stderr", "lambda_over_k"], &table)?;
+    let table: Vec<Vec<String>> = modes.iter().map(|r| vec![r.kind.clone(), r.name.clone(), number(r.n_x), number(r.n_y), fmt(wave_number(r)), fmt(r.lambda), fmt(stderr(r)), fmt(r.spread), fmt(r.lambda / wave_number(r))]).collect();
+    write_text_csv(&out.join("modes_dispersion.csv"), &["kind", "name", "n_x", "n_y", "k", "lambda", "stderr", "spread", "lambda_over_k"], &table)?;
     let mut kinds: Vec<&str> = modes.iter().map(|r| r.kind.as_str()).collect();
     kinds.dedup();
     let mut fig = Figure::new("Dispersion of the Lyapunov modes").x_label("k = |k|, k = 2π (n_x/L_x, n_y/L_y)").y_label("λ");
@@ -458,10 +466,18 @@ fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Prod
         title: "Dispersion of the Lyapunov modes (beyond the paper)".into(),
         caption: format!(
             "Exponent λ of each positive mode step of the table above against its wave number |k|, k = 2π (n_x/L_x, n_y/L_y) (L_x = {:.4}, L_y = {:.4}), with a least-squares line λ = c k through the origin for each kind: {}. \
-             The kinetic theory of Lyapunov modes (de Wijn & van Beijeren 2004) gives λ proportional to k for small k; λ/k changing with k shows where that ends.",
+             The kinetic theory of Lyapunov modes (de Wijn & van Beijeren 2004) gives λ proportional to k for small k; λ/k changing with k shows where that ends.{}",
             ctx.lx,
             ctx.ly,
-            fits.join("; ")
+            fits.join("; "),
+            {
+                let split: Vec<String> = modes.iter().filter(|r| r.detection != "degenerate").map(|r| format!("{} ({:.4})", r.name, r.spread)).collect();
+                if split.is_empty() {
+                    String::new()
+                } else {
+                    format!(" λ is the mean of a step's exponents, and stderr the mean of their errors; the exponents of {} are not equal within those errors but spread over the ranges given (the spread column), which bound λ better than the errors do.", split.join(", "))
+                }
+            }
         ),
         figures: vec!["modes_dispersion".into()],
         tables: vec!["modes_dispersion.csv".into()],
@@ -532,8 +548,9 @@ fn pattern_figure(title: &str, y_label: &str, axes: &WaveAxes, x: &[f64], points
 }
 
 /// A y range that shows the bulk of `values`: the 5th to 95th percentile widened by its own
-/// width on both sides, if some values lie beyond that; None if all fit.
-fn robust_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+/// width on both sides, with the number of values beyond it, if there are any; None if all
+/// fit.
+fn robust_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64, usize)> {
     let mut v: Vec<f64> = values.filter(|x| x.is_finite()).collect();
     if v.len() < 20 {
         return None;
@@ -541,7 +558,8 @@ fn robust_range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
     v.sort_by(f64::total_cmp);
     let (p5, p95) = (v[v.len() / 20], v[v.len() - 1 - v.len() / 20]);
     let (lo, hi) = (p5 - (p95 - p5), p95 + (p95 - p5));
-    (v[0] < lo || v[v.len() - 1] > hi).then_some((lo, hi))
+    let off = v.iter().filter(|&&x| x < lo || x > hi).count();
+    (off > 0).then_some((lo, hi, off))
 }
 
 /// Columns of per-disk values (the first is q_x), written as one CSV.
@@ -647,6 +665,7 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
     // rms of δq across over rms of δq along, per source: 0 for an ideal L pattern.
     let mut across = Vec::new();
     // Fig. 11 from the position part (sine patterns), Fig. 12 from the momentum part (cosine).
+    let mut off_scale = Vec::new();
     for (fig_no, part, c, pattern) in [(11, Part::Position, 'q', "sin"), (12, Part::Momentum, 'p', "cos")] {
         let (mut l_points, mut p_points, mut l_fits, mut p_fits) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for &(src, set) in &sources {
@@ -689,11 +708,13 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
         for (which, points, fits, y_label) in [("L", &l_points, &l_fits, format!("δ{c}")), ("P", &p_points, &p_fits, format!("(δ{c}·p)/p²"))] {
             // dividing by p^2 blows up the nearly resting disks: they would flatten the sinusoid
             let range = robust_range(points.iter().flat_map(|(_, y)| y.iter().copied()));
-            let title = format!("{name}: pure {which} ({pattern} pattern) from the {what} perturbations, step {}{}", frame.step, if range.is_some() { " (some disks off scale)" } else { "" });
+            let title = format!("{name}: pure {which} ({pattern} pattern) from the {what} perturbations, step {}{}", frame.step, range.map(|(_, _, off)| format!(" ({off} points off scale)")).unwrap_or_default());
             let fstem = format!("fig{fig_no}_{stem}_{which}");
             let mut fig = pattern_figure(&title, &y_label, &axes, &x, points, fits);
-            if let Some((lo, hi)) = range {
+            if let Some((lo, hi, off)) = range {
                 fig = fig.y_range(lo, hi);
+                let total: usize = points.iter().map(|(_, y)| y.len()).sum();
+                off_scale.push(format!("Fig. {fig_no} {which}: {off} of {total} points beyond {lo:.3}..{hi:.3}"));
             }
             save_figure(&fig, out, &fstem)?;
             figs.push(fstem);
@@ -704,13 +725,18 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
         Produced {
             title: format!("Longitudinal-momentum mode {name} (Figs. 11, 12)"),
             caption: format!(
-                "Pure L and P vectors reconstructed at step {} inside the four-dimensional {} of {name} (i = {}..{}) by least squares against the Table III patterns, against {}: Fig. 11 from the position perturbations (sine patterns: δq_{a} of L, with δq_{t}, which vanishes for an ideal L pattern, as a check, here rms δq_{t} / rms δq_{a} = {}, and (δq·p)/p² of P, the momenta divided out), Fig. 12 likewise from the momentum perturbations (cosine patterns). Overlaps and sine fits are in modes_lp.csv.",
+                "Pure L and P vectors reconstructed at step {} inside the four-dimensional {} of {name} (i = {}..{}) by least squares against the Table III patterns, against {}: Fig. 11 from the position perturbations (sine patterns: δq_{a} of L, with δq_{t}, which vanishes for an ideal L pattern, as a check, here rms δq_{t} / rms δq_{a} = {}, and (δq·p)/p² of P, the momenta divided out), Fig. 12 likewise from the momentum perturbations (cosine patterns). Overlaps and sine fits are in modes_lp.csv.{}",
                 frame.step,
                 if frame.g.is_some() { "GS and covariant subspaces" } else { "covariant subspace" },
                 step.start + 1,
                 step.start + step.len,
                 axes.x_label,
-                across.join(", ")
+                across.join(", "),
+                if off_scale.is_empty() {
+                    String::new()
+                } else {
+                    format!(" Off scale, so that the sinusoid is seen: {} (dividing by p² blows up nearly resting disks; every value is in {stem}.csv, and the fits use them all).", off_scale.join("; "))
+                }
             ),
             figures: figs,
             tables: vec![format!("{stem}.csv"), "modes_lp.csv".into()],
@@ -822,8 +848,9 @@ mod tests {
         let sine: Vec<f64> = (0..100).map(|i| (i as f64 * 0.1).sin()).collect();
         assert_eq!(robust_range(sine.iter().copied()), None);
         let spiked: Vec<f64> = sine.iter().copied().chain([40.0, -25.0]).collect();
-        let (lo, hi) = robust_range(spiked.into_iter()).unwrap();
+        let (lo, hi, off) = robust_range(spiked.into_iter()).unwrap();
         assert!(lo < -0.99 && lo > -3.0 && hi > 0.99 && hi < 3.0, "{lo} {hi}");
+        assert_eq!(off, 2, "the two spikes are counted off scale");
     }
 
     #[test]
@@ -937,7 +964,10 @@ mod tests {
         let lp = rows.iter().find(|r| r["side"] == "+").unwrap();
         assert_eq!((lp["first"].as_str(), lp["last"].as_str()), ((at + 1).to_string().as_str(), (at + 4).to_string().as_str()));
         assert_eq!((lp["detection"].as_str(), lp["name"].as_str(), lp["consistent"].as_str()), ("separated", "LP(1,0)", "true"));
-        assert!(produced[0].caption.contains("LP(1,0) at i = 54..57 (4-fold, separated"), "{}", produced[0].caption);
+        assert!(produced[0].caption.contains("LP(1,0) at i = 54..57 (4-fold, separated, λ = 0.1000 with its exponents spread over 0.0006,"), "{}", produced[0].caption);
+        assert!((lp["spread"].parse::<f64>().unwrap() - 0.0006).abs() < 1e-12, "{lp:?}");
+        let dispersion = produced.iter().find(|p| p.title.starts_with("Dispersion")).unwrap();
+        assert!(dispersion.caption.contains("the exponents of LP(1,0) (0.0006) are not equal within those errors"), "{}", dispersion.caption);
     }
 
     /// In a square box the modes of (1,0) and (0,1) are degenerate by symmetry: a T step of

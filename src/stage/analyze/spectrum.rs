@@ -159,7 +159,7 @@ impl Analysis for Spectrum {
             produced.push(Produced {
                 title: "Mode region of the spectrum (Fig. 8)".into(),
                 caption: format!(
-                    "The positive exponents λ_{}..λ_{} next to the null space, with the negated conjugate exponents at the same index (paper Fig. 8); the GS exponents are those of {}. Steps of equal exponents are where Lyapunov modes may sit; the mode table says which steps were found and what they are. {}",
+                    "The positive exponents λ_{}..λ_{} next to the null space, with the negated conjugate exponents at the same index (paper Fig. 8); the GS exponents are those of {}. Steps of equal or nearly equal exponents are where Lyapunov modes may sit (in a small system the four exponents of an LP mode can differ by many standard errors); the mode table says which steps were found, what they are and how far each one's exponents spread. {}",
                     first + 1,
                     last + 1,
                     if same_steps { "the frames' steps, as the CLV ones" } else { "the whole run" },
