@@ -475,8 +475,8 @@ fn read_frames_from(input: impl std::io::Read, into: &mut Vec<Frame>) {
     .unwrap();
 }
 
-/// With `--store-r all` the backward stage uses the stored R_n (and still verifies every
-/// segment): the frames are those of a run that recomputes them.
+/// With `--store-r all` the frames are those of a run that stores R at checkpoints only,
+/// and a stored R_n altered (in a valid segment) stops the backward stage, naming the step.
 #[test]
 fn stored_r_matrices_give_the_same_frames() {
     let flags = ["--n", "8", "--aspect", "1", "--steps", "1500", "--clv-steps", "300", "--transient", "300"];
@@ -493,6 +493,17 @@ fn stored_r_matrices_give_the_same_frames() {
     let (a, b) = (backward_json(&plain, &[]), backward_json(&all, &[]));
     assert_eq!(a["exponents"], b["exponents"]);
     assert!(frames(&plain.join("frames.mcap")) == frames(&all.join("frames.mcap")));
+    // One bit of R_1400's last packed entry, a step between checkpoints in the window.
+    common::alter_message(&all, clv::store::schema::R.topic, 1400, |data| {
+        let (step, mut r) = clv::store::records::decode_r(data).unwrap();
+        let k = r.ncols();
+        r[(k - 1, k - 1)] = f64::from_bits(r[(k - 1, k - 1)].to_bits() ^ 1);
+        clv::store::records::encode_r(step, &r)
+    });
+    let out = clv(&["backward", all.to_str().unwrap(), "--quiet", "--out", all.join("again.mcap").to_str().unwrap()]);
+    let err = common::stderr(&out);
+    assert!(!out.status.success() && err.contains("R_n at step 1400 stored in") && err.contains("is not the recomputed one"), "{err}");
+    assert!(!err.contains("panicked"));
 }
 
 /// A run on two threads gives the frames of the same run on one, bit for bit: the QR step

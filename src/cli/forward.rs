@@ -87,7 +87,8 @@ pub struct ForwardArgs {
     /// Close a segment file once it holds this many MB.
     #[arg(long, default_value_t = 1024, allow_negative_numbers = true)]
     pub segment_mb: u64,
-    /// Which R matrices to store: at checkpoints, or at every step of the CLV window too.
+    /// Which R matrices to store: at checkpoints, or at every step of the CLV window too (for
+    /// reading them outside clv; the backward stage recomputes and checks them).
     #[arg(long, value_enum, default_value = "checkpoints")]
     pub store_r: StoreRArg,
     /// Steps at the end of the run for which covariant vectors are wanted (default a tenth of relax-steps + steps, at most 2/3 of steps).

@@ -10,7 +10,7 @@ use std::thread::JoinHandle;
 
 type Work = dyn Fn(usize) + Sync;
 
-/// A pointer to the caller's work, valid until [`Crew::run`] returns (it waits for every
+/// A pointer to the caller's work, valid until [`Crew::run_on`] returns (it waits for every
 /// helper to finish with it before returning).
 struct Task(*const Work);
 unsafe impl Send for Task {}

@@ -64,7 +64,8 @@ pub fn solve_upper_tri_tri(r: faer::MatRef<'_, f64>, c: MatMut<'_, f64>, par: Pa
 
 /// The Ginelli step with renormalisation: C <- R^{-1} C (see [`solve_upper_tri_tri`]),
 /// then every column scaled to unit length; `norms[j]` receives the length of column j
-/// before the scaling (-ln norms[j] / tau is the local exponent of CLV j).
+/// before the scaling (-ln norms[j] / tau is the local exponent Lambda_j^cov of CLV j, paper
+/// Sec. 6).
 pub fn ginelli_step(r: faer::MatRef<'_, f64>, mut c: MatMut<'_, f64>, norms: &mut [f64], par: Par) {
     let _flush = FlushSubnormals::new();
     assert_eq!(norms.len(), c.ncols());

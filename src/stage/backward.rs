@@ -39,6 +39,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
+/// C at t_omega, where the backward iteration starts: any upper-triangular C gives vectors
+/// v_omega^j in S_omega^j = span{g^1..g^j} (paper Sec. 3, eq. initial_condition).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum CInit {
@@ -388,7 +390,8 @@ pub fn report_path(dir: &RunDir) -> PathBuf {
     dir.clv_spectrum_path()
 }
 
-/// The window of a run: frames at steps first..=last (C starts at the run's last step).
+/// The window of a run: frames at steps first..=last; first is the paper's t_0, and C starts
+/// at the run's last step, the paper's t_omega, beyond last by the backward transient.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Window {
     pub first: u64,
@@ -572,10 +575,22 @@ fn recompute(config: &RunConfig, store_r_all: bool, reads_g: &dyn Fn(u64) -> boo
             describe_mismatch(&want, &got)
         )));
     }
+    // The R_n a `--store-r all` run keeps for readers outside clv are checked like the
+    // checkpoints: what the sweep uses is the recomputed R_n, and a stored one that differs
+    // says the file is not the run's.
     if store_r_all {
         for (n, packed) in cps.stored_r(s0, s1)? {
             let i = (n - s0) as usize;
-            seg.r[(i - 1) * kk..i * kk].copy_from_slice(&packed);
+            let recomputed = &seg.r[(i - 1) * kk..i * kk];
+            if let Some(at) = recomputed.iter().zip(&packed).position(|(a, b)| a.to_bits() != b.to_bits()) {
+                let file = cps.segment_of(n).map(|s| s.path.display().to_string()).unwrap_or_default();
+                return Err(Error::Dynamics(format!(
+                    "R_n at step {n} stored in {file} (--store-r all) is not the recomputed one: packed entry {at} is {:e}, recomputed {:e}. \
+                     The file was altered or the run was made by another build; the backward stage refuses to continue with numbers it cannot verify",
+                    packed.get(at).copied().unwrap_or(f64::NAN),
+                    recomputed[at]
+                )));
+            }
         }
     }
     Ok(())
@@ -825,6 +840,9 @@ pub fn run(
     };
 
     let segment_bytes = 8 * (Segment::g_slots(c_every as usize, opts.vectors_every) * d * k) as u64;
+    // Two segment buffers, and a third share as headroom for what the sweep and the
+    // consumers of its frames hold besides (C, the frames being formed and queued): a budget
+    // that only just holds two segments goes out of core.
     let out_of_core = (3 * segment_bytes > memory_bytes).then(|| dir.path.clone());
 
     let (planned, swept_before) = (todo.len() as u64, sweep.stats.segments);

@@ -15,7 +15,9 @@ pub struct Frame {
     /// V_n = G_n C_n (paper eq. for V_n): unit columns, column-major D x k, paper ordering;
     /// empty in the frames the backward stage formed no vectors for (`--vectors-every`).
     pub v: Vec<f64>,
-    /// Local CLV exponents over [t_n, t_{n+1}], k values.
+    /// Local CLV exponents over [t_n, t_{n+1}], ln |D phi^tau v^l(Gamma(t_n))| / tau, k
+    /// values: the paper's Lambda_l^cov (Sec. 6, after eq. intcov) at t_{n+1}, one step
+    /// later than this frame.
     pub local: Vec<f64>,
     /// Local GS exponents over [t_n, t_{n+1}], ln |[R_{n+1}]_ii| / tau, k values; empty in
     /// frames written before they were carried.

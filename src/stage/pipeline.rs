@@ -3,7 +3,7 @@
 //!
 //! The frames go straight from the backward sweep to the analyses over channels (nothing
 //! but the run directory is written in between), so the whole pipeline runs in the memory
-//! of one segment. A killed `clv run` resumes its forward pass when started again.
+//! of the backward stage's two segments and the analyses' queues of frames. A killed `clv run` resumes its forward pass when started again.
 
 use super::analyze::{registry, Analyzer, Context, Produced};
 use super::backward::{self, BackwardOptions};

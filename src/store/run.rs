@@ -14,7 +14,9 @@ pub const FORMAT: &str = "clv-run/1";
 pub enum StoreR {
     /// R_n at checkpoints only; the backward stage recomputes the rest.
     Checkpoints,
-    /// R_n at every step of the CLV window as well.
+    /// R_n at every step of the CLV window as well, for readers outside clv
+    /// (scripts/read_run.py); the backward stage recomputes them all the same and refuses a
+    /// run whose stored R_n differ from the recomputed ones.
     All,
 }
 
@@ -71,7 +73,8 @@ pub struct StoreConfig {
 
 impl StoreConfig {
     /// The defaults for a run: checkpoints every 100 steps, 10 per segment, the CLV window
-    /// the last tenth of the accumulated steps (as in the paper), a transient of half that.
+    /// a tenth of relax-steps + steps, at most 2/3 of steps (the paper's window is the last
+    /// tenth of its run), a transient of half that.
     pub fn for_run(config: &RunConfig) -> Self {
         // The paper's window: the last tenth of the run (2.5e4 of 2.5e5 steps), inside the
         // accumulated steps.

@@ -109,6 +109,16 @@ pub fn frames(path: &Path) -> Vec<Frame> {
 
 /// Rewrite the checkpoint at `step` of a run with `change` applied (through the real codec).
 pub fn alter_checkpoint(dir: &Path, step: u64, change: impl Fn(&mut Checkpoint)) {
+    alter_message(dir, CHECKPOINT.topic, step, |data| {
+        let mut cp = Checkpoint::decode(data).unwrap();
+        change(&mut cp);
+        cp.encode()
+    });
+}
+
+/// Rewrite the run segment holding `step` with its message of `topic` at that step replaced
+/// by `change` of it (a valid segment: CRCs and index are written anew).
+pub fn alter_message(dir: &Path, want: &str, step: u64, change: impl Fn(&[u8]) -> Vec<u8>) {
     use clv::store::schema::RUN_SCHEMAS;
     use clv::store::segment::{SegmentWriter, RUN_METADATA};
     let run = RunDir { path: dir.to_path_buf() };
@@ -125,10 +135,8 @@ pub fn alter_checkpoint(dir: &Path, step: u64, change: impl Fn(&mut Checkpoint))
     std::fs::create_dir_all(&tmpdir).unwrap();
     let mut w = SegmentWriter::create(&tmpdir, seg.first, report.run_json.as_deref().unwrap(), &RUN_SCHEMAS).unwrap();
     for (topic, s, data) in &messages {
-        let data = if topic == CHECKPOINT.topic && *s == step {
-            let mut cp = Checkpoint::decode(data).unwrap();
-            change(&mut cp);
-            cp.encode()
+        let data = if topic == want && *s == step {
+            change(data)
         } else {
             data.clone()
         };

@@ -132,8 +132,9 @@ impl LocalExponents {
     }
 }
 
-/// The pairs (i, i+1), 0-based i, at the borders of the null space of disks with all
-/// vectors: (2N-3, 2N-2) between E^u and E^0 and (2N+3, 2N+4) between E^0 and E^s. The same
+/// The pairs at the borders of the null space of disks with all vectors, (2N-3, 2N-2)
+/// between E^u and E^0 and (2N+3, 2N+4) between E^0 and E^s (1-based), as the 0-based index
+/// i of their first member. The same
 /// i are the last indices of the upper blocks of the splittings E^u | E^0 ⊕ E^s and
 /// E^u ⊕ E^0 | E^s.
 fn null_borders(ctx: &Context) -> Vec<(&'static str, usize)> {

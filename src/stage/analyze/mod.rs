@@ -236,7 +236,7 @@ impl Context {
         }
     }
 
-    /// The paper's selections of Figs. 4, 13 and 14 for N = 198, j = 1, 200 and 370 among
+    /// The paper's selection of Fig. 13 (Fig. 4 takes its last index) for N = 198, j = 1, 200 and 370 among
     /// its 2N - 3 = 393 positive exponents, scaled to this system's positive part; for hard
     /// disks the last is J of F^(J), the last unstable vector before the mode region
     /// ([`mode_steps::f_size`]), as 370 is in the paper's run.

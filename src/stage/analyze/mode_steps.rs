@@ -54,7 +54,7 @@ pub fn detect_steps(ctx: &Context) -> std::result::Result<Vec<Step>, String> {
 pub type Resolved = std::result::Result<Vec<(Step, Found)>, String>;
 
 /// The mode steps of a stream, both sides of the null space, resolved once at `frame` (the
-/// first frame with covariant vectors, [`super::Context::new`]) from the steps of the
+/// first sampled frame, [`super::Context::settle`]) from the steps of the
 /// exponents ([`detect_steps`], [`resolve_steps`]); or why there are none. Every analysis
 /// that names steps takes them from its context, so that all find the same ones.
 pub fn resolve(ctx: &Context, frame: &Frame) -> Resolved {

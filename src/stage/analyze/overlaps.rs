@@ -324,8 +324,7 @@ impl Analysis for Overlaps {
     }
 }
 
-/// "1, 8, 15": 1-based indices for captions.
-/// Fig. 14's finding measured, where the paper states it (Sec. 6): "each vector representing
+/// Fig. 14's finding measured, where the paper states it (Sec. 5.6, on Fig. 14): "each vector representing
 /// a T or LP-mode has significant contributions to the scalar product only for covariant
 /// vectors belonging to the same degenerate exponent and -- to a lesser extent -- the
 /// corresponding conjugate (negative) exponents". For the last vector j of each step: its
@@ -355,6 +354,7 @@ fn mode_overlaps(d: usize, steps: &[Step], mean_of: impl Fn(usize) -> Option<Vec
     s
 }
 
+/// "1, 8, 15": 1-based indices for captions.
 fn list(js: &[usize]) -> String {
     js.iter().map(|j| (j + 1).to_string()).collect::<Vec<_>>().join(", ")
 }

@@ -333,7 +333,7 @@ impl Analysis for Transversality {
 }
 
 /// Whether the density of Θ for i - j = 1 falls toward Θ = 0, the paper's finding for N = 198
-/// (Sec. 6: "the distribution for i-j = 1 seems to converge to zero for Θ → 0"): its first bin
+/// (Sec. 5.6, on Fig. 16: "the distribution for i-j = 1 seems to converge to zero for Θ → 0"): its first bin
 /// against the mean of the next four.
 fn first_bin(density: &[f64], width: f64) -> String {
     let next = &density[1..density.len().min(5)];

@@ -1,4 +1,4 @@
-//! Angles between vectors and subspaces (paper Sec. 5.6, Figs. 3, 4, 13-17).
+//! Angles between vectors and subspaces (paper Secs. 5.1 and 5.6, Figs. 3, 4, 13-17).
 //!
 //! Transversality of Oseledec subspaces is judged by the smallest principal angle (Fig. 15:
 //! Phi between a mode subspace and its conjugate, Psi between E^u and E^s) and by the angle
