@@ -158,13 +158,22 @@ impl std::fmt::Display for Estimate {
 
 /// Standard error of the mean of `x` (NaN with fewer than two values).
 pub fn standard_error(x: &[f64]) -> f64 {
+    (sample_variance(x) / x.len() as f64).sqrt()
+}
+
+/// Sample standard deviation of `x`, with n - 1 (NaN with fewer than two values: one value
+/// shows no spread, it does not show that there is none).
+pub fn sample_std(x: &[f64]) -> f64 {
+    sample_variance(x).sqrt()
+}
+
+fn sample_variance(x: &[f64]) -> f64 {
     let n = x.len();
     if n < 2 {
         return f64::NAN;
     }
     let mean = x.iter().sum::<f64>() / n as f64;
-    let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64;
-    (var / n as f64).sqrt()
+    x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64
 }
 
 /// Kaplan-Yorke (Lyapunov) dimension D_KY = j + (lambda_1 + ... + lambda_j) / |lambda_(j+1)|,

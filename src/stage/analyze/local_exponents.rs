@@ -89,10 +89,8 @@ fn stats(x: &[f64]) -> [f64; 4] {
     if f.is_empty() {
         return [f64::NAN; 4];
     }
-    let n = f.len() as f64;
-    let mean = f.iter().sum::<f64>() / n;
-    let var = f.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    [mean, var.sqrt(), f.iter().copied().fold(f64::INFINITY, f64::min), f.iter().copied().fold(f64::NEG_INFINITY, f64::max)]
+    let mean = f.iter().sum::<f64>() / f.len() as f64;
+    [mean, crate::statistics::sample_std(&f), f.iter().copied().fold(f64::INFINITY, f64::min), f.iter().copied().fold(f64::NEG_INFINITY, f64::max)]
 }
 
 /// Mean of the finite entries (NaN if none).

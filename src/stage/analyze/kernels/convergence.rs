@@ -135,11 +135,7 @@ pub fn diagnose(blocks: &[Vec<f64>], neutral: std::ops::Range<usize>) -> Option<
         return None;
     }
     let column = |i: usize| -> Vec<f64> { blocks.iter().map(|a| a[i]).collect() };
-    let spread = |x: &[f64]| {
-        let m = x.iter().sum::<f64>() / x.len() as f64;
-        (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (x.len() - 1) as f64).sqrt()
-    };
-    let spreads: Vec<f64> = (0..k).map(|i| spread(&column(i))).collect();
+    let spreads: Vec<f64> = (0..k).map(|i| crate::statistics::sample_std(&column(i))).collect();
     let scale = spreads.iter().cloned().fold(0.0, f64::max);
     let varies: Vec<usize> = (0..k).filter(|&i| spreads[i] > 1e-9 * scale && scale > 0.0 && !neutral.contains(&i)).collect();
     if varies.is_empty() {
