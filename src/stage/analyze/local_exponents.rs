@@ -122,11 +122,8 @@ impl LocalExponents {
 
     /// The 0-based pairs (i, i+1) with both indices in the null space (disks only).
     fn in_null(&self, i: usize) -> bool {
-        if !self.ctx.is_disks() || self.ctx.n < 2 {
-            return false;
-        }
-        let first = 2 * self.ctx.n - 3;
-        i >= first && i + 1 < first + 6
+        let null = self.ctx.run.config.system.neutral();
+        self.ctx.is_disks() && null.contains(&i) && null.contains(&(i + 1))
     }
 }
 
@@ -136,11 +133,11 @@ impl LocalExponents {
 /// i are the last indices of the upper blocks of the splittings E^u | E^0 ⊕ E^s and
 /// E^u ⊕ E^0 | E^s.
 fn null_borders(ctx: &Context) -> Vec<(&'static str, usize)> {
-    let n = ctx.n;
-    if !ctx.is_disks() || n < 2 || 2 * n + 3 >= ctx.k {
-        return Vec::new();
+    match ctx.null_space() {
+        // E^s must hold a vector too.
+        Some(null) if null.end < ctx.k => vec![("border_unstable_null", null.start - 1), ("border_null_stable", null.end - 1)],
+        _ => Vec::new(),
     }
-    vec![("border_unstable_null", 2 * n - 4), ("border_null_stable", 2 * n + 2)]
 }
 
 impl Analysis for LocalExponents {

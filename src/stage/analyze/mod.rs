@@ -290,6 +290,15 @@ impl Context {
         self.system == "disks"
     }
 
+    /// The 0-based indices of the six-dimensional null space of hard disks, 2N-3..2N+3
+    /// ([`SystemConfig::neutral`](crate::config::SystemConfig::neutral)), where all of them
+    /// are among the k vectors; None for other systems or N < 2. E^u is the indices below it
+    /// and E^s those above.
+    pub fn null_space(&self) -> Option<std::ops::Range<usize>> {
+        let null = self.run.config.system.neutral();
+        (self.is_disks() && self.n >= 2 && null.end <= self.k).then_some(null)
+    }
+
     /// Reduced index i/D of the 0-based index i (the paper's i/4N).
     pub fn reduced(&self, i: usize) -> f64 {
         (i + 1) as f64 / self.d as f64

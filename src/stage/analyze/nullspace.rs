@@ -49,8 +49,8 @@ pub struct NullSpace {
 }
 
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
-    (ctx.is_disks() && ctx.n >= 2 && ctx.k >= 2 * ctx.n + 3 && ctx.d == 4 * ctx.n)
-        .then(|| Box::new(NullSpace { ctx: ctx.clone(), first: 2 * ctx.n - 3, table: None, rows: Vec::new() }) as Box<dyn Analysis>)
+    let null = ctx.null_space().filter(|_| ctx.d == 4 * ctx.n)?;
+    Some(Box::new(NullSpace { ctx: ctx.clone(), first: null.start, table: None, rows: Vec::new() }))
 }
 
 fn row_norms(m: &[[f64; 6]]) -> [f64; 6] {

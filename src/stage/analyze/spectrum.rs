@@ -65,8 +65,10 @@ impl Analysis for Spectrum {
         let x: Vec<f64> = (0..ctx.k).map(|i| ctx.reduced(i)).collect();
         let neutral = ctx.run.config.system.neutral();
         // The finite window's exponent of the three trailing null-space CLVs (see the caption).
-        let shear = match (ctx.is_disks() && ctx.n >= 2 && ctx.k >= 2 * ctx.n + 3, self.steps) {
-            (true, Some((first, last))) => {
+        // The last three of the null space, 2N+1..2N+3 (1-based).
+        let trailing = ctx.null_space().map(|null| null.start + 3..null.end);
+        let shear = match (&trailing, self.steps) {
+            (Some(_), Some((first, last))) => {
                 // Frame m carries the exponent over [t_m, t_(m+1)], at backward times
                 // (total - m - 1) tau .. (total - m) tau from the window's end.
                 let total = ctx.run.config.relax_steps + ctx.run.config.steps;
@@ -75,7 +77,7 @@ impl Analysis for Spectrum {
             _ => None,
         };
         let predicted = |i: usize| match shear {
-            Some((s1, s2)) if (2 * ctx.n..2 * ctx.n + 3).contains(&i) => null_shear_exponent(s1, s2),
+            Some((s1, s2)) if trailing.as_ref().is_some_and(|t| t.contains(&i)) => null_shear_exponent(s1, s2),
             _ => f64::NAN,
         };
         write_csv(
@@ -131,7 +133,7 @@ impl Analysis for Spectrum {
             tables: vec!["spectrum.csv".into()],
         }];
         if let Some((s1, s2)) = shear {
-            let measured: Vec<String> = (2 * ctx.n..2 * ctx.n + 3).map(|i| format!("{:.4e}", clv[i])).collect();
+            let measured: Vec<String> = trailing.clone().unwrap_or_default().map(|i| format!("{:.4e}", clv[i])).collect();
             produced[0].caption += &format!(
                 " The last three null-space CLV exponents (i = 2N+1..2N+3) are not zero in a finite window: backward iteration turns e_(k+3) into e_(k+3) - s e_k, \
                  a growth like the backward time s, not exponential, so over s = {s1:.1}..{s2:.1} they average -ln((1 + s2²)/(1 + s1²)) / (2 (s2 - s1)) = {:.4e}; measured {}.",
