@@ -95,7 +95,8 @@ pub enum Found {
 ///   far, each next block of a candidate step length that stands apart and whose vectors
 ///   classify clearly as the mode of that size (the exponents of a small system's LP mode
 ///   spread like the smooth spectrum's, yet the block sits between gaps several times
-///   wider: N = 40 in the paper's box);
+///   wider: N = 40 in the paper's box), or, where none does, a block of two such sizes that
+///   stands apart as a whole and whose two parts are each their mode;
 /// - a step of the exponents apart from the mode region that borders the null space stays
 ///   only if its vectors classify clearly: in a short run, two neighbours in a smooth
 ///   stretch of the spectrum can be equal within their errors by chance (N = 100, 2500
@@ -191,17 +192,29 @@ pub fn resolve_steps(detected: &[Step], frame: &Frame, candidates: &Candidates, 
             edge = s.start;
             continue;
         }
-        let next = candidates.step_lengths().into_iter().filter(|&len| len >= 2 && len < edge).map(|len| at(edge - len, len)).find(|c| {
-            let clear = out.iter().all(|(o, _)| o.start >= c.start + c.len || c.start >= o.start + o.len);
-            clear && stands_apart(c) && classify_clearly(frame, c, candidates).is_some_and(|m| matches_degeneracy(c, m.kind, &candidates.families[m.family]))
-        });
-        let Some(c) = next else { break };
-        out.push((c, Found::Vectors));
-        let (start, len) = mirror(&c);
-        if out.iter().all(|(o, _)| o.start >= start + len || start >= o.start + o.len) {
-            out.push((at(start, len), Found::Vectors));
+        let clear = |c: &Step| out.iter().all(|(o, _)| o.start >= c.start + c.len || c.start >= o.start + o.len);
+        let is_that_mode = |c: &Step| classify_clearly(frame, c, candidates).is_some_and(|m| matches_degeneracy(c, m.kind, &candidates.families[m.family]));
+        let lengths: Vec<usize> = candidates.step_lengths().into_iter().filter(|&len| len >= 2).collect();
+        let single = lengths.iter().filter(|&&len| len < edge).map(|&len| at(edge - len, len)).find(|c| clear(c) && stands_apart(c) && is_that_mode(c));
+        // Two modes whose exponents lie closer together than to their neighbours stand apart
+        // only together (N = 120, density 0.7, the paper's box: i = 224..229, likely T(3,0)
+        // and LP(2,0), spread over 0.18 between gaps of 0.22 and 0.40): the block of both
+        // sizes, split where each part is its mode.
+        let pair = || {
+            lengths.iter().flat_map(|&a| lengths.iter().map(move |&b| (a, b))).filter(|&(a, b)| a + b < edge).find_map(|(a, b)| {
+                let (whole, inner, outer) = (at(edge - a - b, a + b), at(edge - a, a), at(edge - a - b, b));
+                (clear(&whole) && stands_apart(&whole) && is_that_mode(&inner) && is_that_mode(&outer)).then(|| vec![inner, outer])
+            })
+        };
+        let Some(parts) = single.map(|c| vec![c]).or_else(pair) else { break };
+        for c in parts {
+            out.push((c, Found::Vectors));
+            let (start, len) = mirror(&c);
+            if out.iter().all(|(o, _)| o.start >= start + len || start >= o.start + o.len) {
+                out.push((at(start, len), Found::Vectors));
+            }
+            edge = c.start;
         }
-        edge = c.start;
     }
     out.sort_by_key(|(s, _)| s.start);
     out

@@ -1090,6 +1090,46 @@ mod tests {
         assert!(rows.iter().all(|r| r["detection"] != "vectors") && rows.len() == 2, "{rows:?}");
     }
 
+    /// Two modes whose exponents lie closer together than to their neighbours (N = 120 in
+    /// the paper's box: T(3,0) and LP(2,0)) stand apart only as a block of six: split where
+    /// each part is its mode, both are found by their vectors, with their mirrors; random
+    /// vectors in the same place find neither.
+    #[test]
+    fn two_modes_that_stand_apart_only_together_are_found_by_their_vectors() {
+        let d = 4 * N;
+        let mut rng = Rng::new(11);
+        let mut spec = spectrum(N, 2);
+        let at = 2 * N - 11; // 0-based first index of the block of six, just above the T pair
+        for (j, x) in [0.70, 0.68, 0.66, 0.64, 0.62, 0.60].into_iter().enumerate() {
+            spec.exponents[at + j] = x;
+            spec.exponents[d - 1 - at - j] = -x;
+        }
+        let detected = km::mode_steps(&spec.exponents, &spec.stderr, STEP_TOL, step_window(d, &Candidates::new(LX, LY, MAX_N)), &[4, 2]);
+        assert_eq!(detected.iter().map(|s| (s.start, s.len)).collect::<Vec<_>>(), [(at + 6, 2), (d - at - 8, 2)], "the exponents alone see the T pair only");
+        let ctx = context("disks", N, d, LX, LY, Some(spec), true);
+        let phase = phase(N, LX, LY, &mut rng);
+        let t2 = mode_vectors(ModeKind::T, 2, &phase, 0.5, &[0, 1]);
+        let lp1 = mode_vectors(ModeKind::LP, 1, &phase, 0.5, &[0, 1, 2, 3]);
+        let random = random_set(d, &mut rng);
+        let mut g = random.clone();
+        plant(&mut g, d, at, &t2);
+        plant(&mut g, d, at + 2, &lp1);
+        plant(&mut g, d, d - at - 6, &lp1);
+        plant(&mut g, d, d - at - 2, &t2);
+        let (out, _) = run(&ctx, &[frame(3, phase.clone(), g.clone(), Some(g))], "pair-by-vectors");
+        let rows = read_csv(&out.join("modes.csv"));
+        let found: Vec<(String, String, String, String)> = rows.iter().map(|r| (r["first"].clone(), r["last"].clone(), r["detection"].clone(), r["name"].clone())).collect();
+        let row = |first: usize, last: usize, name: &str| (first.to_string(), last.to_string(), "vectors".to_string(), name.to_string());
+        for want in [row(at + 1, at + 2, "T(2,0)"), row(at + 3, at + 6, "LP(1,0)"), row(d - at - 5, d - at - 2, "LP(1,0)"), row(d - at - 1, d - at, "T(2,0)")] {
+            assert!(found.contains(&want), "{want:?} not in {found:?}");
+        }
+        assert_eq!(found.len(), 6, "{found:?}");
+        let f = frame(3, phase, random.clone(), Some(random));
+        let (out, _) = run(&ctx, std::slice::from_ref(&f), "pair-by-vectors-random");
+        let rows = read_csv(&out.join("modes.csv"));
+        assert!(rows.iter().all(|r| r["detection"] != "vectors") && rows.len() == 2, "{rows:?}");
+    }
+
     /// Two exponents equal within their errors in the smooth part, apart from the mode region
     /// at the null space, are a step only if their vectors are a mode: chance equality in a
     /// short run is no step (kept with planted T(2,0) vectors, dropped with random ones).
