@@ -266,6 +266,7 @@ fn a_resumed_stream_is_reported_as_covering_part_of_the_window() {
     assert!(!read(&whole.join("index.html")).contains("<strong>Warning.</strong>"));
     // Frames without GS vectors: the report says what it leaves out for that, once.
     assert!(summary["left_out"].as_array().is_some_and(|l| l.len() == 1 && l[0].as_str().unwrap().starts_with("The frames carry no Gram-Schmidt vectors")), "{summary}");
+    assert!(summary["left_out"][0].as_str().unwrap().contains("(the GS curve of Fig. 5; Figs. 3 and 4; Fig. 6 and the GS curve of Fig. 9; Table I)"), "{summary}");
     // With no backward transient the window ends one step before the run's last step (that
     // step is never a frame): a whole stream, and no warning.
     let t0 = base.join("t0");
@@ -875,5 +876,10 @@ fn a_report_of_k_leading_vectors_says_what_it_leaves_out() {
     let summary: serde_json::Value = serde_json::from_str(&read(&report.join("summary.json"))).unwrap();
     let left_out = summary["left_out"].as_array().unwrap();
     assert!(left_out.len() == 1 && left_out[0].as_str().unwrap().contains("k = 8 leading of D = 16"), "{summary}");
+    // Each analysis names what it leaves out: 8 < 2N + 3 = 11 vectors also miss the null space.
+    let said = left_out[0].as_str().unwrap();
+    for what in ["Fig. 8, the mode region", "the conjugate partners of Fig. 13, Fig. 14", "the null space, Tables I and II", "the mode steps of Table III", "Figs. 15-17"] {
+        assert!(said.contains(what), "{what} not in {said}");
+    }
     assert!(read(&report.join("index.html")).contains("<strong>Not in this report.</strong>"));
 }

@@ -46,6 +46,11 @@ pub struct HenonPicture {
     points: Vec<Point>,
 }
 
+/// See [`super::Missing`].
+pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> {
+    (missing == super::Missing::AllVectors && ctx.system == "henon").then_some("Fig. 1: the stable manifold is drawn along v^2")
+}
+
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     // The stable manifold is drawn along v^2: both vectors are needed.
     if ctx.system != "henon" || ctx.d != 2 || ctx.k != 2 {

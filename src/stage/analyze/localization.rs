@@ -16,6 +16,11 @@ pub struct Localization {
     gs: Option<LocalizationAverage>,
 }
 
+/// See [`super::Missing`].
+pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> {
+    (missing == super::Missing::GsVectors && ctx.is_disks()).then_some("the GS curve of Fig. 5")
+}
+
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     ctx.is_disks().then(|| {
         Box::new(Localization {

@@ -333,21 +333,47 @@ pub trait Analysis: Send {
 
 type Maker = fn(&Context) -> Option<Box<dyn Analysis>>;
 
+/// Why part of an analysis's results is missing from a report: the frames do not have
+/// what it needs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Missing {
+    /// The frames carry no Gram-Schmidt vectors (`clv backward` without --with-gs).
+    GsVectors,
+    /// The frames carry the k < D leading vectors only.
+    AllVectors,
+}
+
+/// What an analysis leaves out of a report for want of `Missing` in the frames of `ctx`,
+/// in a few words naming figures and tables ("Figs. 3 and 4"), said once at the report's
+/// head rather than by figures gone missing.
+type LeftOut = fn(&Context, Missing) -> Option<&'static str>;
+
+/// Every analysis, with what it leaves out where the frames lack something.
+const ANALYSES: &[(Maker, LeftOut)] = &[
+    (spectrum::new, spectrum::left_out),
+    (convergence::new, nothing_left_out),
+    (localization::new, localization::left_out),
+    (overlaps::new, overlaps::left_out),
+    (projections::new, projections::left_out),
+    (nullspace::new, nullspace::left_out),
+    (local_exponents::new, nothing_left_out),
+    (modes::new, modes::left_out),
+    (transversality::new, transversality::left_out),
+    (henon::new, henon::left_out),
+];
+
+fn nothing_left_out(_: &Context, _: Missing) -> Option<&'static str> {
+    None
+}
+
 /// Every analysis that applies to this context (each decides for itself).
 pub fn registry(ctx: &Context) -> Vec<Box<dyn Analysis>> {
-    const MAKERS: &[Maker] = &[
-        spectrum::new,
-        convergence::new,
-        localization::new,
-        overlaps::new,
-        projections::new,
-        nullspace::new,
-        local_exponents::new,
-        modes::new,
-        transversality::new,
-        henon::new,
-    ];
-    MAKERS.iter().filter_map(|make| make(ctx)).collect()
+    ANALYSES.iter().filter_map(|(make, _)| make(ctx)).collect()
+}
+
+/// What the analyses leave out for want of `missing`, in registry order.
+fn left_out(ctx: &Context, missing: Missing) -> Vec<&'static str> {
+    ANALYSES.iter().filter_map(|(_, left_out)| left_out(ctx, missing)).collect()
 }
 
 /// The analyses of the registry whose names are in `only` (all if `only` is empty); an
@@ -495,18 +521,18 @@ impl Analyzer {
         });
         let forward = self.ctx.gs.iter().flat_map(|g| &g.warnings).map(|w| format!("The forward stage warned: {w}."));
         // What the frames cannot give, said once here rather than by figures gone missing.
+        let listed = |missing| {
+            let what = left_out(&self.ctx, missing);
+            if what.is_empty() { String::new() } else { format!(" ({})", what.join("; ")) }
+        };
         let without_gs = (!self.ctx.with_gs && self.frames > 0).then(|| {
-            "The frames carry no Gram-Schmidt vectors (written by `clv backward` without --with-gs): the comparisons of GS and covariant vectors \
-             (Figs. 3, 4, the GS curves of Figs. 6 and 9, the GS columns of the tables) are left out; write the frames again with --with-gs for them."
-                .to_string()
+            format!(
+                "The frames carry no Gram-Schmidt vectors (written by `clv backward` without --with-gs): the comparisons of GS and covariant vectors{} and the GS columns of the tables are left out; write the frames again with --with-gs for them.",
+                listed(Missing::GsVectors)
+            )
         });
         let partial = (self.ctx.k < self.ctx.d && self.frames > 0).then(|| {
-            let what = match self.ctx.system.as_str() {
-                "disks" => " (the mode steps of Fig. 8 and Table III, the angles between Oseledec subspaces of Figs. 15-17, conjugate pairs, the null space)",
-                "henon" => " (Fig. 1: the stable manifold is drawn along v^2)",
-                _ => "",
-            };
-            format!("The frames carry the k = {} leading of D = {} vectors: what needs all of them{what} is left out.", self.ctx.k, self.ctx.d)
+            format!("The frames carry the k = {} leading of D = {} vectors: what needs all of them{} is left out.", self.ctx.k, self.ctx.d, listed(Missing::AllVectors))
         });
         let warnings: Vec<String> = forward.chain(damaged).chain(coverage).chain(unsampled).collect();
         let ctx = &self.ctx;

@@ -82,6 +82,11 @@ pub struct Modes {
     shown: Option<Frame>,
 }
 
+/// See [`super::Missing`].
+pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> {
+    (missing == super::Missing::AllVectors && ctx.is_disks()).then_some("the mode steps of Table III and Figs. 10-12")
+}
+
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     if !ctx.is_disks() {
         return None;

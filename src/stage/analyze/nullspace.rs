@@ -48,6 +48,14 @@ pub struct NullSpace {
     rows: Vec<Row>,
 }
 
+/// See [`super::Missing`].
+pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> {
+    match missing {
+        super::Missing::GsVectors => ctx.null_space().is_some().then_some("Table I"),
+        super::Missing::AllVectors => (ctx.is_disks() && ctx.null_space().is_none()).then_some("the null space, Tables I and II"),
+    }
+}
+
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     let null = ctx.null_space().filter(|_| ctx.d == 4 * ctx.n)?;
     Some(Box::new(NullSpace { ctx: ctx.clone(), first: null.start, table: None, rows: Vec::new() }))

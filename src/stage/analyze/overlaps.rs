@@ -51,6 +51,14 @@ pub struct Overlaps {
     vv: Vec<Mean>,
 }
 
+/// See [`super::Missing`].
+pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> {
+    match missing {
+        super::Missing::GsVectors => Some("Figs. 3 and 4"),
+        super::Missing::AllVectors => ctx.is_disks().then_some("the conjugate partners of Fig. 13, Fig. 14"),
+    }
+}
+
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     if ctx.k == 0 {
         return None;

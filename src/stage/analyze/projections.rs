@@ -67,6 +67,11 @@ pub struct Projections {
     gs: Option<Acc>,
 }
 
+/// See [`super::Missing`].
+pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> {
+    (missing == super::Missing::GsVectors && ctx.is_disks()).then_some("Fig. 6 and the GS curve of Fig. 9")
+}
+
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     (ctx.is_disks() && ctx.d.is_multiple_of(4) && ctx.k > 0).then(|| {
         Box::new(Projections { ctx: ctx.clone(), clv: Acc::new(ctx.k), gs: ctx.with_gs.then(|| Acc::new(ctx.k)) }) as Box<dyn Analysis>

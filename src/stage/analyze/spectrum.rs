@@ -30,6 +30,11 @@ pub fn null_shear_exponent(s1: f64, s2: f64) -> f64 {
     -((1.0 + s2 * s2).ln() - (1.0 + s1 * s1).ln()) / (2.0 * (s2 - s1))
 }
 
+/// See [`super::Missing`].
+pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> {
+    (missing == super::Missing::AllVectors && ctx.is_disks()).then_some("Fig. 8, the mode region with its conjugate pairs")
+}
+
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     let acc = Accumulator::new(ctx.k, ctx.block_len(false));
     Some(Box::new(Spectrum { ctx: ctx.clone(), acc_gs: acc.clone(), acc, without_gs: 0, steps: None }))

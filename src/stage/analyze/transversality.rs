@@ -154,6 +154,11 @@ pub struct Transversality {
     theta: Option<ThetaStats>,
 }
 
+/// See [`super::Missing`].
+pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> {
+    (missing == super::Missing::AllVectors && ctx.is_disks()).then_some("the angles between Oseledec subspaces of Figs. 15-17")
+}
+
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     if !ctx.is_disks() || ctx.k != ctx.d || ctx.d < 8 {
         return None;
@@ -239,7 +244,7 @@ impl Analysis for Transversality {
         let bins = 45;
         let mut fig = Figure::new("Minimum principal angles between conjugate Oseledec subspaces").x_label("angle (rad)").y_label("probability density").x_range(0.0, FRAC_PI_2);
         let (pmin, pmean) = stats(&self.psi);
-        fig.histogram(&format!("Psi: E^u vs E^s (m = {})", self.m), &self.psi, bins, 0.0, FRAC_PI_2, true);
+        fig.histogram(&format!("Psi: E^u = v^1..v^{} vs E^s", self.m), &self.psi, bins, 0.0, FRAC_PI_2, true);
         let mut mode_text = Vec::new();
         for (label, phi) in labels.iter().zip(&self.phi) {
             let (min, mean) = stats(phi);
