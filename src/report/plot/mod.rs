@@ -190,6 +190,9 @@ pub enum Marker {
     Cloud,
 }
 
+/// The most lines a title is wrapped into.
+const TITLE_LINES: usize = 4;
+
 /// Base width of arrows in pixels (before [`pen`]): what they point at is the figure's message.
 const ARROW_W: f64 = 3.0;
 
@@ -332,10 +335,8 @@ impl Figure {
     pub fn series(&mut self, label: &str, xs: &[f64], ys: &[f64], marker: Marker) -> &mut Self {
         let pts = xs.iter().copied().zip(ys.iter().copied()).collect();
         self.push(label, Kind::Xy(pts, marker));
-        if marker == Marker::Cloud {
-            if let Some(s) = self.series.last_mut() {
-                s.color = GREY;
-            }
+        if let Some(s) = self.series.last_mut().filter(|_| marker == Marker::Cloud) {
+            s.color = GREY;
         }
         self
     }
@@ -516,8 +517,9 @@ impl Figure {
         let (w, h) = (f64::from(self.w), f64::from(self.h));
         // Room for the title and the x label (height) and the y label (width).
         let room = |s: &String, v: f64| if s.is_empty() { 0.0 } else { v };
+        // Lines 1.25 text heights apart, as drawn in [`Figure::scene`].
         let lines = self.title_lines(scale).len() as f64;
-        let t = room(&self.title, ((1.5 + lines) * ch).round()).max(16.0);
+        let t = room(&self.title, ((1.25 + 1.25 * lines) * ch).round()).max(16.0);
         let (xl_h, yl_w) = (
             room(&self.x_label, ch + 8.0),
             room(&self.y_label, ch + 10.0),
@@ -562,16 +564,37 @@ impl Figure {
     /// The title broken at spaces into lines that fit the image's width (none without a
     /// title): a long title is wrapped, never cut at the image's edges.
     fn title_lines(&self, scale: u32) -> Vec<String> {
-        let room = f64::from(self.w) - 16.0;
-        let mut lines: Vec<String> = Vec::new();
+        let fits = |s: &str| text_w(s, scale) <= f64::from(self.w) - 16.0;
+        // A word wider than the image is cut into pieces that fit.
+        let mut pieces: Vec<String> = Vec::new();
         for word in self.title.split(' ').filter(|w| !w.is_empty()) {
-            match lines.last_mut() {
-                Some(line) if text_w(&format!("{line} {word}"), scale) <= room => {
-                    line.push(' ');
-                    line.push_str(word);
+            let mut piece = String::new();
+            for c in word.chars() {
+                if !piece.is_empty() && !fits(&format!("{piece}{c}")) {
+                    pieces.push(std::mem::take(&mut piece));
                 }
-                _ => lines.push(word.to_string()),
+                piece.push(c);
             }
+            pieces.push(piece);
+        }
+        let mut lines: Vec<String> = Vec::new();
+        for piece in pieces {
+            match lines.last_mut() {
+                Some(line) if fits(&format!("{line} {piece}")) => {
+                    line.push(' ');
+                    line.push_str(&piece);
+                }
+                _ => lines.push(piece),
+            }
+        }
+        // The title must leave the plot its room: the rest of a longer one is cut, marked.
+        if lines.len() > TITLE_LINES {
+            lines.truncate(TITLE_LINES);
+            let last = &mut lines[TITLE_LINES - 1];
+            while !last.is_empty() && !fits(&format!("{last}...")) {
+                last.pop();
+            }
+            last.push_str("...");
         }
         lines
     }
@@ -654,7 +677,7 @@ impl Figure {
         for (i, line) in lines.iter().enumerate() {
             // Centre on the plot frame if the line fits there, else on the image.
             let cx = if text_w(line, sc) < r - l { (l + r) / 2.0 } else { w / 2.0 };
-            let y = t / 2.0 + (i as f64 - (lines.len() as f64 - 1.0) / 2.0) * ch * 1.25;
+            let y = (1.25 + 1.25 * i as f64) * ch;
             let mut label = text(cx, y.round(), line, Anchor::Middle);
             label.bold = true;
             prims.push(Prim::Text(label));

@@ -735,7 +735,22 @@ fn a_long_title_is_wrapped_inside_the_image() {
     assert!(lines.iter().all(|l| text_w(l, 2) <= 900.0 - 16.0), "{lines:?}");
     // The frame starts below the last line.
     let lay = fig.layout();
-    assert!(lay.t >= (1.5 + lines.len() as f64) * 16.0 - 1.0, "top {}", lay.t);
+    assert!(lay.t >= (1.25 + 1.25 * lines.len() as f64) * 16.0 - 1.0, "top {}", lay.t);
     let short = Figure::new("short").title_lines(2);
     assert_eq!(short, ["short"]);
+    // A word wider than the image is cut into pieces that fit, and a title of many lines
+    // keeps four, the last marked as cut; every line is drawn inside the image, above the
+    // frame.
+    for (title, size) in [("x".repeat(160), (900, 700)), (["word"; 300].join(" "), (300, 300))] {
+        let mut fig = Figure::new(&title).size(size.0, size.1);
+        fig.series("a", &[0.0, 1.0], &[0.0, 1.0], Marker::Line);
+        let lines = fig.title_lines(fig.layout().scale);
+        assert!(lines.len() <= TITLE_LINES && lines.iter().all(|l| text_w(l, fig.layout().scale) <= size.0 as f64 - 16.0), "{lines:?}");
+        let (lay, prims) = fig.scene();
+        let ys: Vec<f64> = prims.iter().filter_map(|p| if let Prim::Text(l) = p { l.bold.then_some(l.y) } else { None }).collect();
+        let ch = 8.0 * lay.scale as f64;
+        assert!(ys.iter().all(|&y| y - ch / 2.0 >= 0.0 && y + ch / 2.0 < lay.t), "{ys:?} against the frame at {}", lay.t);
+    }
+    let long = Figure::new(&["word"; 300].join(" ")).size(300, 300).title_lines(1);
+    assert!(long.last().unwrap().ends_with("..."), "{long:?}");
 }

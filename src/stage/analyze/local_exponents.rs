@@ -57,7 +57,9 @@ fn smallest_positive(ctx: &Context) -> Option<usize> {
     if ctx.is_disks() {
         return (ctx.n >= 2 && 2 * ctx.n - 4 < ctx.k).then(|| 2 * ctx.n - 4);
     }
-    ctx.gs.as_ref().and_then(|g| g.exponents.iter().rposition(|&l| l > 0.0)).filter(|&i| i < ctx.k)
+    // The flow direction's exponent of Lorenz is zero, whatever sign its estimate has.
+    let neutral = ctx.run.config.system.neutral();
+    ctx.gs.as_ref().and_then(|g| (0..g.exponents.len()).rev().find(|&i| g.exponents[i] > 0.0 && !neutral.contains(&i))).filter(|&i| i < ctx.k)
 }
 
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
@@ -127,15 +129,15 @@ impl LocalExponents {
     }
 }
 
-/// The pairs at the borders of the null space of disks with all vectors, (2N-3, 2N-2)
+/// The pairs at the borders of the null space of disks with all D vectors, (2N-3, 2N-2)
 /// between E^u and E^0 and (2N+3, 2N+4) between E^0 and E^s (1-based), as the 0-based index
 /// i of their first member. The same
 /// i are the last indices of the upper blocks of the splittings E^u | E^0 ⊕ E^s and
 /// E^u ⊕ E^0 | E^s.
 fn null_borders(ctx: &Context) -> Vec<(&'static str, usize)> {
     match ctx.null_space() {
-        // E^s must hold a vector too.
-        Some(null) if null.end < ctx.k => vec![("border_unstable_null", null.start - 1), ("border_null_stable", null.end - 1)],
+        // The splitting is tested whole: E^s needs all its vectors.
+        Some(null) if ctx.k == ctx.d => vec![("border_unstable_null", null.start - 1), ("border_null_stable", null.end - 1)],
         _ => Vec::new(),
     }
 }
@@ -185,7 +187,6 @@ impl Analysis for LocalExponents {
             return Ok(Vec::new());
         }
         let names: Vec<String> = self.idx.iter().map(|i| format!("{}", i + 1)).collect();
-        let mut produced = Vec::new();
         let caveat = if ctx.saved_every > 1 {
             format!(
                 " This frame file holds the frames of the steps that are multiples of {} only, so the finite-time exponents and the domination test, which need consecutive steps, are not computed: analyse the whole stream (`clv backward RUN_DIR --out - | clv analyze -`) for them.",
@@ -197,6 +198,30 @@ impl Analysis for LocalExponents {
             String::new()
         };
 
+        let mut produced = vec![self.series_entry(out, frames, &names, &caveat)?];
+        if self.deltas.is_empty() {
+            return Ok(produced);
+        }
+        let frames_n = self.steps.len();
+        let too_long: Vec<usize> = self.deltas.iter().copied().filter(|&dl| dl > frames_n).collect();
+        let unfilled = if too_long.is_empty() {
+            String::new()
+        } else {
+            format!(" No window of Δ = {too_long:?} fits in the {frames_n} frames: their rows hold 0 windows and NaN.")
+        };
+        produced.push(self.finite_time_entry(out, &names, &unfilled, &caveat)?);
+        // Of pairs of neighbouring exponents, none with one vector.
+        if self.ctx.k >= 2 {
+            produced.push(self.domination_entry(out, frames, &unfilled, &caveat)?);
+        }
+        Ok(produced)
+    }
+}
+
+impl LocalExponents {
+    /// The time series of the local exponents (in time order) and their figure.
+    fn series_entry(&self, out: &Path, frames: u64, names: &[String], caveat: &str) -> Result<Produced> {
+        let ctx = &self.ctx;
         // Time series, in time order.
         let mut order: Vec<usize> = (0..self.steps.len()).collect();
         order.sort_by_key(|&p| self.steps[p]);
@@ -214,13 +239,13 @@ impl Analysis for LocalExponents {
         )?;
         let t: Vec<f64> = order.iter().map(|&p| self.times[p]).collect();
         let mut fig = Figure::new("Local covariant exponents Λ_i(t)").x_label("t").y_label("Λ_i");
-        for (s, name) in self.series.iter().zip(&names) {
+        for (s, name) in self.series.iter().zip(names) {
             let y: Vec<f64> = order.iter().map(|&p| s[p]).collect();
             fig.series(&format!("i = {name}"), &t, &y, Marker::Line);
         }
         fig.hline(0.0);
         save_figure(&fig, out, "local_exponents")?;
-        produced.push(Produced {
+        Ok(Produced {
             title: "Local exponents (Sec. 6)".into(),
             caption: format!(
                 "Local covariant exponents Λ_i(t_n) = ln |Dφ^τ v^i(t_n)| / τ for i = {} (1, the selected indices{}) over all {frames} frames.{caveat}",
@@ -229,20 +254,13 @@ impl Analysis for LocalExponents {
             ),
             figures: vec!["local_exponents".into()],
             tables: vec!["local_exponents.csv".into()],
-        });
-        if self.deltas.is_empty() {
-            return Ok(produced);
-        }
+        })
+    }
 
-        // Finite-time exponents: windows of Delta frames from the newest frame on, as in the
-        // domination test.
+    /// Finite-time exponents: windows of Delta frames from the newest frame on, as in the
+    /// domination test; the table for every Delta, the figure for one.
+    fn finite_time_entry(&self, out: &Path, names: &[String], unfilled: &str, caveat: &str) -> Result<Produced> {
         let frames_n = self.steps.len();
-        let too_long: Vec<usize> = self.deltas.iter().copied().filter(|&dl| dl > frames_n).collect();
-        let unfilled = if too_long.is_empty() {
-            String::new()
-        } else {
-            format!(" No window of Δ = {too_long:?} fits in the {frames_n} frames: their rows hold 0 windows and NaN.")
-        };
         let mut rows = Vec::new();
         for (s, &i) in self.series.iter().zip(&self.idx) {
             for &delta in &self.deltas {
@@ -258,28 +276,30 @@ impl Analysis for LocalExponents {
         let windows = frames_n / show;
         // Window w covers arrival positions w*Delta..(w+1)*Delta; its earliest time is the last.
         let starts: Vec<f64> = (0..windows).rev().map(|w| self.times[(w + 1) * show - 1]).collect();
-        for (s, name) in self.series.iter().zip(&names) {
+        for (s, name) in self.series.iter().zip(names) {
             let mut y = finite_time_exponents(s, show);
             y.reverse();
             fig.series(&format!("i = {name}"), &starts, &y, Marker::Steps);
         }
         fig.hline(0.0);
         save_figure(&fig, out, "finite_time_exponents")?;
-        produced.push(Produced {
+        Ok(Produced {
             title: "Finite-time exponents (Sec. 6)".into(),
             caption: format!(
-                "Local exponents averaged over consecutive windows of Δ = {show} steps (counted from the newest frame) for i = {}; the table gives mean, standard deviation, minimum and maximum over the windows for every Δ = {:?}.{unfilled}{caveat}",
+                "Local exponents averaged over consecutive windows of Δ = {show} steps (counted from the newest frame) for i = {}; the table gives mean, standard deviation (NaN from a single window), minimum and maximum over the windows for every Δ = {:?}.{unfilled}{caveat}",
                 names.join(", "),
                 self.deltas
             ),
             figures: vec!["finite_time_exponents".into()],
             tables: vec!["finite_time_exponents.csv".into()],
-        });
+        })
+    }
 
-        // Domination test: of pairs of neighbouring exponents, none with one vector.
-        if ctx.k < 2 {
-            return Ok(produced);
-        }
+    /// The domination test: swap fractions of neighbouring exponents against Delta, and the
+    /// splitting E^u ⊕ E^0 ⊕ E^s tested whole ([`splitting_verdict`]).
+    fn domination_entry(&self, out: &Path, frames: u64, unfilled: &str, caveat: &str) -> Result<Produced> {
+        let ctx = &self.ctx;
+        let frames_n = self.steps.len();
         let overall = self.test.overall();
         let pairs: Vec<Vec<f64>> = (0..self.deltas.len()).map(|w| self.test.pair_fractions(w)).collect();
         let outside: Vec<f64> = pairs.iter().map(|p| finite_mean(p.iter().enumerate().filter(|(i, _)| !self.in_null(*i)).map(|(_, &x)| x))).collect();
@@ -337,40 +357,8 @@ impl Analysis for LocalExponents {
         save_figure(&fig, out, "domination")?;
         // The longest window length that fits in the frames (NaN rows measure nothing).
         let longest = (0..self.deltas.len()).rev().find(|&w| self.deltas[w] <= frames_n).unwrap_or(0);
-        // Domination of E^u ⊕ E^0 ⊕ E^s: the smallest measured Delta from which neither
-        // splitting is violated again.
-        let borders_text = if borders.is_empty() {
-            String::new()
-        } else {
-            let at = |w: usize| splits[w].iter().map(|x| format!("{x:.3e}")).collect::<Vec<_>>().join(" and ");
-            let quiet = |w: usize| splits[w].iter().all(|&x| x == 0.0);
-            let (u, s) = (borders[0].1 + 1, borders[1].1 + 2);
-            let names = format!(
-                "the splitting E^u ⊕ E^0 ⊕ E^s (every finite-time exponent of E^u = 1..{u} above every one of E^0 = {}..{}, and every one of E^0 above every one of E^s = {s}..{}, tested whole, not only the border pairs ({u}, {}) and ({}, {s}))",
-                u + 1,
-                s - 1,
-                ctx.k,
-                u + 1,
-                s - 1
-            );
-            // Only the window lengths that fit in the frames measure anything.
-            let measured: Vec<usize> = (0..self.deltas.len()).filter(|&w| self.deltas[w] <= frames_n).collect();
-            match measured.iter().position(|&from| measured.iter().filter(|&&w| w >= from).all(|&w| quiet(w))) {
-                Some(0) => format!(" For {names}: never violated, not even in single steps; it is dominated in these frames."),
-                Some(p) => format!(
-                    " For {names}: violated in {} of the windows at Δ = {} and in none from Δ = {} on; it is dominated in these frames, with Δ_0 <= {}.",
-                    at(measured[0]),
-                    self.deltas[measured[0]],
-                    self.deltas[measured[p]],
-                    self.deltas[measured[p]]
-                ),
-                None => match measured.last() {
-                    Some(&w) => format!(" For {names}: still violated at Δ = {}, in {} of the windows; no domination is seen in these frames.", self.deltas[w], at(w)),
-                    None => format!(" No window length Δ fits in the {frames_n} frames, so nothing is said about the splitting E^u ⊕ E^0 ⊕ E^s."),
-                },
-            }
-        };
-        produced.push(Produced {
+        let borders_text = splitting_verdict(ctx, &self.deltas, &borders, &splits, frames_n);
+        Ok(Produced {
             title: "Domination of the Oseledec splitting (Sec. 6)".into(),
             caption: format!(
                 "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over all {} adjacent pairs{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0{}. Overall fraction at Δ = {}: {:.3e}{}.{borders_text}{unfilled}{caveat}",
@@ -383,8 +371,42 @@ impl Analysis for LocalExponents {
             ),
             figures: vec!["domination".into()],
             tables: vec!["domination.csv".into(), "domination_pairs.csv".into()],
-        });
-        Ok(produced)
+        })
+    }
+}
+
+/// Domination of E^u ⊕ E^0 ⊕ E^s in words: the smallest measured Delta from which neither
+/// splitting (`splits`, per Delta, of the `borders`) is violated again.
+fn splitting_verdict(ctx: &Context, deltas: &[usize], borders: &[(&'static str, usize)], splits: &[Vec<f64>], frames_n: usize) -> String {
+    if borders.is_empty() {
+        return String::new();
+    }
+    let at = |w: usize| splits[w].iter().map(|x| format!("{x:.3e}")).collect::<Vec<_>>().join(" and ");
+    let quiet = |w: usize| splits[w].iter().all(|&x| x == 0.0);
+    let (u, s) = (borders[0].1 + 1, borders[1].1 + 2);
+    let names = format!(
+        "the splitting E^u ⊕ E^0 ⊕ E^s (every finite-time exponent of E^u = 1..{u} above every one of E^0 = {}..{}, and every one of E^0 above every one of E^s = {s}..{}, tested whole, not only the border pairs ({u}, {}) and ({}, {s}))",
+        u + 1,
+        s - 1,
+        ctx.k,
+        u + 1,
+        s - 1
+    );
+    // Only the window lengths that fit in the frames measure anything.
+    let measured: Vec<usize> = (0..deltas.len()).filter(|&w| deltas[w] <= frames_n).collect();
+    match measured.iter().position(|&from| measured.iter().filter(|&&w| w >= from).all(|&w| quiet(w))) {
+        Some(0) => format!(" For {names}: never violated, not even in single steps; it is dominated in these frames."),
+        Some(p) => format!(
+            " For {names}: violated in {} of the windows at Δ = {} and in none from Δ = {} on; it is dominated in these frames, with Δ_0 <= {}.",
+            at(measured[0]),
+            deltas[measured[0]],
+            deltas[measured[p]],
+            deltas[measured[p]]
+        ),
+        None => match measured.last() {
+            Some(&w) => format!(" For {names}: still violated at Δ = {}, in {} of the windows; no domination is seen in these frames.", deltas[w], at(w)),
+            None => format!(" No window length Δ fits in the {frames_n} frames, so nothing is said about the splitting E^u ⊕ E^0 ⊕ E^s."),
+        },
     }
 }
 
@@ -512,6 +534,17 @@ mod tests {
         let mean1 = l1.iter().sum::<f64>() / len as f64;
         assert!((row[3] - mean1).abs() < 1e-12);
         assert!(row[5] > 11.5 && row[6] < 12.5);
+    }
+
+    /// Lorenz's flow-direction exponent is zero whatever the sign of its estimate: the
+    /// smallest positive exponent is lambda_1.
+    #[test]
+    fn the_smallest_positive_exponent_is_not_a_neutral_one() {
+        let mut gs = testing::spectrum(4, 2);
+        gs.exponents = vec![0.9, 5.5e-3, -14.5];
+        gs.stderr = vec![1e-3; 3];
+        let ctx = testing::context("lorenz", 0, 3, 0.0, 0.0, Some(gs), false);
+        assert_eq!(smallest_positive(&ctx), Some(0));
     }
 
     /// A smallest positive exponent that fluctuates through zero swaps with the null space

@@ -718,8 +718,9 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
             let mut fig = pattern_figure(&title, &y_label, &axes, &x, points, fits);
             if let Some((lo, hi, off)) = range {
                 fig = fig.y_range(lo, hi);
-                let total: usize = points.iter().map(|(_, y)| y.len()).sum();
-                off_scale.push(format!("Fig. {fig_no} {which}: {off} of {total} points beyond {lo:.3}..{hi:.3}"));
+                let total = points.iter().flat_map(|(_, y)| y.iter()).filter(|y| y.is_finite()).count();
+                let why = if which == "P" { ", divided by p² of nearly resting disks" } else { "" };
+                off_scale.push(format!("Fig. {fig_no} {which}: {off} of {total} points beyond {lo:.3}..{hi:.3}{why}"));
             }
             save_figure(&fig, out, &fstem)?;
             figs.push(fstem);
@@ -740,7 +741,7 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
                 if off_scale.is_empty() {
                     String::new()
                 } else {
-                    format!(" Off scale, so that the sinusoid is seen: {} (dividing by p² blows up nearly resting disks; every value is in {stem}.csv, and the fits use them all).", off_scale.join("; "))
+                    format!(" Off scale, so that the sinusoid is seen: {} (every value is in {stem}.csv, and the fits use them all).", off_scale.join("; "))
                 }
             ),
             figures: figs,

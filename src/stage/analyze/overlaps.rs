@@ -179,7 +179,7 @@ impl Analysis for Overlaps {
         let idx: Vec<f64> = (1..=ctx.k).map(|i| i as f64).collect();
         // a handful of indices (a map's two) are points, not a continuum
         let line = if ctx.k <= 8 { Marker::LinePoints } else { Marker::Line };
-        let avg = format!("averaged over {frames} frames ({})", ctx.sample());
+        let avg = format!("averaged over {frames} frames ({}{})", ctx.sample(), if frames < 2 { "; the tables' _std columns, spreads over frames, are NaN from one frame" } else { "" });
         let central = ctx.central_range();
         let mut produced = Vec::new();
 
@@ -301,7 +301,7 @@ impl Analysis for Overlaps {
                     Some(first) => (first.saturating_sub(4), ctx.d - 1 - first.saturating_sub(4)),
                     None => central,
                 };
-                let mut fig = Figure::new("Mode vectors: <|v^j · v^i|> in the central part, i != j").x_label("i").y_label("<|v^j · v^i|>");
+                let mut fig = Figure::new("Mode vectors: <|v^j · v^i|> in the mode regime, i != j").x_label("i").y_label("<|v^j · v^i|>");
                 for &j in &self.mode_js {
                     if let Some(m) = pick(j) {
                         let y = without_self(&m, j);
@@ -321,7 +321,7 @@ impl Analysis for Overlaps {
                         },
                         a + 1,
                         b + 1,
-                        mode_overlaps(ctx.d, &self.mode_steps, |j| pick(j)),
+                        mode_overlaps(ctx.d, &self.mode_steps, pick),
                     ),
                     figures: vec!["fig14_mode_overlap".into()],
                     tables: vec!["overlap_clv_clv.csv".into()],

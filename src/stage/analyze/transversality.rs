@@ -307,7 +307,7 @@ impl Analysis for Transversality {
                 th.seps.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(", "),
                 ctx.d,
                 match (th.seps.first(), dens.first()) {
-                    (Some(1), Some(d)) => first_bin(d, w),
+                    (Some(1), Some(d)) => first_bin(d, &th.hist[0], w),
                     _ => String::new(),
                 }
             ),
@@ -339,14 +339,22 @@ impl Analysis for Transversality {
 
 /// Whether the density of Θ for i - j = 1 falls toward Θ = 0, the paper's finding for N = 198
 /// (Sec. 5.6, on Fig. 16: "the distribution for i-j = 1 seems to converge to zero for Θ → 0"): its first bin
-/// against the mean of the next four.
-fn first_bin(density: &[f64], width: f64) -> String {
+/// against the mean of the next four, where those five bins hold at least [`FIRST_BINS_MIN`]
+/// angles (`counts`).
+/// Angles the first five bins of Fig. 16 must hold for [`first_bin`] to say whether the
+/// density falls toward zero (a few counts would decide it by chance).
+const FIRST_BINS_MIN: u64 = 50;
+
+fn first_bin(density: &[f64], counts: &[u64], width: f64) -> String {
     let next = &density[1..density.len().min(5)];
     let mean = next.iter().sum::<f64>() / next.len() as f64;
-    let finding = if density[0] < 0.5 * mean {
-        "it falls toward Θ = 0, as the paper's for N = 198"
+    let held: u64 = counts.iter().take(1 + next.len()).sum();
+    let finding = if held < FIRST_BINS_MIN {
+        format!("{held} angles in these bins are too few to tell whether it falls toward Θ = 0")
+    } else if density[0] < 0.5 * mean {
+        "it falls toward Θ = 0, as the paper's for N = 198".to_string()
     } else {
-        "it does not fall toward Θ = 0 here, where the paper's (N = 198) does; a small system's need not"
+        "it does not fall toward Θ = 0 here, where the paper's (N = 198) does".to_string()
     };
     format!(
         " For i - j = 1 the density in the first bin (Θ < {:.1}°) is {:.3}, against {mean:.3} in the next {} bins: {finding} (Fig. 17 gives the smallest Θ).",
@@ -363,10 +371,15 @@ mod tests {
 
     #[test]
     fn first_bin_says_whether_the_density_falls_toward_zero() {
-        let falls = first_bin(&[0.137, 0.270, 0.292, 0.358, 0.4, 0.5], 0.0175);
+        let falls = first_bin(&[0.137, 0.270, 0.292, 0.358, 0.4, 0.5], &[14, 27, 29, 36, 40, 50], 0.0175);
         assert!(falls.contains("is 0.137, against 0.330 in the next 4 bins: it falls toward Θ = 0, as the paper's"), "{falls}");
-        let flat = first_bin(&[0.564, 0.5, 0.6, 0.55, 0.5], 0.0175);
+        let flat = first_bin(&[0.564, 0.5, 0.6, 0.55, 0.5], &[56, 50, 60, 55, 50], 0.0175);
         assert!(flat.contains("it does not fall toward Θ = 0 here"), "{flat}");
+        // One angle in each of bins 2-5 and none in the first decides nothing; nor does an
+        // empty histogram.
+        let few = first_bin(&[0.0, 0.28, 0.28, 0.28, 0.28], &[0, 1, 1, 1, 1], 0.0175);
+        assert!(few.contains("4 angles in these bins are too few to tell"), "{few}");
+        assert!(first_bin(&[0.0; 5], &[0; 5], 0.0175).contains("0 angles in these bins are too few"));
     }
 
     #[test]
