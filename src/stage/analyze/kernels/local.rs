@@ -148,21 +148,13 @@ impl DominationTest {
 
     /// Swap fraction of each adjacent pair (i, i+1) for the `which`-th Delta.
     pub fn pair_fractions(&self, which: usize) -> Vec<f64> {
-        self.swaps[which]
-            .iter()
-            .zip(&self.compared[which])
-            .map(|(&s, &t)| if t == 0 { f64::NAN } else { s as f64 / t as f64 })
-            .collect()
+        fractions(&self.swaps[which], &self.compared[which])
     }
 
     /// Fraction of windows violating each splitting of [`DominationTest::with_splits`], for
     /// the `which`-th Delta (NaN where none was compared).
     pub fn split_fractions(&self, which: usize) -> Vec<f64> {
-        self.split_violations[which]
-            .iter()
-            .zip(&self.split_compared[which])
-            .map(|(&s, &t)| if t == 0 { f64::NAN } else { s as f64 / t as f64 })
-            .collect()
+        fractions(&self.split_violations[which], &self.split_compared[which])
     }
 
     /// The number of completed windows for the `which`-th Delta: what each fraction is of.
@@ -180,6 +172,11 @@ impl DominationTest {
             })
             .collect()
     }
+}
+
+/// counts / totals, NaN where a total is 0.
+fn fractions(counts: &[u64], totals: &[u64]) -> Vec<f64> {
+    counts.iter().zip(totals).map(|(&s, &t)| if t == 0 { f64::NAN } else { s as f64 / t as f64 }).collect()
 }
 
 #[cfg(test)]
