@@ -290,6 +290,20 @@ impl RunConfig {
 mod tests {
     use super::*;
 
+    /// The configuration knows D before a system is built (to size stores and check
+    /// memory); it must be the D the system's own implementation reports.
+    #[test]
+    fn the_configured_dimension_is_the_systems() {
+        for name in PRESETS {
+            let mut config = RunConfig::preset(name).unwrap();
+            if let SystemConfig::Disks { .. } = config.system {
+                config.system = SystemConfig::disks(8, 0.7, 1.0).unwrap();
+                config.vectors = config.system.dim();
+            }
+            assert_eq!(config.build_system().unwrap().dim(), config.system.dim(), "preset {name}");
+        }
+    }
+
     #[test]
     fn presets_are_valid_and_unknown_names_are_refused() {
         for name in PRESETS {

@@ -163,3 +163,38 @@ impl SpectrumSummary {
         crate::store::checked_json::read(path).map(|(s, _)| s)
     }
 }
+
+/// The backward stage's plain-text table: the CLV exponents beside the GS ones over the
+/// same steps (like for like) and over the whole run (the better estimate of the GS
+/// exponents), with errors, the KS entropies, warnings and the sweep's statistics.
+pub fn backward_table(report: &crate::stage::backward::BackwardReport) -> String {
+    let window = report.gs_window.as_ref();
+    let at = |v: Option<&Vec<f64>>, i: usize| v.and_then(|v| v.get(i)).copied().unwrap_or(f64::NAN);
+    let mut table = format!("{:>6}  {:>14}  {:>10}  {:>14}  {:>10}  {:>14}  {:>10}\n", "i", "lambda_i (CLV)", "stderr", "(GS, window)", "stderr", "(GS, run)", "stderr");
+    for i in 0..report.exponents.len() {
+        let _ = writeln!(
+            table,
+            "{:>6}  {:>14.8}  {:>10.2e}  {:>14.8}  {:>10.2e}  {:>14.8}  {:>10.2e}",
+            i + 1,
+            report.exponents[i],
+            report.stderr[i],
+            at(window.map(|w| &w.exponents), i),
+            at(window.map(|w| &w.stderr), i),
+            at(Some(&report.gs_exponents), i),
+            at(Some(&report.gs_stderr), i)
+        );
+    }
+    let _ = writeln!(
+        table,
+        "KS entropy (sum of the positive exponents): {} (CLV), {} (GS over the same steps), {} (GS over the run)",
+        Estimate::or_unknown(report.ks_entropy),
+        Estimate::or_unknown(window.and_then(|w| w.ks_entropy)),
+        Estimate::or_unknown(report.gs_ks_entropy)
+    );
+    for w in &report.warnings {
+        let _ = writeln!(table, "warning (of the forward stage): {w}");
+    }
+    let st = &report.statistics;
+    let _ = writeln!(table, "{} frames (steps {}..{}), {} steps recomputed in {} segments, {:.1} s", st.frames, st.first_frame_step, st.last_frame_step, st.recomputed_steps, st.segments, st.wall_seconds);
+    table
+}
