@@ -67,7 +67,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
     // A resumed sweep continues with the options it was started with; flags given again
     // must agree with them (the stage refuses a contradiction).
-    let stored = if args.resume { backward::stored_options(&args.dir) } else { None };
+    let stored = if args.resume { clv::store::progress::stored_options(&args.dir) } else { None };
     let mut opts = stored.clone().unwrap_or_else(|| BackwardOptions::for_run(&meta));
     if stored.is_none() || given("transient") {
         opts.transient = args.transient.unwrap_or(BackwardOptions::for_run(&meta).transient);
@@ -151,7 +151,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         }
     }
     // Only for a sweep that will write (--resume of none, or of a finished one, does not).
-    let writes = !args.resume || backward::last_sweep(&args.dir).ok().flatten().is_some_and(|last| !last.done);
+    let writes = !args.resume || clv::store::progress::last_sweep(&args.dir).ok().flatten().is_some_and(|last| !last.done);
     if let Some(path) = opts.frames_file(&args.dir).filter(|_| writes)
         && let Some(warning) = clv::store::run::space_warning(&path, backward::frame_file_bytes(&meta, &opts))
     {
@@ -198,7 +198,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     }
     // Not a notice: the CLV spectrum of an unfinished sweep is not written.
     if report.statistics.stopped_early {
-        let recorded = backward::last_sweep(&args.dir).ok().flatten().map_or(0, |s| s.frames);
+        let recorded = clv::store::progress::last_sweep(&args.dir).ok().flatten().map_or(0, |s| s.frames);
         return Err(Error::ReaderClosed { frames: report.statistics.frames, recorded });
     }
     if !delivered {

@@ -195,7 +195,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
 /// resumed or given up).
 fn backward_sweep(dir: &RunDir) -> Option<String> {
     use crate::stage::backward::Destination;
-    let last = crate::stage::backward::last_sweep(&dir.path).ok()??;
+    let last = crate::store::progress::last_sweep(&dir.path).ok()??;
     let opts = &last.options;
     let out = match opts.destination() {
         Destination::Stream => "frames to a stream".to_string(),
@@ -228,7 +228,7 @@ fn backward_sweep(dir: &RunDir) -> Option<String> {
 fn clv_spectrum_advice(dir: &RunDir) -> String {
     let run = dir.path.display();
     let alone = format!("`clv backward {run} --save-every 0` computes the spectrum alone, but then records a sweep without frames, so `clv analyze` needs the frame file by name");
-    match crate::stage::backward::last_sweep(&dir.path) {
+    match crate::store::progress::last_sweep(&dir.path) {
         Ok(Some(last)) if last.options.frames_file(&dir.path).is_some() => {
             let file = last.options.frames_file(&dir.path).unwrap_or_default();
             let flags = last.options.flags_into(&file);
@@ -243,7 +243,7 @@ fn clv_spectrum_advice(dir: &RunDir) -> String {
 /// (its metadata against the run's records; `meta`, the run.json that describes the run, or
 /// None where run.json disagrees with the segments, which is then the damage to name).
 fn frame_file_problem(dir: &RunDir, meta: Option<&RunMeta>) -> Option<String> {
-    let last = crate::stage::backward::last_sweep(&dir.path).ok()??;
+    let last = crate::store::progress::last_sweep(&dir.path).ok()??;
     let file = last.options.frames_file(&dir.path).filter(|f| last.done && f.exists())?;
     let rewrite = crate::stage::backward::rewrite_advice(&file, Some(&last.options), Some(&dir.path));
     if !crate::store::frames::ends_whole(&file).unwrap_or(false) {

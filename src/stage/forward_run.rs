@@ -208,7 +208,7 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
     // The last sweep's frame file (or the .tmp of one interrupted) under another name: with
     // the rest inside the run directory; outside it, where it is, said.
     let mut with_sweep: Vec<PathBuf> = also.iter().map(|p| p.to_path_buf()).collect();
-    if let Some(sweep) = crate::stage::backward::last_sweep(path).ok().flatten()
+    if let Some(sweep) = crate::store::progress::last_sweep(path).ok().flatten()
         && let Some(file) = sweep.options.frames_file(path)
     {
         let tmp = crate::store::frames::tmp_path(&file);

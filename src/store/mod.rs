@@ -6,7 +6,7 @@
 //! RUN_DIR/seg-FIRST.mcap.tmp        the segment being written (a leftover means a crash)
 //! RUN_DIR/spectrum.json             the final forward spectrum, once the run is complete
 //! RUN_DIR/.lock                     the write lock a stage holds while it writes the run (lock.rs)
-//! RUN_DIR/backward.json             the backward stage's record of its last sweep (resume)
+//! RUN_DIR/backward.json             the backward stage's record of its last sweep (resume; progress.rs)
 //! RUN_DIR/clv_spectrum.json         the CLV spectrum of the last sweep
 //! RUN_DIR/clv_spectrum-N.json       those of earlier sweeps with other options, kept
 //! RUN_DIR/frames.mcap[.tmp]         the default frame file of `clv backward` (frames.rs)
@@ -28,6 +28,7 @@ pub mod checkpoints;
 pub mod fault;
 pub mod frames;
 pub mod lock;
+pub mod progress;
 pub mod records;
 pub mod run;
 pub mod schema;

@@ -619,7 +619,7 @@ fn frame_source(source: &Path) -> Result<(PathBuf, Option<SweepFile>)> {
     let d = source.display();
     let frames = crate::store::RunDir { path: source.to_path_buf() }.frames_path();
     let record = crate::store::RunDir { path: source.to_path_buf() }.progress_path();
-    let last = crate::stage::backward::last_sweep(source).map_err(|e| {
+    let last = crate::store::progress::last_sweep(source).map_err(|e| {
         Error::Other(format!("{e}; the run's last backward sweep is unknown, so {d} cannot stand for its frames: name a frame file (`clv analyze FILE --out REPORT`), or write one with `clv backward {d} --out FILE.mcap`"))
     })?;
     let Some(last) = last else {
