@@ -1032,10 +1032,7 @@ fn initial_c(k: usize, init: CInit, seed: u64) -> Mat<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn record(c: Vec<f64>) -> Progress {
-        Progress { options: BackwardOptions { transient: 1, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1, no_frames: false }, at: 7, c, acc: Accumulator::new(3, 2), acc_gs: None, stats: BackwardStats::default(), done: false }
-    }
+    use crate::store::progress::tests::record;
 
     /// The three kinds of sweep by their options: into a file, to a reader, and without
     /// frames (whose record names no file, and reads as such where an earlier build named

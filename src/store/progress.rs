@@ -148,12 +148,13 @@ pub(crate) fn write_report(dir: &RunDir, report: &mut BackwardReport) -> Result<
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::linalg::pack_upper;
     use crate::stage::backward::CInit;
 
-    fn record(c: Vec<f64>) -> Progress {
+    /// A record of a sweep with C = `c` (also for the stage's tests).
+    pub(crate) fn record(c: Vec<f64>) -> Progress {
         Progress { options: BackwardOptions { transient: 1, c_init: CInit::Identity, with_gs: false, save_every: 1, frames_path: None, vectors_every: 1, no_frames: false }, at: 7, c, acc: Accumulator::new(3, 2), acc_gs: None, stats: BackwardStats::default(), done: false }
     }
 
