@@ -286,6 +286,13 @@ impl Context {
         }
     }
 
+    /// "averaged over N frames (which)", for the captions of tables of means with their
+    /// spreads over frames (`_std` columns, NaN from one frame).
+    pub fn averaged_over(&self, frames: u64) -> String {
+        let one = if frames < 2 { "; the tables' _std columns, spreads over frames, are NaN from one frame" } else { "" };
+        format!("averaged over {frames} frames ({}{one})", self.sample())
+    }
+
     pub fn is_disks(&self) -> bool {
         self.system == "disks"
     }

@@ -179,7 +179,7 @@ impl Analysis for Overlaps {
         let idx: Vec<f64> = (1..=ctx.k).map(|i| i as f64).collect();
         // a handful of indices (a map's two) are points, not a continuum
         let line = if ctx.k <= 8 { Marker::LinePoints } else { Marker::Line };
-        let avg = format!("averaged over {frames} frames ({}{})", ctx.sample(), if frames < 2 { "; the tables' _std columns, spreads over frames, are NaN from one frame" } else { "" });
+        let avg = ctx.averaged_over(frames);
         let central = ctx.central_range();
         let mut produced = Vec::new();
 

@@ -115,7 +115,7 @@ impl Analysis for Projections {
         let idx: Vec<f64> = (1..=k).map(|i| i as f64).collect();
         let central = ctx.central_range();
         let full = k == ctx.d;
-        let avg = format!("averaged over {frames} frames ({}{})", ctx.sample(), if frames < 2 { "; the tables' _std columns, spreads over frames, are NaN from one frame" } else { "" });
+        let avg = ctx.averaged_over(frames);
         let second = central.map(|(a, b)| format!("; the second plot enlarges the central part, i = {}..{}", a + 1, b + 1)).unwrap_or_default();
         let tables = vec!["projections.csv".to_string()];
 
