@@ -226,55 +226,15 @@ fn check_size(flag: &'static str, size: usize) -> Result<()> {
 }
 
 pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
+    check_options(o)?;
     let (n, threads, reps) = (o.n, o.threads, o.reps);
-    for (name, value) in [("threads", threads), ("reps", reps), ("n", n)] {
-        if value == 0 {
-            return Err(Error::param(name, "must be at least 1"));
-        }
-    }
     let d = 4 * n;
-    if o.k.is_some_and(|k| k == 0 || k > d) {
-        return Err(Error::param("vectors", format!("must be between 1 and D = {d}")));
-    }
-    if let Some(&bad) = o.collision_sizes.iter().find(|&&size| size < 2) {
-        return Err(Error::param("collision-sizes", format!("{bad} disks cannot collide with each other; give sizes of at least 2")));
-    }
-    check_size("n", n)?;
-    for &size in &o.collision_sizes {
-        check_size("collision-sizes", size)?;
-    }
     let k = o.k.unwrap_or(d);
-    let p = par(threads);
-    let mut rng = Rng::new(7);
 
     say("gemm and forward steps (MD, tangent, QR), alternately");
-    let (a, b) = (random_mat(d, d, &mut rng), random_mat(d, d, &mut rng));
-    let mut c = Mat::<f64>::zeros(d, d);
-    let mut gemm_once = || {
-        let t = Instant::now();
-        faer::linalg::matmul::matmul(c.as_mut(), faer::Accum::Replace, a.as_ref(), b.as_ref(), 1.0, p);
-        2.0 * (d as f64).powi(3) / t.elapsed().as_secs_f64() / 1e9
-    };
-    let floor_at = |gflops: f64| 8.0 / 3.0 * d as f64 * (k as f64).powi(2) / (gflops * 1e9) * 1e3;
-    gemm_once(); // warm-up
     let config = disk_config(n, k, threads, 3, 100)?;
     let mut fwd = relaxed_forward(&config)?;
-    // One gemm, then one step, so that each QR is compared with the gemm rate of its moment
-    // (the rate of a shared machine moves by 20 % within an hour).
-    let (mut rates, mut md, mut qr, mut over_floor) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    for _ in 0..reps.max(20) {
-        let rate = gemm_once();
-        let (a, q) = fwd.step_timed()?;
-        rates.push(rate);
-        md.push(ms(a));
-        qr.push(ms(q));
-        over_floor.push(ms(q) / floor_at(rate));
-    }
-    let gemm = Stat::of(rates);
-    let floor_ms = floor_at(gemm.median);
-    let qr_ms = Stat::of(qr);
-    let md_tangent_ms = Stat::of(md);
-    let qr_over_floor = Stat::of(over_floor).median;
+    let kernels = Kernels::measure(&mut fwd, threads, reps)?;
 
     say("store encoding");
     let store = StoreConfig::for_run(&config);
@@ -290,35 +250,17 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     say("backward kernels (R^-1 C, V = G C)");
     // On the threads the backward stage gives its sweep (the recomputation has the rest).
     let p = par(backward::sweep_threads(threads));
-    let mut cm = Mat::<f64>::identity(k, k);
-    let mut norms = vec![0.0; k];
-    let r = fwd.r.clone();
-    let backward_solve_ms = Stat::of((0..reps).map(|_| {
-        let t = Instant::now();
-        crate::linalg::ginelli_step(r.as_ref(), cm.as_mut(), &mut norms, p);
-        ms(t.elapsed())
-    }).collect());
-    let g = fwd.g.to_paper_columns(fwd.system.as_ref());
-    let mut v = vec![0.0; d * k];
-    let backward_vgc_ms = Stat::of((0..reps).map(|_| {
-        let t = Instant::now();
-        crate::linalg::mul_upper(faer::MatMut::from_column_major_slice_mut(&mut v, d, k), MatRef::from_column_major_slice(&g, d, k), cm.as_ref(), p);
-        ms(t.elapsed())
-    }).collect());
-
+    let mut sweep = SweepKernels::of(&fwd);
+    let backward_solve_ms = Stat::of((0..reps).map(|_| sweep.solve(p)).collect());
+    let backward_vgc_ms = Stat::of((0..reps).map(|_| sweep.form_v(p)).collect());
     // The work of a backward step measured on one thread, for its bound on `threads` cores.
     let one_thread_work_ms = if threads >= 2 {
         say("one-thread forward steps and backward kernels (the work bound)");
         fwd.set_threads(1);
         let steps = (0..reps).map(|_| fwd.step_timed().map(|(a, q)| ms(a + q))).collect::<Result<Vec<_>>>()?;
         fwd.set_threads(threads);
-        let sweep = (0..reps).map(|_| {
-            let t = Instant::now();
-            crate::linalg::ginelli_step(r.as_ref(), cm.as_mut(), &mut norms, faer::Par::Seq);
-            crate::linalg::mul_upper(faer::MatMut::from_column_major_slice_mut(&mut v, d, k), MatRef::from_column_major_slice(&g, d, k), cm.as_ref(), faer::Par::Seq);
-            ms(t.elapsed())
-        });
-        Some(Stat::of(steps).median + Stat::of(sweep.collect()).median)
+        let sweeps = (0..reps).map(|_| sweep.solve(faer::Par::Seq) + sweep.form_v(faer::Par::Seq)).collect();
+        Some(Stat::of(steps).median + Stat::of(sweeps).median)
     } else {
         None
     };
@@ -326,72 +268,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     say("stored forward run and backward stage over it, in pairs");
     let tmp = std::env::temp_dir().join(format!("clv-bench-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
-    let (mut fsteps, mut bsteps, mut ratios, mut qr_ratios) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let (mut sampled_steps, mut sampled_ratios) = (Vec::new(), Vec::new());
-    // The paper's pipeline forms V only for the frames its analyses sample (every 62nd of
-    // 25000 CLV steps: scripts/reproduce_paper.sh, `clv run`).
-    let sampled_every = crate::stage::analyze::default_every(PAPER_CLV_STEPS, 1);
-    // Each pair is one stored forward run (store defaults: a checkpoint every 100 steps) and
-    // the backward stage over it, one right after the other, so that their ratio is taken
-    // under the same load of a shared machine; the ratio reported is the median of the pairs'.
-    // Ten QR steps just before each forward run give its forward_step_over_qr the same way.
-    for rep in 0..reps.clamp(2, 3) {
-        let mut qr_now = Vec::new();
-        for _ in 0..10 {
-            qr_now.push(ms(fwd.step_timed()?.1));
-        }
-        let qr_now = Stat::of(qr_now).median;
-        let dir = tmp.join(format!("pair{rep}"));
-        let cfg = disk_config(n, k, threads, 0, 1030)?;
-        let mut st = StoreConfig::for_run(&cfg);
-        st.clv_steps = 900;
-        st.transient = 100;
-        let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: st.clone(), build: BuildInfo::current() };
-        forward_run::create(&dir, &meta, &mut Feedback::default())?;
-        // The wall times the statistics record at the checkpoints give the steady-state cost
-        // of a forward step (checkpoints, fsyncs and all) after the first interval, without
-        // the start-up that a long run amortises.
-        let walls = checkpoint_walls(&dir)?;
-        let at = |step: u64| walls.iter().find(|w| w.0 == step).map(|w| w.1);
-        let forward = match (at(100), at(1000)) {
-            (Some(a), Some(b)) => (b - a) * 1e3 / 900.0,
-            _ => f64::NAN,
-        };
-        let backward_step = |vectors_every: u64| -> Result<f64> {
-            let mut opts = BackwardOptions::for_run(&meta);
-            opts.save_every = 0;
-            opts.vectors_every = vectors_every;
-            let mut marks: Vec<(Instant, u64)> = Vec::new();
-            backward::run(&dir, &opts, false, u64::MAX, None, &mut |_| Ok(Flow::Continue), &mut |steps, _| marks.push((Instant::now(), steps)))?;
-            // Eleven segments (ten of 100 steps); the time per step is taken from the end of
-            // the third segment's sweep to the end of the last but one (seven segments): the
-            // period of the overlapped pipeline, once both segment buffers have been written
-            // whole (their first writes fault the pages in). The last sweep runs alone after
-            // the last recomputation, once per run.
-            Ok(match (marks.get(2), marks.len().checked_sub(2).and_then(|i| marks.get(i))) {
-                (Some(first), Some(last)) if last.1 > first.1 => ms(last.0 - first.0) / (last.1 - first.1) as f64,
-                _ => f64::NAN,
-            })
-        };
-        let backward = backward_step(1)?;
-        fsteps.push(forward);
-        bsteps.push(backward);
-        ratios.push(backward / forward);
-        // In two of the pairs only, to keep the default bench under 5 minutes on one thread.
-        if rep < 2 {
-            let sampled = backward_step(sampled_every)?;
-            sampled_steps.push(sampled);
-            sampled_ratios.push(sampled / forward);
-        }
-        qr_ratios.push(forward / qr_now);
-        let _ = std::fs::remove_dir_all(&dir);
-    }
-    let forward_step_ms = Stat::of(fsteps);
-    let backward_step_ms = Stat::of(bsteps);
-    let backward_over_forward = Stat::of(ratios).median;
-    let backward_sampled_step_ms = Stat::of(sampled_steps);
-    let backward_sampled_over_forward = Stat::of(sampled_ratios).median;
-    let forward_step_over_qr = Stat::of(qr_ratios).median;
+    let stages = Stages::measure(&mut fwd, n, k, threads, reps, &tmp)?;
     let backward_work_bound_ms = one_thread_work_ms.map(|w| w / threads as f64);
 
     say("leading k = 16");
@@ -406,48 +283,18 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     }
 
     say("collision rates (k = 0)");
-    let mut collisions_per_second = Vec::new();
-    for &size in &o.collision_sizes {
-        let (lx, ly) = box_sides(size, 0.7, 2.0 / 11.0);
-        let mut s = HardDisks::new(size, lx, ly, 0.6, 3)?;
-        let mut none = Tangent::zeros(4 * size, 0);
-        s.advance(&mut none)?; // melt the lattice
-        let c0 = s.invariants().events;
-        let t = Instant::now();
-        while s.invariants().events - c0 < 300_000 {
-            s.advance(&mut none)?;
-        }
-        collisions_per_second.push((size, (s.invariants().events - c0) as f64 / t.elapsed().as_secs_f64()));
-    }
+    let collisions_per_second = o.collision_sizes.iter().map(|&size| Ok((size, collision_rate(size)?))).collect::<Result<Vec<_>>>()?;
 
-    let (mut forward_peak_rss, mut backward_peak_rss) = (Vec::new(), Vec::new());
-    if let Some(exe) = &o.exe {
-        // Checkpoints every 5 steps (in run segments of 2): both run lengths write, rotate
-        // and prune segments, and both backward windows span the 4 or more segments that
-        // fill the backward pipeline (with checkpoints every 10 steps, a 20-step window and
-        // its transient were 3 segments and peaked at 212 MB, every window of 4 or more
-        // at 225 MB), so the comparison is of steady states.
-        say("peak memory (child processes, 10x longer runs)");
-        let base = 20u64;
-        for scale in [1, 10] {
-            let dir = tmp.join(format!("rss-f{scale}"));
-            let steps = base * scale;
-            let args: Vec<String> = ["forward", "--quiet", "--n", &n.to_string(), "--vectors", &k.to_string(), "--threads", &threads.to_string(), "--relax-steps", "0", "--steps", &steps.to_string(), "--checkpoint-every", "5", "--segment-checkpoints", "2", "--clv-steps", "10", "--transient", "5", "--out", dir.to_str().unwrap_or_default()]
-                .iter().map(|s| s.to_string()).collect();
-            forward_peak_rss.push(peak_of_runs(exe, &args, steps, RSS_RUNS[usize::from(scale > 1)], Some(&dir))?);
+    let (forward_peak_rss, backward_peak_rss) = match &o.exe {
+        Some(exe) => {
+            say("peak memory (child processes, 10x longer runs)");
+            peak_memory(exe, n, k, threads, &tmp)?
         }
-        for scale in [1, 10] {
-            let dir = tmp.join(format!("rss-b{scale}"));
-            let window = base * scale;
-            let args: Vec<String> = ["forward", "--quiet", "--n", &n.to_string(), "--vectors", &k.to_string(), "--threads", &threads.to_string(), "--relax-steps", "0", "--steps", &(window + 10).to_string(), "--checkpoint-every", "5", "--clv-steps", &window.to_string(), "--transient", "10", "--out", dir.to_str().unwrap_or_default()]
-                .iter().map(|s| s.to_string()).collect();
-            child_peak_rss_mb(exe, &args)?;
-            let args: Vec<String> = ["backward", dir.to_str().unwrap_or_default(), "--quiet", "--save-every", "0"].iter().map(|s| s.to_string()).collect();
-            backward_peak_rss.push(peak_of_runs(exe, &args, window, RSS_RUNS[usize::from(scale > 1)], None)?);
-        }
-    }
+        None => (Vec::new(), Vec::new()),
+    };
     let _ = std::fs::remove_dir_all(&tmp);
 
+    let Stages { forward_step_ms, backward_step_ms, backward_over_forward, sampled_every, backward_sampled_step_ms, backward_sampled_over_forward, forward_step_over_qr } = stages;
     Ok(BenchReport {
         n,
         d,
@@ -455,17 +302,17 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         threads,
         cores: std::thread::available_parallelism().map_or(1, |c| c.get()),
         reps,
-        gemm_gflops: gemm,
-        floor_ms,
-        qr_ms,
+        floor_ms: qr_floor_ms(d, k, kernels.gemm_gflops.median),
+        gemm_gflops: kernels.gemm_gflops,
+        qr_ms: kernels.qr_ms,
         forward_step_ms,
-        md_tangent_ms,
+        md_tangent_ms: kernels.md_tangent_ms,
         store_ms,
         backward_step_ms,
         backward_solve_ms,
         backward_vgc_ms,
         forward_step_over_qr,
-        qr_over_floor,
+        qr_over_floor: kernels.qr_over_floor,
         backward_over_forward,
         sampled_every,
         backward_sampled_step_ms,
@@ -483,6 +330,232 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         paper_backward_hours: (25_000.0 * backward_step_ms.median + 12_500.0 * backward_sampled_step_ms.median) / 3.6e6,
         paper_backward_sampled_hours: 37_500.0 * backward_sampled_step_ms.median / 3.6e6,
     })
+}
+
+/// Refuse options the bench cannot measure with, naming the flag.
+fn check_options(o: &BenchOptions) -> Result<()> {
+    for (name, value) in [("threads", o.threads), ("reps", o.reps), ("n", o.n)] {
+        if value == 0 {
+            return Err(Error::param(name, "must be at least 1"));
+        }
+    }
+    let d = 4 * o.n;
+    if o.k.is_some_and(|k| k == 0 || k > d) {
+        return Err(Error::param("vectors", format!("must be between 1 and D = {d}")));
+    }
+    if let Some(&bad) = o.collision_sizes.iter().find(|&&size| size < 2) {
+        return Err(Error::param("collision-sizes", format!("{bad} disks cannot collide with each other; give sizes of at least 2")));
+    }
+    check_size("n", o.n)?;
+    for &size in &o.collision_sizes {
+        check_size("collision-sizes", size)?;
+    }
+    Ok(())
+}
+
+/// The gemm rate and the forward step's kernels, measured alternately.
+struct Kernels {
+    gemm_gflops: Stat,
+    qr_ms: Stat,
+    md_tangent_ms: Stat,
+    /// Median of each QR over the floor at the gemm rate measured just before it.
+    qr_over_floor: f64,
+}
+
+impl Kernels {
+    /// One gemm, then one step, so that each QR is compared with the gemm rate of its moment
+    /// (the rate of a shared machine moves by 20 % within an hour).
+    fn measure(fwd: &mut Forward, threads: usize, reps: usize) -> Result<Self> {
+        let (d, k) = (fwd.system.dim(), fwd.g.count());
+        let p = par(threads);
+        let mut rng = Rng::new(7);
+        let (a, b) = (random_mat(d, d, &mut rng), random_mat(d, d, &mut rng));
+        let mut c = Mat::<f64>::zeros(d, d);
+        let mut gemm_once = || {
+            let t = Instant::now();
+            faer::linalg::matmul::matmul(c.as_mut(), faer::Accum::Replace, a.as_ref(), b.as_ref(), 1.0, p);
+            2.0 * (d as f64).powi(3) / t.elapsed().as_secs_f64() / 1e9
+        };
+        gemm_once(); // warm-up
+        let (mut rates, mut md, mut qr, mut over_floor) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for _ in 0..reps.max(20) {
+            let rate = gemm_once();
+            let (a, q) = fwd.step_timed()?;
+            rates.push(rate);
+            md.push(ms(a));
+            qr.push(ms(q));
+            over_floor.push(ms(q) / qr_floor_ms(d, k, rate));
+        }
+        Ok(Kernels { gemm_gflops: Stat::of(rates), qr_ms: Stat::of(qr), md_tangent_ms: Stat::of(md), qr_over_floor: Stat::of(over_floor).median })
+    }
+}
+
+/// The floor of one QR with explicit Q of a D x k block, 8/3 D k^2 flops, at `gflops`, in ms.
+fn qr_floor_ms(d: usize, k: usize, gflops: f64) -> f64 {
+    8.0 / 3.0 * d as f64 * (k as f64).powi(2) / (gflops * 1e9) * 1e3
+}
+
+/// The backward sweep's two kernels on a realistic R and G: C_{n-1} = R_n^{-1} C_n (with the
+/// renormalisation of its columns) and V_n = G_n C_n.
+struct SweepKernels {
+    r: Mat<f64>,
+    c: Mat<f64>,
+    norms: Vec<f64>,
+    g: Vec<f64>,
+    v: Vec<f64>,
+}
+
+impl SweepKernels {
+    fn of(fwd: &Forward) -> Self {
+        let (d, k) = (fwd.system.dim(), fwd.g.count());
+        SweepKernels { r: fwd.r.clone(), c: Mat::identity(k, k), norms: vec![0.0; k], g: fwd.g.to_paper_columns(fwd.system.as_ref()), v: vec![0.0; d * k] }
+    }
+
+    /// One R^-1 C, in ms.
+    fn solve(&mut self, p: faer::Par) -> f64 {
+        let t = Instant::now();
+        crate::linalg::ginelli_step(self.r.as_ref(), self.c.as_mut(), &mut self.norms, p);
+        ms(t.elapsed())
+    }
+
+    /// One V = G C, in ms.
+    fn form_v(&mut self, p: faer::Par) -> f64 {
+        let (d, k) = (self.g.len() / self.c.nrows(), self.c.nrows());
+        let t = Instant::now();
+        crate::linalg::mul_upper(faer::MatMut::from_column_major_slice_mut(&mut self.v, d, k), MatRef::from_column_major_slice(&self.g, d, k), self.c.as_ref(), p);
+        ms(t.elapsed())
+    }
+}
+
+/// The stages themselves: stored forward runs and the backward stage over each.
+struct Stages {
+    forward_step_ms: Stat,
+    backward_step_ms: Stat,
+    backward_over_forward: f64,
+    sampled_every: u64,
+    backward_sampled_step_ms: Stat,
+    backward_sampled_over_forward: f64,
+    forward_step_over_qr: f64,
+}
+
+impl Stages {
+    /// Each pair is one stored forward run (store defaults: a checkpoint every 100 steps) and
+    /// the backward stage over it, one right after the other, so that their ratio is taken
+    /// under the same load of a shared machine; the ratio reported is the median of the
+    /// pairs'. Ten QR steps of `fwd` just before each forward run give its
+    /// forward_step_over_qr the same way.
+    fn measure(fwd: &mut Forward, n: usize, k: usize, threads: usize, reps: usize, tmp: &Path) -> Result<Self> {
+        let (mut fsteps, mut bsteps, mut ratios, mut qr_ratios) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let (mut sampled_steps, mut sampled_ratios) = (Vec::new(), Vec::new());
+        // The paper's pipeline forms V only for the frames its analyses sample (every 62nd of
+        // 25000 CLV steps: scripts/reproduce_paper.sh, `clv run`).
+        let sampled_every = crate::stage::analyze::default_every(PAPER_CLV_STEPS, 1);
+        for rep in 0..reps.clamp(2, 3) {
+            let mut qr_now = Vec::new();
+            for _ in 0..10 {
+                qr_now.push(ms(fwd.step_timed()?.1));
+            }
+            let qr_now = Stat::of(qr_now).median;
+            let dir = tmp.join(format!("pair{rep}"));
+            let cfg = disk_config(n, k, threads, 0, 1030)?;
+            let mut st = StoreConfig::for_run(&cfg);
+            st.clv_steps = 900;
+            st.transient = 100;
+            let meta = RunMeta { format: FORMAT.into(), config: cfg.clone(), store: st.clone(), build: BuildInfo::current() };
+            forward_run::create(&dir, &meta, &mut Feedback::default())?;
+            // The wall times the statistics record at the checkpoints give the steady-state
+            // cost of a forward step (checkpoints, fsyncs and all) after the first interval,
+            // without the start-up that a long run amortises.
+            let walls = checkpoint_walls(&dir)?;
+            let at = |step: u64| walls.iter().find(|w| w.0 == step).map(|w| w.1);
+            let forward = match (at(100), at(1000)) {
+                (Some(a), Some(b)) => (b - a) * 1e3 / 900.0,
+                _ => f64::NAN,
+            };
+            let backward = backward_step_ms(&dir, &meta, 1)?;
+            fsteps.push(forward);
+            bsteps.push(backward);
+            ratios.push(backward / forward);
+            // In two of the pairs only, to keep the default bench under 5 minutes on one thread.
+            if rep < 2 {
+                let sampled = backward_step_ms(&dir, &meta, sampled_every)?;
+                sampled_steps.push(sampled);
+                sampled_ratios.push(sampled / forward);
+            }
+            qr_ratios.push(forward / qr_now);
+            let _ = std::fs::remove_dir_all(&dir);
+        }
+        Ok(Stages {
+            forward_step_ms: Stat::of(fsteps),
+            backward_step_ms: Stat::of(bsteps),
+            backward_over_forward: Stat::of(ratios).median,
+            sampled_every,
+            backward_sampled_step_ms: Stat::of(sampled_steps),
+            backward_sampled_over_forward: Stat::of(sampled_ratios).median,
+            forward_step_over_qr: Stat::of(qr_ratios).median,
+        })
+    }
+}
+
+/// The steady-state time of a backward step over the stored run in `dir`, V formed every
+/// `vectors_every` steps.
+fn backward_step_ms(dir: &Path, meta: &RunMeta, vectors_every: u64) -> Result<f64> {
+    let mut opts = BackwardOptions::for_run(meta);
+    opts.save_every = 0;
+    opts.vectors_every = vectors_every;
+    let mut marks: Vec<(Instant, u64)> = Vec::new();
+    backward::run(dir, &opts, false, u64::MAX, None, &mut |_| Ok(Flow::Continue), &mut |steps, _| marks.push((Instant::now(), steps)))?;
+    // Eleven segments (ten of 100 steps); the time per step is taken from the end of the
+    // third segment's sweep to the end of the last but one (seven segments): the period of
+    // the overlapped pipeline, once both segment buffers have been written whole (their first
+    // writes fault the pages in). The last sweep runs alone after the last recomputation,
+    // once per run.
+    Ok(match (marks.get(2), marks.len().checked_sub(2).and_then(|i| marks.get(i))) {
+        (Some(first), Some(last)) if last.1 > first.1 => ms(last.0 - first.0) / (last.1 - first.1) as f64,
+        _ => f64::NAN,
+    })
+}
+
+/// Collisions per second of `size` disks without tangent vectors, over 300000 collisions.
+fn collision_rate(size: usize) -> Result<f64> {
+    let (lx, ly) = box_sides(size, 0.7, 2.0 / 11.0);
+    let mut s = HardDisks::new(size, lx, ly, 0.6, 3)?;
+    let mut none = Tangent::zeros(4 * size, 0);
+    s.advance(&mut none)?; // melt the lattice
+    let c0 = s.invariants().events;
+    let t = Instant::now();
+    while s.invariants().events - c0 < 300_000 {
+        s.advance(&mut none)?;
+    }
+    Ok((s.invariants().events - c0) as f64 / t.elapsed().as_secs_f64())
+}
+
+/// Peak RSS of forward and backward runs of two lengths 10x apart, as child processes of
+/// `exe`. Checkpoints every 5 steps (in run segments of 2): both run lengths write, rotate
+/// and prune segments, and both backward windows span the 4 or more segments that fill the
+/// backward pipeline (with checkpoints every 10 steps, a 20-step window and its transient
+/// were 3 segments and peaked at 212 MB, every window of 4 or more at 225 MB), so the
+/// comparison is of steady states.
+fn peak_memory(exe: &Path, n: usize, k: usize, threads: usize, tmp: &Path) -> Result<(Vec<Rss>, Vec<Rss>)> {
+    let (mut forward, mut backward) = (Vec::new(), Vec::new());
+    let base = 20u64;
+    let owned = |args: &[&str]| args.iter().map(|s| s.to_string()).collect::<Vec<String>>();
+    let (n, k, threads) = (n.to_string(), k.to_string(), threads.to_string());
+    for scale in [1, 10] {
+        let dir = tmp.join(format!("rss-f{scale}"));
+        let steps = base * scale;
+        let args = owned(&["forward", "--quiet", "--n", &n, "--vectors", &k, "--threads", &threads, "--relax-steps", "0", "--steps", &steps.to_string(), "--checkpoint-every", "5", "--segment-checkpoints", "2", "--clv-steps", "10", "--transient", "5", "--out", dir.to_str().unwrap_or_default()]);
+        forward.push(peak_of_runs(exe, &args, steps, RSS_RUNS[usize::from(scale > 1)], Some(&dir))?);
+    }
+    for scale in [1, 10] {
+        let dir = tmp.join(format!("rss-b{scale}"));
+        let window = base * scale;
+        let args = owned(&["forward", "--quiet", "--n", &n, "--vectors", &k, "--threads", &threads, "--relax-steps", "0", "--steps", &(window + 10).to_string(), "--checkpoint-every", "5", "--clv-steps", &window.to_string(), "--transient", "10", "--out", dir.to_str().unwrap_or_default()]);
+        child_peak_rss_mb(exe, &args)?;
+        let args = owned(&["backward", dir.to_str().unwrap_or_default(), "--quiet", "--save-every", "0"]);
+        backward.push(peak_of_runs(exe, &args, window, RSS_RUNS[usize::from(scale > 1)], None)?);
+    }
+    Ok((forward, backward))
 }
 
 /// Disks of the paper's system (D = 4N = 792), the one the projection is for.

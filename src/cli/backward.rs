@@ -4,7 +4,8 @@ use super::{emit, print_json, progress};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 use clv::{Error, Result};
-use std::path::PathBuf;
+use clv::stage::backward::{self, BackwardOptions, CInit};
+use std::path::{Path, PathBuf};
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum CInitArg {
@@ -58,105 +59,16 @@ pub struct BackwardArgs {
 }
 
 pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
-    use clv::stage::backward::{self, BackwardOptions, CInit};
     use clv::store::frames::{FrameStdout, Flow};
     if let Some(threads) = args.threads {
         clv::config::check_threads(threads)?;
     }
     let (dir, meta) = clv::store::RunDir::open(&args.dir)?;
-    let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
-    // A resumed sweep continues with the options it was started with; flags given again
-    // must agree with them (the stage refuses a contradiction).
-    let stored = if args.resume { clv::store::progress::stored_options(&args.dir) } else { None };
-    let mut opts = stored.clone().unwrap_or_else(|| BackwardOptions::for_run(&meta));
-    if stored.is_none() || given("transient") {
-        opts.transient = args.transient.unwrap_or(BackwardOptions::for_run(&meta).transient);
+    let (opts, to_stdout) = options(args, matches, &meta)?;
+    if !args.quiet {
+        warn_if_no_vectors(&meta, &opts, to_stdout);
     }
-    if stored.is_none() || given("c_init") {
-        opts.c_init = match args.c_init {
-            CInitArg::Identity => CInit::Identity,
-            CInitArg::Random => CInit::Random,
-        };
-    }
-    if stored.is_none() || given("with_gs") {
-        opts.with_gs = args.with_gs;
-    }
-    let to_stdout = match (&stored, given("out")) {
-        (Some(s), false) => s.streams(),
-        _ => args.out.as_deref() == Some(std::path::Path::new("-")),
-    };
-    if to_stdout && args.json {
-        return Err(Error::param("json", "prints the CLV spectrum on standard output, which --out - gives to the frame stream; leave out --json (the spectrum is written to clv_spectrum.json in the run directory), or write the frames to a file"));
-    }
-    if to_stdout && std::io::IsTerminal::is_terminal(&std::io::stdout()) {
-        return Err(Error::param("out", "- writes a binary MCAP stream, and standard output is a terminal; pipe it into `clv analyze -` (or another reader), or give a file"));
-    }
-    if stored.is_none() || given("out") {
-        opts.frames_path = match (to_stdout, args.out.clone()) {
-            (true, _) => None,
-            (false, out) => {
-                let path = out.unwrap_or_else(|| clv::store::RunDir { path: args.dir.clone() }.frames_path());
-                let recorded = BackwardOptions::record_frames_path(&args.dir, &path)?;
-                // Directly in the run directory, only a frame file's name: the run's own files
-                // (run.json, the segments, the records and their temporary names) are not to be
-                // replaced by frames, nor frames by them.
-                let name = recorded.to_string_lossy().to_string();
-                let in_previous = recorded.is_relative() && recorded.components().next().is_some_and(|c| c.as_os_str().to_string_lossy().starts_with("previous-"));
-                if in_previous || (recorded.components().count() == 1 && (!name.ends_with(".mcap") || name.starts_with("seg-"))) {
-                    return Err(Error::param("out", format!(
-                        "{} would be {name} in the run directory, where only frame files ending in .mcap (other than the run's seg-*.mcap) may go, beside the run's own files; give such a name (frames.mcap is the default), or a path outside the run directory",
-                        path.display()
-                    )));
-                }
-                Some(recorded)
-            }
-        };
-    }
-    if given("save_every") && args.save_every == 0 && given("out") && !to_stdout {
-        return Err(Error::param("save-every", "0 would keep no frame in the file --out names; give m >= 1 (the frames of the steps that are multiples of m), or leave out --out to compute only the CLV spectrum"));
-    }
-    if stored.is_none() || given("save_every") || given("out") {
-        // Resuming with --out FILE again keeps the stored --save-every unless it is given.
-        let stored_save = stored.as_ref().map(|s| s.save_every).filter(|&s| s > 0);
-        opts.save_every = match (to_stdout, given("save_every"), stored_save) {
-            (true, _, _) => 0,
-            (false, false, Some(s)) => s,
-            _ => args.save_every,
-        };
-        // A sweep that keeps no frame writes no file, and records none (`clv analyze RUN_DIR`
-        // must not take an earlier sweep's frames.mcap for its frames).
-        opts.no_frames = !to_stdout && opts.save_every == 0;
-        if opts.no_frames {
-            opts.frames_path = None;
-        } else if !to_stdout && opts.frames_path.is_none() {
-            // --save-every m on resuming a sweep that kept none: into the default file.
-            opts.frames_path = Some(BackwardOptions::record_frames_path(&args.dir, &clv::store::RunDir { path: args.dir.clone() }.frames_path())?);
-        }
-    }
-    if stored.is_none() || given("vectors_every") {
-        opts.vectors_every = args.vectors_every;
-    }
-    // Frames that keep no V_n at all leave the analyses of vector statistics nothing: said
-    // now, not when the report comes out empty.
-    if let Ok(window) = backward::Window::of(&meta, &opts)
-        && let Some((oldest, newest)) = window.frame_steps(&opts)
-    {
-        use clv::stage::frame::{lcm, multiples_in};
-        let m = opts.vectors_every.max(1);
-        let kept = if to_stdout { 1 } else { opts.save_every };
-        let l = lcm(m, kept);
-        if m > 1 && !args.quiet && multiples_in(oldest, newest, l) == 0 {
-            let saved = if kept > 1 { format!(" in a file of the frames of every {kept}-th step (--save-every {kept})") } else { String::new() };
-            clv::note!("clv: warning: no frame of steps {oldest}..{newest} will carry covariant vectors: --vectors-every {m}{saved} keeps V_n only at the steps that are multiples of {l}; the CLV spectrum and the local exponents do not need them, the analyses of vector statistics do");
-        }
-    }
-    // Only for a sweep that will write (--resume of none, or of a finished one, does not).
-    let writes = !args.resume || clv::store::progress::last_sweep(&args.dir).ok().flatten().is_some_and(|last| !last.done);
-    if let Some(path) = opts.frames_file(&args.dir).filter(|_| writes)
-        && let Some(warning) = clv::store::run::space_warning(&path, backward::frame_file_bytes(&meta, &opts))
-    {
-        clv::note!("clv: {warning} (--save-every m keeps one frame in m)");
-    }
+    warn_if_short_of_space(args, &meta, &opts);
     let stream_meta = backward::stream_info(&dir, &meta, &opts).metadata();
     let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
     // Two bars: segments recomputed (from the checkpoints) and frames emitted by the sweep.
@@ -216,4 +128,113 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
         emit(&clv::report::backward_table(&report))?;
     }
     Ok(())
+}
+
+/// The sweep's options: those of the flags, or, with --resume, those the interrupted sweep
+/// was started with and the flags given again; and whether the frames go to standard output.
+fn options(args: &BackwardArgs, matches: &ArgMatches, meta: &clv::store::RunMeta) -> Result<(BackwardOptions, bool)> {
+    let given = |id: &str| matches.value_source(id) == Some(ValueSource::CommandLine);
+    // A resumed sweep continues with the options it was started with; flags given again
+    // must agree with them (the stage refuses a contradiction).
+    let stored = if args.resume { clv::store::progress::stored_options(&args.dir) } else { None };
+    let mut opts = stored.clone().unwrap_or_else(|| BackwardOptions::for_run(meta));
+    if stored.is_none() || given("transient") {
+        opts.transient = args.transient.unwrap_or(BackwardOptions::for_run(meta).transient);
+    }
+    if stored.is_none() || given("c_init") {
+        opts.c_init = match args.c_init {
+            CInitArg::Identity => CInit::Identity,
+            CInitArg::Random => CInit::Random,
+        };
+    }
+    if stored.is_none() || given("with_gs") {
+        opts.with_gs = args.with_gs;
+    }
+    let to_stdout = match (&stored, given("out")) {
+        (Some(s), false) => s.streams(),
+        _ => args.out.as_deref() == Some(std::path::Path::new("-")),
+    };
+    if to_stdout && args.json {
+        return Err(Error::param("json", "prints the CLV spectrum on standard output, which --out - gives to the frame stream; leave out --json (the spectrum is written to clv_spectrum.json in the run directory), or write the frames to a file"));
+    }
+    if to_stdout && std::io::IsTerminal::is_terminal(&std::io::stdout()) {
+        return Err(Error::param("out", "- writes a binary MCAP stream, and standard output is a terminal; pipe it into `clv analyze -` (or another reader), or give a file"));
+    }
+    if stored.is_none() || given("out") {
+        opts.frames_path = match (to_stdout, args.out.clone()) {
+            (true, _) => None,
+            (false, out) => Some(recorded_frames_path(&args.dir, out)?),
+        };
+    }
+    if given("save_every") && args.save_every == 0 && given("out") && !to_stdout {
+        return Err(Error::param("save-every", "0 would keep no frame in the file --out names; give m >= 1 (the frames of the steps that are multiples of m), or leave out --out to compute only the CLV spectrum"));
+    }
+    if stored.is_none() || given("save_every") || given("out") {
+        // Resuming with --out FILE again keeps the stored --save-every unless it is given.
+        let stored_save = stored.as_ref().map(|s| s.save_every).filter(|&s| s > 0);
+        opts.save_every = match (to_stdout, given("save_every"), stored_save) {
+            (true, _, _) => 0,
+            (false, false, Some(s)) => s,
+            _ => args.save_every,
+        };
+        // A sweep that keeps no frame writes no file, and records none (`clv analyze RUN_DIR`
+        // must not take an earlier sweep's frames.mcap for its frames).
+        opts.no_frames = !to_stdout && opts.save_every == 0;
+        if opts.no_frames {
+            opts.frames_path = None;
+        } else if !to_stdout && opts.frames_path.is_none() {
+            // --save-every m on resuming a sweep that kept none: into the default file.
+            opts.frames_path = Some(BackwardOptions::record_frames_path(&args.dir, &clv::store::RunDir { path: args.dir.clone() }.frames_path())?);
+        }
+    }
+    if stored.is_none() || given("vectors_every") {
+        opts.vectors_every = args.vectors_every;
+    }
+    Ok((opts, to_stdout))
+}
+
+/// The frame file --out names (the run's frames.mcap without it), as the progress record
+/// keeps it. Directly in the run directory, only a frame file's name: the run's own files
+/// (run.json, the segments, the records and their temporary names) are not to be replaced
+/// by frames, nor frames by them.
+fn recorded_frames_path(run: &Path, out: Option<PathBuf>) -> Result<PathBuf> {
+    let path = out.unwrap_or_else(|| clv::store::RunDir { path: run.to_path_buf() }.frames_path());
+    let recorded = BackwardOptions::record_frames_path(run, &path)?;
+    let name = recorded.to_string_lossy().to_string();
+    let in_previous = recorded.is_relative() && recorded.components().next().is_some_and(|c| c.as_os_str().to_string_lossy().starts_with("previous-"));
+    if in_previous || (recorded.components().count() == 1 && (!name.ends_with(".mcap") || name.starts_with("seg-"))) {
+        return Err(Error::param("out", format!(
+            "{} would be {name} in the run directory, where only frame files ending in .mcap (other than the run's seg-*.mcap) may go, beside the run's own files; give such a name (frames.mcap is the default), or a path outside the run directory",
+            path.display()
+        )));
+    }
+    Ok(recorded)
+}
+
+/// Frames that keep no V_n at all leave the analyses of vector statistics nothing: said
+/// now, not when the report comes out empty.
+fn warn_if_no_vectors(meta: &clv::store::RunMeta, opts: &BackwardOptions, to_stdout: bool) {
+    if let Ok(window) = backward::Window::of(meta, opts)
+        && let Some((oldest, newest)) = window.frame_steps(opts)
+    {
+        use clv::stage::frame::{lcm, multiples_in};
+        let m = opts.vectors_every.max(1);
+        let kept = if to_stdout { 1 } else { opts.save_every };
+        let l = lcm(m, kept);
+        if m > 1 && multiples_in(oldest, newest, l) == 0 {
+            let saved = if kept > 1 { format!(" in a file of the frames of every {kept}-th step (--save-every {kept})") } else { String::new() };
+            clv::note!("clv: warning: no frame of steps {oldest}..{newest} will carry covariant vectors: --vectors-every {m}{saved} keeps V_n only at the steps that are multiples of {l}; the CLV spectrum and the local exponents do not need them, the analyses of vector statistics do");
+        }
+    }
+}
+
+/// A frame file that may not fit on its file system is announced before the sweep starts.
+fn warn_if_short_of_space(args: &BackwardArgs, meta: &clv::store::RunMeta, opts: &BackwardOptions) {
+    // Only for a sweep that will write (--resume of none, or of a finished one, does not).
+    let writes = !args.resume || clv::store::progress::last_sweep(&args.dir).ok().flatten().is_some_and(|last| !last.done);
+    if let Some(path) = opts.frames_file(&args.dir).filter(|_| writes)
+        && let Some(warning) = clv::store::run::space_warning(&path, backward::frame_file_bytes(meta, opts))
+    {
+        clv::note!("clv: {warning} (--save-every m keeps one frame in m)");
+    }
 }

@@ -642,41 +642,12 @@ pub fn run(
     meta.build.check_can_continue(path)?;
     dir.check_meta(&meta)?;
     let (config, store) = (&meta.config, &meta.store);
-    let total = config.relax_steps + config.steps;
-    let gs = crate::report::SpectrumSummary::read(&dir.spectrum_path()).map_err(|e| match dir.spectrum_path().exists() {
-        false => Error::Other(format!("the forward run in {} is not complete (no spectrum.json); finish it with `clv forward --resume {}`", path.display(), path.display())),
-        true => Error::Other(format!("{e}; `clv forward --resume {}` rewrites it from the run's last checkpoint", path.display())),
-    })?;
-    if opts.vectors_every == 0 {
-        return Err(Error::param("vectors-every", "must be at least 1 (1: every frame carries V_n)"));
-    }
-    let window = Window::of(&meta, opts)?;
-    if matches!(opts.destination(), Destination::File { every, .. } if window.last / every * every < window.first) {
-        return Err(Error::param(
-            "save-every",
-            format!(
-                "no step of the CLV window {}..{} is a multiple of {}: the frame file would hold no frame; give a --save-every of at most {}",
-                window.first,
-                window.last,
-                opts.save_every,
-                window.last - window.first + 1
-            ),
-        ));
-    }
-    let c_every = store.checkpoint_every;
-    let mut bounds: Vec<u64> = (window.first / c_every * c_every..total).step_by(c_every as usize).collect();
-    bounds.push(total);
-    let k = config.vectors;
-    let d = config.system.dim();
-    let tau = config.tau;
-
-    // Where its frames are saved, if anywhere (frames_file is None with --save-every 0).
-    let frames_path = opts.frames_file(&dir.path);
-    let metadata = stream_info(&dir, &meta, opts).metadata();
+    let gs = forward_spectrum(&dir)?;
+    let window = checked_window(&meta, opts)?;
     let progress_file = progress_path(&dir);
-    let mut notes = Vec::new();
     // Before anything looks at the frame file or writes: another run's sweep may be writing
     // the same --out.
+    let frames_path = opts.frames_file(&dir.path);
     let _frames_lock = match &frames_path {
         Some(f) => Some(crate::store::frames::lock(f)?),
         None => None,
@@ -685,35 +656,15 @@ pub fn run(
     if prior.as_ref().is_some_and(|p| p.done) {
         return finished_earlier(&dir, opts);
     }
+    let notes: Vec<String> = prior.as_ref().and_then(|p| frames_sent_before(p, opts, window)).into_iter().collect();
 
-    if let Some(p) = prior.as_ref().filter(|p| opts.streams() && p.stats.frames > 0) {
-        let sent = window.last + 1 - p.stats.frames;
-        notes.push(format!(
-            "the frames of steps {sent}..{} went to the reader of the interrupted stream and are not sent again: this stream carries steps {}..{}, \
-             and analyses of it describe those steps only; for the whole window, start the stream again without --resume",
-            window.last,
-            window.first,
-            sent - 1
-        ));
-    }
-
-    let c = match &prior {
-        Some(p) => p.c_matrix(k).ok_or_else(|| {
-            Error::corrupt(&progress_file, format!("C holds {} numbers, not those of a {k} x {k} upper-triangular matrix; run without --resume to start over", p.c.len()))
-        })?,
-        None => initial_c(k, opts.c_init, config.seed),
-    };
-    let n_frames = window.last - window.first + 1;
-    let acc = prior.as_ref().map(|p| p.acc.clone()).unwrap_or_else(|| Accumulator::new(k, block_len(n_frames, config.blocks as u64)));
-    let acc_gs = match &prior {
-        Some(p) => p.acc_gs.clone(),
-        None => Some(Accumulator::new(k, acc.block_len)),
-    };
-    let stats = prior.as_ref().map(|p| p.stats.clone()).unwrap_or_default();
     let cores = Arc::new(Cores::new(config.threads));
-    let par = par(cores.sweep_threads());
-    let mut sweep = Sweep { opts, window, d, k, tau, par, c, acc, acc_gs, stats, r: Mat::zeros(k, k), norms: vec![0.0; k], spare: None };
+    let mut sweep = Sweep::start(opts, window, config, prior.as_ref(), &progress_file, par(cores.sweep_threads()), started)?;
+    let c_every = store.checkpoint_every;
+    let total = config.relax_steps + config.steps;
     let resume_at = prior.as_ref().map(|p| p.at).unwrap_or(total);
+    let mut bounds: Vec<u64> = (window.first / c_every * c_every..total).step_by(c_every as usize).collect();
+    bounds.push(total);
     let todo: Vec<(u64, u64)> = bounds.windows(2).rev().map(|w| (w[0], w[1])).filter(|&(_, s1)| s1 <= resume_at).collect();
     if prior.is_none() {
         // A new sweep owns the progress record from its start, before its frame file exists:
@@ -722,24 +673,18 @@ pub fn run(
         // frames).
         sweep.record(resume_at, false).save(&progress_file)?;
     }
-    let mut frame_file = match (&frames_path, &prior) {
-        // The frames saved before the record: those of the steps that are multiples of
-        // --save-every among the ones the sweep had emitted, window.last down.
-        (Some(f), Some(p)) => {
-            let kept: Vec<u64> = ((window.last + 1).saturating_sub(p.stats.frames)..=window.last).rev().filter(|&m| on_stride(m, opts.save_every)).collect();
-            Some(FrameFile::salvage(f, &metadata, &kept, &format!("clv backward {} {}", dir.path.display(), opts.flags_into(f)))?)
-        }
-        (Some(f), None) => Some(FrameFile::create(f, &metadata)?),
-        _ => None,
+    let mut frame_file = match &frames_path {
+        Some(f) => Some(open_frame_file(f, &dir, &meta, opts, prior.as_ref())?),
+        None => None,
     };
 
+    let (d, k) = (config.system.dim(), config.vectors);
     let segment_bytes = 8 * (Segment::g_slots(c_every as usize, opts.vectors_every) * d * k) as u64;
     // Two segment buffers, and a third share as headroom for what the sweep and the
     // consumers of its frames hold besides (C, the frames being formed and queued): a budget
     // that only just holds two segments goes out of core.
     let out_of_core = (3 * segment_bytes > memory_bytes).then(|| dir.path.clone());
-
-    let (planned, swept_before) = (todo.len() as u64, sweep.stats.segments);
+    let planned = todo.len() as u64;
     let recomputation = Recomputation {
         config: config.clone(),
         store_r_all: store.store_r == StoreR::All,
@@ -749,66 +694,13 @@ pub fn run(
         out_of_core,
         cores: cores.clone(),
     };
-    let (rx, free_tx, producer) = recomputation.spawn(dir.segments()?, todo)?;
+    let segments = recomputation.spawn(dir.segments()?, todo)?;
+    let flow = sweep.all_segments(segments, planned, &cores, frame_file.as_mut(), &progress_file, &dir.path, consumer, on_progress)?;
 
-    let mut stopped = false;
-    let mut failure = None;
-    for segment in rx.iter() {
-        let seg = match segment {
-            Ok(s) => s,
-            Err(e) => {
-                failure = Some(e);
-                break;
-            }
-        };
-        cores.set_sweeping(true);
-        match sweep.segment(&seg, frame_file.as_mut(), consumer) {
-            Ok(Flow::Continue) => {}
-            Ok(Flow::Stop) => {
-                stopped = true;
-                break;
-            }
-            Err(e) => {
-                failure = Some(e);
-                break;
-            }
-        }
-        on_progress(sweep.stats.recomputed_steps, sweep.stats.frames);
-        if let Some(file) = frame_file.as_mut() {
-            file.sync()?;
-        }
-        sweep.stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();
-        let at = seg.s0;
-        let _ = free_tx.try_send(seg);
-        sweep.record(at, false).save(&progress_file)?;
-        // The recomputation gets every thread only now: the record above is written on this
-        // thread, and a spinning QR worker must not share its core.
-        cores.set_sweeping(false);
-    }
-    // Both channels closed, so that a recomputation waiting to send a segment, or for a
-    // buffer to recompute into, ends.
-    drop((rx, free_tx));
-    let joined = producer.join();
-    if let Some(e) = failure {
-        return Err(e);
-    }
-    // The recomputation ends early only with an error it sends, or by a bug: never take
-    // its silence for the end of the window.
+    let stopped = flow == Flow::Stop;
+    sweep.clock();
     let Sweep { acc, acc_gs, mut stats, .. } = sweep;
-    if !stopped && (joined.is_err() || stats.segments - swept_before < planned) {
-        let why = match joined {
-            Err(panic) => panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default(),
-            Ok(()) => "it stopped without an error".into(),
-        };
-        return Err(Error::Other(format!(
-            "the recomputation of the run's segments failed after {} of {planned} segments ({why}); nothing was marked finished. \
-             Check the run with `clv inspect {}` (a damaged segment is recomputed by `clv forward --resume`), then give this command again with --resume",
-            stats.segments - swept_before,
-            dir.path.display()
-        )));
-    }
     stats.stopped_early = stopped;
-    stats.wall_seconds = prior.as_ref().map_or(0.0, |p| p.stats.wall_seconds) + started.elapsed().as_secs_f64();
     let mut report = BackwardReport {
         exponents: acc.exponents(1.0),
         stderr: acc.stderr(1.0),
@@ -817,7 +709,7 @@ pub fn run(
         gs_exponents: gs.exponents,
         gs_stderr: gs.stderr,
         gs_ks_entropy: gs.ks_entropy,
-        gs_window: acc_gs.as_ref().map(|a| WindowSpectrum { exponents: a.exponents(tau), stderr: a.stderr(tau), ks_entropy: a.ks_entropy(tau, config.system.neutral()) }),
+        gs_window: acc_gs.as_ref().map(|a| WindowSpectrum { exponents: a.exponents(config.tau), stderr: a.stderr(config.tau), ks_entropy: a.ks_entropy(config.tau, config.system.neutral()) }),
         options: opts.clone(),
         statistics: stats.clone(),
         notes,
@@ -832,6 +724,67 @@ pub fn run(
     let done = Progress { options: opts.clone(), at: window.first, c: Vec::new(), acc, acc_gs, stats, done: true };
     done.save(&progress_file)?;
     Ok(report)
+}
+
+/// The forward run's GS spectrum (spectrum.json), which the backward report carries beside
+/// the CLV spectrum: a run without it is not finished.
+fn forward_spectrum(dir: &RunDir) -> Result<crate::report::SpectrumSummary> {
+    let (file, run) = (dir.spectrum_path(), dir.path.display());
+    crate::report::SpectrumSummary::read(&file).map_err(|e| match file.exists() {
+        false => Error::Other(format!("the forward run in {run} is not complete (no spectrum.json); finish it with `clv forward --resume {run}`")),
+        true => Error::Other(format!("{e}; `clv forward --resume {run}` rewrites it from the run's last checkpoint")),
+    })
+}
+
+/// The CLV window of `opts`, refused where the options cannot give a frame.
+fn checked_window(meta: &RunMeta, opts: &BackwardOptions) -> Result<Window> {
+    if opts.vectors_every == 0 {
+        return Err(Error::param("vectors-every", "must be at least 1 (1: every frame carries V_n)"));
+    }
+    let window = Window::of(meta, opts)?;
+    if matches!(opts.destination(), Destination::File { every, .. } if window.last / every * every < window.first) {
+        return Err(Error::param(
+            "save-every",
+            format!(
+                "no step of the CLV window {}..{} is a multiple of {}: the frame file would hold no frame; give a --save-every of at most {}",
+                window.first,
+                window.last,
+                opts.save_every,
+                window.last - window.first + 1
+            ),
+        ));
+    }
+    Ok(window)
+}
+
+/// What a resumed stream says about the frames its interrupted predecessor already sent.
+fn frames_sent_before(prior: &Progress, opts: &BackwardOptions, window: Window) -> Option<String> {
+    if !opts.streams() || prior.stats.frames == 0 {
+        return None;
+    }
+    let sent = window.last + 1 - prior.stats.frames;
+    Some(format!(
+        "the frames of steps {sent}..{} went to the reader of the interrupted stream and are not sent again: this stream carries steps {}..{}, \
+         and analyses of it describe those steps only; for the whole window, start the stream again without --resume",
+        window.last,
+        window.first,
+        sent - 1
+    ))
+}
+
+/// The sweep's frame file: a new one, or, resuming, the interrupted one with the frames the
+/// progress record counts (those of the steps that are multiples of --save-every among the
+/// ones the sweep had emitted, window.last down).
+fn open_frame_file(file: &Path, dir: &RunDir, meta: &RunMeta, opts: &BackwardOptions, prior: Option<&Progress>) -> Result<FrameFile> {
+    let metadata = stream_info(dir, meta, opts).metadata();
+    match prior {
+        Some(p) => {
+            let window = Window::of(meta, opts)?;
+            let kept: Vec<u64> = ((window.last + 1).saturating_sub(p.stats.frames)..=window.last).rev().filter(|&m| on_stride(m, opts.save_every)).collect();
+            FrameFile::salvage(file, &metadata, &kept, &format!("clv backward {} {}", dir.path.display(), opts.flags_into(file)))
+        }
+        None => FrameFile::create(file, &metadata),
+    }
 }
 
 /// The recomputation of the run's segments, newest first, on a thread of its own beside the
@@ -925,9 +878,121 @@ struct Sweep<'a> {
     /// The last frame handed out with V: once every consumer has dropped it, its buffers take
     /// the next such frame's V and G (no allocation per frame).
     spare: Option<Arc<Frame>>,
+    /// Wall time of the sweep before this process continued it, and this process's start.
+    wall_before: f64,
+    started: Instant,
 }
 
-impl Sweep<'_> {
+impl<'a> Sweep<'a> {
+    /// The sweep at the newest step of the window: C from `--c-init`, or where the interrupted
+    /// sweep of the progress record `prior` (read from `progress_file`) left it; its wall time
+    /// counts from `started`.
+    fn start(opts: &'a BackwardOptions, window: Window, config: &RunConfig, prior: Option<&Progress>, progress_file: &Path, par: faer::Par, started: Instant) -> Result<Self> {
+        let (d, k) = (config.system.dim(), config.vectors);
+        let c = match prior {
+            Some(p) => p.c_matrix(k).ok_or_else(|| {
+                Error::corrupt(progress_file, format!("C holds {} numbers, not those of a {k} x {k} upper-triangular matrix; run without --resume to start over", p.c.len()))
+            })?,
+            None => initial_c(k, opts.c_init, config.seed),
+        };
+        let n_frames = window.last - window.first + 1;
+        let acc = prior.map(|p| p.acc.clone()).unwrap_or_else(|| Accumulator::new(k, block_len(n_frames, config.blocks as u64)));
+        let acc_gs = match prior {
+            Some(p) => p.acc_gs.clone(),
+            None => Some(Accumulator::new(k, acc.block_len)),
+        };
+        Ok(Sweep {
+            opts,
+            window,
+            d,
+            k,
+            tau: config.tau,
+            par,
+            c,
+            acc,
+            acc_gs,
+            stats: prior.map(|p| p.stats.clone()).unwrap_or_default(),
+            r: Mat::zeros(k, k),
+            norms: vec![0.0; k],
+            spare: None,
+            wall_before: prior.map_or(0.0, |p| p.stats.wall_seconds),
+            started,
+        })
+    }
+
+    /// Sweep down the `planned` segments the recomputation sends, syncing the frame file and
+    /// saving the progress record after each. [`Flow::Stop`] when the consumer stopped the
+    /// stream; an error when the recomputation failed or ended before its last segment.
+    #[allow(clippy::too_many_arguments)]
+    fn all_segments(
+        &mut self,
+        (rx, free_tx, producer): Segments,
+        planned: u64,
+        cores: &Cores,
+        mut frame_file: Option<&mut FrameFile>,
+        progress_file: &Path,
+        run: &Path,
+        consumer: &mut dyn FnMut(Arc<Frame>) -> Result<Flow>,
+        on_progress: OnProgress,
+    ) -> Result<Flow> {
+        let swept_before = self.stats.segments;
+        let mut flow = Flow::Continue;
+        let mut failure = None;
+        for segment in rx.iter() {
+            cores.set_sweeping(true);
+            let swept = segment.and_then(|seg| self.segment(&seg, frame_file.as_deref_mut(), consumer).map(|f| (seg, f)));
+            let seg = match swept {
+                Ok((_, Flow::Stop)) => {
+                    flow = Flow::Stop;
+                    break;
+                }
+                Ok((seg, Flow::Continue)) => seg,
+                Err(e) => {
+                    failure = Some(e);
+                    break;
+                }
+            };
+            on_progress(self.stats.recomputed_steps, self.stats.frames);
+            if let Some(file) = frame_file.as_deref_mut() {
+                file.sync()?;
+            }
+            self.clock();
+            let at = seg.s0;
+            let _ = free_tx.try_send(seg);
+            self.record(at, false).save(progress_file)?;
+            // The recomputation gets every thread only now: the record above is written on
+            // this thread, and a spinning QR worker must not share its core.
+            cores.set_sweeping(false);
+        }
+        // Both channels closed, so that a recomputation waiting to send a segment, or for a
+        // buffer to recompute into, ends.
+        drop((rx, free_tx));
+        let joined = producer.join();
+        if let Some(e) = failure {
+            return Err(e);
+        }
+        // The recomputation ends early only with an error it sends, or by a bug: never take
+        // its silence for the end of the window.
+        let swept = self.stats.segments - swept_before;
+        if flow == Flow::Continue && (joined.is_err() || swept < planned) {
+            let why = match joined {
+                Err(panic) => panic.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| panic.downcast_ref::<String>().cloned()).unwrap_or_default(),
+                Ok(()) => "it stopped without an error".into(),
+            };
+            return Err(Error::Other(format!(
+                "the recomputation of the run's segments failed after {swept} of {planned} segments ({why}); nothing was marked finished. \
+                 Check the run with `clv inspect {}` (a damaged segment is recomputed by `clv forward --resume`), then give this command again with --resume",
+                run.display()
+            )));
+        }
+        Ok(flow)
+    }
+
+    /// Bring the sweep's wall time up to now.
+    fn clock(&mut self) {
+        self.stats.wall_seconds = self.wall_before + self.started.elapsed().as_secs_f64();
+    }
+
     /// Sweep down one recomputed segment, newest step first: C_{n-1} = R_n^{-1} C_n at every
     /// step, and for each step in the window a frame (V_n = G_n C_n where it carries vectors),
     /// saved to `file` and handed to `consumer`. Stop when the consumer stops the stream.
