@@ -12,7 +12,7 @@ use crate::report::{SpectrumReport, Statistics};
 use crate::store::records::{encode_r, Checkpoint, Stats};
 use crate::store::run::{write_atomic, RunDir, RunLock, RunMeta, StoreR};
 use crate::store::schema::{CHECKPOINT, R, STATS};
-use crate::store::segment::read_segment;
+use crate::store::repair::{discard_partial_segments, read_last, triage, Triage};
 use crate::store::sink::{Policy, Sink};
 use crate::system::Invariants;
 use super::signals::StopOnSignals;
@@ -79,11 +79,6 @@ pub fn create(path: &Path, meta: &RunMeta, feedback: &mut Feedback) -> Result<Ou
     drive(&dir, meta, fwd, energy0, 0.0, true, feedback).map(|report| Outcome { report, resumed_from: None, already_finished: false })
 }
 
-/// What the newest intact segment says about where the run stands.
-struct LastCheckpoint {
-    checkpoint: Checkpoint,
-    stats: Stats,
-}
 
 /// Put run.json in place if the run's creation was cut short just before (see
 /// [`RunDir::complete_creation`]); [`resume`] does this first.
@@ -231,7 +226,7 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
     let with_sweep: Vec<&Path> = with_sweep.iter().map(PathBuf::as_path).collect();
     // A report is moved under its lock: one being written now is refused, not torn.
     let report_locks = with_sweep.iter().filter(|p| is_report(p)).map(|p| crate::report::dir::lock_report(p)).collect::<Result<Vec<_>>>()?;
-    let kept = archive_results(&dir, &previous_results(path, old.config.steps), &with_sweep)?;
+    let kept = dir.archive_results(&previous_results(path, old.config.steps), &with_sweep)?;
     drop(report_locks);
     write_atomic(&dir.meta_path(), &crate::store::checked_json::to_vec(&meta)?)?;
     let mut msg = format!(
@@ -259,64 +254,12 @@ pub fn previous_results(run: &Path, steps: u64) -> PathBuf {
     run.join(format!("previous-{steps}-steps"))
 }
 
-/// Move what the stages wrote about the run as it was (its spectrum, and the backward
-/// stage's files) and `also` into `to`; `to`, if it holds anything. A move cut short is
-/// finished by the next call (each file is renamed whole); a file that would replace one
-/// already there stops it.
-fn archive_results(dir: &RunDir, to: &Path, also: &[&Path]) -> Result<Option<PathBuf>> {
-    let frames = dir.frames_path();
-    let names = [dir.spectrum_path(), dir.clv_spectrum_path(), dir.progress_path(), crate::store::frames::tmp_path(&frames), frames];
-    // The CLV spectra of earlier sweeps with other options describe the shorter run too.
-    // `also` first: the frame files a record names go before the record (backward.json), so
-    // that a move cut short still finds them the next time.
-    let mut present: Vec<PathBuf> = Vec::new();
-    for p in also.iter().map(|p| p.to_path_buf()).chain(names).chain(dir.earlier_clv_spectra()) {
-        if p.exists() && !present.contains(&p) {
-            present.push(p);
-        }
-    }
-    if !present.is_empty() {
-        std::fs::create_dir_all(to).map_err(|e| Error::io(to, e))?;
-    }
-    for from in present {
-        let dest = to.join(from.file_name().unwrap_or_default());
-        if dest.exists() {
-            return Err(Error::Other(format!(
-                "{} and {} both exist; move one of them out of the way, then extend the run again",
-                from.display(),
-                dest.display()
-            )));
-        }
-        std::fs::rename(&from, &dest).map_err(|e| Error::io(&from, e))?;
-    }
-    if to.exists() {
-        crate::store::segment::sync_dir(to)?;
-    }
-    crate::store::segment::sync_dir(&dir.path)?;
-    Ok(to.exists().then(|| to.to_path_buf()))
-}
 
 /// [`resume`] once the run's lock is held and `meta` is what run.json says.
 fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Result<Outcome> {
     let path = dir.path.as_path();
-    for partial in dir.partial_segments()? {
-        let mut checkpoints = 0u64;
-        let mut last = None;
-        let report = read_segment(&partial, crate::store::segment::ReadMode::Salvage, |m| {
-            if m.topic == CHECKPOINT.topic {
-                checkpoints += 1;
-                last = Some(m.step);
-            }
-            Ok(())
-        });
-        let what = match (report, last) {
-            (Ok(_), Some(step)) => format!("{checkpoints} complete checkpoints up to step {step}"),
-            _ => "no complete checkpoint".to_string(),
-        };
-        feedback.notice(format!("discarding the interrupted segment {} ({what}); they will be recomputed", partial.display()));
-        std::fs::remove_file(&partial).map_err(|e| Error::io(&partial, e))?;
-    }
-    let Triage { newest_intact, superseded } = triage(dir, meta.store.checkpoint_every, feedback)?;
+    discard_partial_segments(dir, &mut |msg| feedback.notice(msg))?;
+    let Triage { newest_intact, superseded } = triage(dir, meta.store.checkpoint_every, &mut |msg| feedback.notice(msg))?;
     let drop_superseded = || -> Result<()> {
         for aside in &superseded {
             std::fs::remove_file(aside).map_err(|e| Error::io(aside, e))?;
@@ -359,87 +302,8 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
     recomputed(drive(dir, meta, fwd, last.stats.energy_initial, last.stats.wall_seconds, false, feedback)?, step)
 }
 
-/// What a resume keeps of the finished segments.
-struct Triage {
-    /// The newest segment before any damage: the run continues from its last checkpoint.
-    newest_intact: Option<PathBuf>,
-    /// Intact segments after the damage, set aside until their replacements are written.
-    superseded: Vec<PathBuf>,
-}
 
-/// Read every finished segment whole (CRCs checked). From the oldest damaged one on, the
-/// segments are recomputed from the last intact checkpoint before it: the dynamics is
-/// deterministic, so the new files hold the numbers of the old, bit for bit (only wall
-/// times differ). Damaged segments are moved aside as `.corrupt`, the intact ones after
-/// them as `.superseded`, together with any a repair that was itself interrupted left.
-///
-/// A segment missing between two others (moved out, deleted) is a gap in the checkpoints,
-/// which the backward stage would stop at: the segments after it are recomputed the same way.
-fn triage(dir: &RunDir, checkpoint_every: u64, feedback: &mut Feedback) -> Result<Triage> {
-    let segments = dir.segments()?;
-    let mut reads = Vec::with_capacity(segments.len());
-    for seg in &segments {
-        match read_last(&seg.path) {
-            // A file that cannot be read (permissions, a failing disk) is not damaged:
-            // recomputing it and everything after it would cost hours for nothing.
-            Err(e @ Error::Io { .. }) => {
-                return Err(Error::Other(format!("{e}; nothing was changed: make the file readable (its permissions, the disk) and resume again")));
-            }
-            read => reads.push(read.map(drop)),
-        }
-    }
-    let damaged = reads.iter().position(Result::is_err).unwrap_or(segments.len());
-    let c = checkpoint_every.max(1);
-    // A segment begins at the checkpoint after the last one of the segment before, or
-    // earlier: at the checkpoint of its own that a stop on a signal wrote (off the grid of
-    // every C steps) before the next one was due.
-    let gap = segments.windows(2).position(|w| !(w[0].last < w[1].first && w[1].first <= (w[0].last / c + 1) * c)).map(|i| i + 1);
-    if let Some(i) = gap.filter(|&i| i < damaged) {
-        feedback.notice(format!("the checkpoints of steps {}..{} are missing (no segment holds them): recomputing them and what follows", (segments[i - 1].last / c + 1) * c, segments[i].first - 1));
-    }
-    let intact = gap.map_or(damaged, |g| g.min(damaged));
-    let cause = if intact < damaged { "the missing checkpoints" } else { "a damaged segment" };
-    let mut superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
-        .map_err(|e| Error::io(&dir.path, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.to_string_lossy().ends_with(".mcap.superseded"))
-        .collect();
-    for (seg, read) in segments[intact..].iter().zip(&reads[intact..]) {
-        let aside = match read {
-            Err(e) => {
-                let aside = seg.path.with_extension("mcap.corrupt");
-                feedback.notice(format!("{e}; moving it aside to {} and recomputing from the checkpoint before it", aside.display()));
-                aside
-            }
-            Ok(()) => {
-                let aside = seg.path.with_extension("mcap.superseded");
-                feedback.notice(format!("{} follows {cause} and is recomputed with it (kept as {} until then)", seg.path.display(), aside.display()));
-                superseded.push(aside.clone());
-                aside
-            }
-        };
-        std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
-    }
-    Ok(Triage { newest_intact: intact.checked_sub(1).map(|i| segments[i].path.clone()), superseded })
-}
 
-/// The last checkpoint and stats of a finished segment, reading it whole (CRCs checked).
-fn read_last(path: &Path) -> Result<LastCheckpoint> {
-    let (mut cp, mut stats) = (None, None);
-    read_segment(path, crate::store::segment::ReadMode::Strict, |m| {
-        let bad = |e: String| Error::corrupt(path, format!("step {}: {e}", m.step));
-        if m.topic == CHECKPOINT.topic {
-            cp = Some(Checkpoint::decode(m.data).map_err(bad)?);
-        } else if m.topic == STATS.topic {
-            stats = Some(Stats::decode(m.data).map_err(bad)?);
-        }
-        Ok(())
-    })?;
-    match (cp, stats) {
-        (Some(checkpoint), Some(stats)) if stats.step == checkpoint.state.step => Ok(LastCheckpoint { checkpoint, stats }),
-        _ => Err(Error::corrupt(path, "no complete checkpoint with its statistics")),
-    }
-}
 
 fn report_of(meta: &RunMeta, fwd: &Forward, energy0: f64, wall: f64) -> SpectrumReport {
     let start = Invariants { energy: energy0, ..Default::default() };

@@ -30,6 +30,7 @@ pub mod frames;
 pub mod lock;
 pub mod progress;
 pub mod records;
+pub mod repair;
 pub mod run;
 pub mod schema;
 pub mod scratch;

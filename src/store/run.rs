@@ -307,6 +307,44 @@ pub struct RunDir {
 pub type RunLock = super::lock::WriteLock;
 
 impl RunDir {
+    /// Move what the stages wrote about the run as it was (its spectrum, and the backward
+    /// stage's files) and `also` into `to`; `to`, if it holds anything. A move cut short is
+    /// finished by the next call (each file is renamed whole); a file that would replace one
+    /// already there stops it.
+    pub fn archive_results(&self, to: &Path, also: &[&Path]) -> Result<Option<PathBuf>> {
+            let dir = self;
+        let frames = dir.frames_path();
+        let names = [dir.spectrum_path(), dir.clv_spectrum_path(), dir.progress_path(), super::frames::tmp_path(&frames), frames];
+        // The CLV spectra of earlier sweeps with other options describe the shorter run too.
+        // `also` first: the frame files a record names go before the record (backward.json), so
+        // that a move cut short still finds them the next time.
+        let mut present: Vec<PathBuf> = Vec::new();
+        for p in also.iter().map(|p| p.to_path_buf()).chain(names).chain(dir.earlier_clv_spectra()) {
+            if p.exists() && !present.contains(&p) {
+                present.push(p);
+            }
+        }
+        if !present.is_empty() {
+            std::fs::create_dir_all(to).map_err(|e| Error::io(to, e))?;
+        }
+        for from in present {
+            let dest = to.join(from.file_name().unwrap_or_default());
+            if dest.exists() {
+                return Err(Error::Other(format!(
+                    "{} and {} both exist; move one of them out of the way, then extend the run again",
+                    from.display(),
+                    dest.display()
+                )));
+            }
+            std::fs::rename(&from, &dest).map_err(|e| Error::io(&from, e))?;
+        }
+        if to.exists() {
+            super::segment::sync_dir(to)?;
+        }
+        super::segment::sync_dir(&dir.path)?;
+        Ok(to.exists().then(|| to.to_path_buf()))
+    }
+
     pub fn meta_path(&self) -> PathBuf {
         self.path.join("run.json")
     }

@@ -1,0 +1,127 @@
+//! Which finished segments of a run a resumed forward stage can continue from, and setting
+//! aside the rest.
+//!
+//! A killed run leaves at most one unfinished segment, which is discarded; a damaged disk or
+//! a hand that moved files can leave damaged or missing segments anywhere, and everything
+//! from the first of them on is recomputed (the dynamics is deterministic, so bit for bit).
+//! Nothing readable is deleted before its replacement is written: damaged segments are kept
+//! as `.corrupt`, the intact ones after them as `.superseded` until the stage has rewritten
+//! them.
+
+use super::records::{Checkpoint, Stats};
+use super::run::RunDir;
+use super::schema::{CHECKPOINT, STATS};
+use super::segment::{read_segment, ReadMode};
+use crate::error::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// Remove the segments a killed run left unfinished (`.tmp`), saying what each held: the
+/// run continues from a finished segment's checkpoint, and recomputes what they held.
+pub fn discard_partial_segments(dir: &RunDir, notice: &mut dyn FnMut(String)) -> Result<()> {
+    for partial in dir.partial_segments()? {
+        let mut checkpoints = 0u64;
+        let mut last = None;
+        let report = read_segment(&partial, ReadMode::Salvage, |m| {
+            if m.topic == CHECKPOINT.topic {
+                checkpoints += 1;
+                last = Some(m.step);
+            }
+            Ok(())
+        });
+        let what = match (report, last) {
+            (Ok(_), Some(step)) => format!("{checkpoints} complete checkpoints up to step {step}"),
+            _ => "no complete checkpoint".to_string(),
+        };
+        notice(format!("discarding the interrupted segment {} ({what}); they will be recomputed", partial.display()));
+        std::fs::remove_file(&partial).map_err(|e| Error::io(&partial, e))?;
+    }
+    Ok(())
+}
+
+/// What a resume keeps of the finished segments.
+pub struct Triage {
+    /// The newest segment before any damage: the run continues from its last checkpoint.
+    pub newest_intact: Option<PathBuf>,
+    /// Intact segments after the damage, set aside until their replacements are written.
+    pub superseded: Vec<PathBuf>,
+}
+
+/// Read every finished segment whole (CRCs checked). From the oldest damaged one on, the
+/// segments are recomputed from the last intact checkpoint before it: the dynamics is
+/// deterministic, so the new files hold the numbers of the old, bit for bit (only wall
+/// times differ). Damaged segments are moved aside as `.corrupt`, the intact ones after
+/// them as `.superseded`, together with any a repair that was itself interrupted left.
+///
+/// A segment missing between two others (moved out, deleted) is a gap in the checkpoints,
+/// which the backward stage would stop at: the segments after it are recomputed the same way.
+pub fn triage(dir: &RunDir, checkpoint_every: u64, notice: &mut dyn FnMut(String)) -> Result<Triage> {
+    let segments = dir.segments()?;
+    let mut reads = Vec::with_capacity(segments.len());
+    for seg in &segments {
+        match read_last(&seg.path) {
+            // A file that cannot be read (permissions, a failing disk) is not damaged:
+            // recomputing it and everything after it would cost hours for nothing.
+            Err(e @ Error::Io { .. }) => {
+                return Err(Error::Other(format!("{e}; nothing was changed: make the file readable (its permissions, the disk) and resume again")));
+            }
+            read => reads.push(read.map(drop)),
+        }
+    }
+    let damaged = reads.iter().position(Result::is_err).unwrap_or(segments.len());
+    let c = checkpoint_every.max(1);
+    // A segment begins at the checkpoint after the last one of the segment before, or
+    // earlier: at the checkpoint of its own that a stop on a signal wrote (off the grid of
+    // every C steps) before the next one was due.
+    let gap = segments.windows(2).position(|w| !(w[0].last < w[1].first && w[1].first <= (w[0].last / c + 1) * c)).map(|i| i + 1);
+    if let Some(i) = gap.filter(|&i| i < damaged) {
+        notice(format!("the checkpoints of steps {}..{} are missing (no segment holds them): recomputing them and what follows", (segments[i - 1].last / c + 1) * c, segments[i].first - 1));
+    }
+    let intact = gap.map_or(damaged, |g| g.min(damaged));
+    let cause = if intact < damaged { "the missing checkpoints" } else { "a damaged segment" };
+    let mut superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
+        .map_err(|e| Error::io(&dir.path, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.to_string_lossy().ends_with(".mcap.superseded"))
+        .collect();
+    for (seg, read) in segments[intact..].iter().zip(&reads[intact..]) {
+        let aside = match read {
+            Err(e) => {
+                let aside = seg.path.with_extension("mcap.corrupt");
+                notice(format!("{e}; moving it aside to {} and recomputing from the checkpoint before it", aside.display()));
+                aside
+            }
+            Ok(()) => {
+                let aside = seg.path.with_extension("mcap.superseded");
+                notice(format!("{} follows {cause} and is recomputed with it (kept as {} until then)", seg.path.display(), aside.display()));
+                superseded.push(aside.clone());
+                aside
+            }
+        };
+        std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
+    }
+    Ok(Triage { newest_intact: intact.checked_sub(1).map(|i| segments[i].path.clone()), superseded })
+}
+
+/// What the newest intact segment says about where the run stands.
+pub struct LastCheckpoint {
+    pub checkpoint: Checkpoint,
+    pub stats: Stats,
+}
+
+/// The last checkpoint and stats of a finished segment, reading it whole (CRCs checked).
+pub fn read_last(path: &Path) -> Result<LastCheckpoint> {
+    let (mut cp, mut stats) = (None, None);
+    read_segment(path, ReadMode::Strict, |m| {
+        let bad = |e: String| Error::corrupt(path, format!("step {}: {e}", m.step));
+        if m.topic == CHECKPOINT.topic {
+            cp = Some(Checkpoint::decode(m.data).map_err(bad)?);
+        } else if m.topic == STATS.topic {
+            stats = Some(Stats::decode(m.data).map_err(bad)?);
+        }
+        Ok(())
+    })?;
+    match (cp, stats) {
+        (Some(checkpoint), Some(stats)) if stats.step == checkpoint.state.step => Ok(LastCheckpoint { checkpoint, stats }),
+        _ => Err(Error::corrupt(path, "no complete checkpoint with its statistics")),
+    }
+}
