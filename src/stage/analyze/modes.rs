@@ -211,106 +211,114 @@ impl Analysis for Modes {
     }
 
     fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
-        let ctx = &self.ctx;
-        let cands = &self.candidates;
-        let d = ctx.d;
         let why = self.ctx.modes.as_ref().err().cloned();
-        let steps = &self.steps;
-        let source = if ctx.with_gs { "GS vectors" } else { "covariant vectors (the frames carry no GS vectors)" };
-        let mut rows = Vec::new();
-        let mut chosen = Vec::new();
-        for acc in steps {
-            let (gs, clv) = (acc.gs.mean(), acc.clv.mean());
-            // majority vote; ties go to the candidate of lower |k|
-            let best = (0..acc.votes.len()).filter(|&c| acc.votes[c] > 0).max_by_key(|&c| (acc.votes[c], std::cmp::Reverse(c)));
-            let pick = |m: &Mean, v: &[f64]| best.filter(|_| m.n > 0).and_then(|c| finite(v[c]));
-            let candidate = best.map(candidate_of).map(|(k, f)| (k, &cands.families[f]));
-            // A candidate that explains little of the vectors is no classification, however
-            // often it comes out on top.
-            let fraction = pick(&acc.gs, &gs).or(pick(&acc.clv, &clv));
-            let beyond_chance = fraction.zip(candidate).map_or(f64::NAN, |(f, (k, family))| excess(f, family.dim(k), d));
-            let clear = beyond_chance >= MIN_FRACTION;
-            let (kind, family) = candidate.filter(|_| clear).map_or((None, None), |(k, f)| (Some(k), Some(f)));
-            let wave = family.map(|f| f.waves[0]);
-            let of_step = ctx.gs.as_ref().map_or(&[][..], |g| &g.exponents[acc.step.start..acc.step.start + acc.step.len]);
-            let lambda = if of_step.is_empty() { f64::NAN } else { of_step.iter().sum::<f64>() / acc.step.len as f64 };
-            let spread = of_step.iter().copied().fold(f64::NEG_INFINITY, f64::max) - of_step.iter().copied().fold(f64::INFINITY, f64::min);
-            rows.push(ModeRow {
-                side: if is_positive(&acc.step, d) { "+".into() } else { "-".into() },
-                first: acc.step.start + 1,
-                last: acc.step.start + acc.step.len,
-                degeneracy: acc.step.len,
-                detection: match (acc.found, ctx.gs.as_ref()) {
-                    (Found::Widened, _) => "widened".into(),
-                    (Found::Vectors, _) => "vectors".into(),
-                    (Found::Exponents, Some(g)) if !km::within_errors(&g.exponents, &g.stderr, STEP_TOL, &acc.step) => "separated".into(),
-                    _ => "degenerate".into(),
-                },
-                lambda,
-                spread: if of_step.is_empty() { f64::NAN } else { spread },
-                kind: kind.map_or("-".into(), |k| format!("{k:?}")),
-                n_x: wave.map(|w| w.n_x),
-                n_y: wave.map(|w| w.n_y),
-                k: family.map_or(f64::NAN, |f| f.k),
-                name: kind.zip(family).map_or("unclassified".into(), |(k, f)| f.name(k)),
-                best: candidate.map_or("-".into(), |(k, f)| f.name(k)),
-                beyond_chance,
-                fraction_gs: pick(&acc.gs, &gs),
-                fraction_clv: pick(&acc.clv, &clv),
-                agreement: best.map_or(0.0, |c| acc.votes[c] as f64 / frames.max(1) as f64),
-                consistent: kind.zip(family).is_some_and(|(k, f)| matches_degeneracy(&acc.step, k, f)),
-                frames,
-            });
-            chosen.push(kind.zip(best.map(|c| candidate_of(c).1)).filter(|_| clear));
+        let source = if self.ctx.with_gs { "GS vectors" } else { "covariant vectors (the frames carry no GS vectors)" };
+        let (rows, chosen): (Vec<ModeRow>, Vec<Chosen>) = self.steps.iter().map(|acc| self.mode_row(acc, frames)).unzip();
+        self.write_table(out, &rows, source, frames, why.as_deref())?;
+
+        let mut tables = vec!["modes.csv".to_string(), "modes.json".to_string()];
+        let mut fit_rows = self.mean_fit_rows(&chosen);
+        let (pattern_entries, transverse_rows, lp_rows) = self.pattern_figures(&chosen, out)?;
+        fit_rows.extend(transverse_rows);
+        if !fit_rows.is_empty() {
+            let header = ["first", "last", "i", "source", "n_x", "n_y", "scope", "amp_dqt", "resid_dqt", "rel_resid_dqt", "amp_dpt", "resid_dpt", "rel_resid_dpt"];
+            write_text_csv(&out.join("modes_fits.csv"), &header, &fit_rows)?;
+            tables.push("modes_fits.csv".into());
+        }
+        if !lp_rows.is_empty() {
+            let header = ["first", "last", "n_x", "n_y", "source", "figure", "pattern", "overlap", "amplitude", "phase", "residual"];
+            write_text_csv(&out.join("modes_lp.csv"), &header, &lp_rows)?;
+            tables.push("modes_lp.csv".into());
         }
 
-        // The mode table.
+        let caption = self.caption(&rows, why.as_deref(), frames, source);
+        let mut produced = vec![Produced { title: "Lyapunov modes (Table III)".into(), caption, figures: vec![], tables }];
+        produced.extend(pattern_entries);
+        produced.extend(dispersion(&self.ctx, &rows, out)?);
+        Ok(produced)
+    }
+}
+
+/// The classification of a step that counts: the majority candidate's kind and family (index
+/// into [`Candidates::families`]); none where the step is unclassified.
+type Chosen = Option<(ModeKind, usize)>;
+
+/// Rows of a text table (modes_fits.csv, modes_lp.csv).
+type TextRows = Vec<Vec<String>>;
+
+impl Modes {
+    /// The mode table's row of one step, classified by the majority vote over the frames, and
+    /// its [`Chosen`] classification: the winner where it explains at least [`MIN_FRACTION`]
+    /// of the vectors beyond chance.
+    fn mode_row(&self, acc: &StepAcc, frames: u64) -> (ModeRow, Chosen) {
+        let (ctx, cands, d) = (&self.ctx, &self.candidates, self.ctx.d);
+        let (gs, clv) = (acc.gs.mean(), acc.clv.mean());
+        // majority vote; ties go to the candidate of lower |k|
+        let best = (0..acc.votes.len()).filter(|&c| acc.votes[c] > 0).max_by_key(|&c| (acc.votes[c], std::cmp::Reverse(c)));
+        let pick = |m: &Mean, v: &[f64]| best.filter(|_| m.n > 0).and_then(|c| finite(v[c]));
+        let candidate = best.map(candidate_of).map(|(k, f)| (k, &cands.families[f]));
+        // A candidate that explains little of the vectors is no classification, however
+        // often it comes out on top.
+        let fraction = pick(&acc.gs, &gs).or(pick(&acc.clv, &clv));
+        let beyond_chance = fraction.zip(candidate).map_or(f64::NAN, |(f, (k, family))| excess(f, family.dim(k), d));
+        let clear = beyond_chance >= MIN_FRACTION;
+        let (kind, family) = candidate.filter(|_| clear).map_or((None, None), |(k, f)| (Some(k), Some(f)));
+        let wave = family.map(|f| f.waves[0]);
+        let (lambda, spread) = gs_exponents(ctx, &acc.step);
+        let row = ModeRow {
+            side: if is_positive(&acc.step, d) { "+".into() } else { "-".into() },
+            first: acc.step.start + 1,
+            last: acc.step.start + acc.step.len,
+            degeneracy: acc.step.len,
+            detection: detection(ctx, acc),
+            lambda,
+            spread,
+            kind: kind.map_or("-".into(), |k| format!("{k:?}")),
+            n_x: wave.map(|w| w.n_x),
+            n_y: wave.map(|w| w.n_y),
+            k: family.map_or(f64::NAN, |f| f.k),
+            name: kind.zip(family).map_or("unclassified".into(), |(k, f)| f.name(k)),
+            best: candidate.map_or("-".into(), |(k, f)| f.name(k)),
+            beyond_chance,
+            fraction_gs: pick(&acc.gs, &gs),
+            fraction_clv: pick(&acc.clv, &clv),
+            agreement: best.map_or(0.0, |c| acc.votes[c] as f64 / frames.max(1) as f64),
+            consistent: kind.zip(family).is_some_and(|(k, f)| matches_degeneracy(&acc.step, k, f)),
+            frames,
+        };
+        (row, kind.zip(best.map(|c| candidate_of(c).1)).filter(|_| clear))
+    }
+
+    /// The mode table: modes.csv, and modes.json with the rows, the rules' settings, the
+    /// candidates and `why` there are no steps.
+    fn write_table(&self, out: &Path, rows: &[ModeRow], source: &str, frames: u64, why: Option<&str>) -> Result<()> {
+        let cands = &self.candidates;
         let header = ["side", "first", "last", "degeneracy", "detection", "lambda", "spread", "kind", "n_x", "n_y", "k", "name", "best", "beyond_chance", "fraction_gs", "fraction_clv", "agreement", "consistent", "frames"];
-        let text: Vec<Vec<String>> = rows
-            .iter()
-            .map(|r| {
-                vec![
-                    r.side.clone(),
-                    r.first.to_string(),
-                    r.last.to_string(),
-                    r.degeneracy.to_string(),
-                    r.detection.clone(),
-                    fmt(r.lambda),
-                    fmt(r.spread),
-                    r.kind.clone(),
-                    r.n_x.map_or(String::new(), |n| n.to_string()),
-                    r.n_y.map_or(String::new(), |n| n.to_string()),
-                    fmt(r.k),
-                    r.name.clone(),
-                    r.best.clone(),
-                    fmt(r.beyond_chance),
-                    fmt(r.fraction_gs.unwrap_or(f64::NAN)),
-                    fmt(r.fraction_clv.unwrap_or(f64::NAN)),
-                    fmt(r.agreement),
-                    r.consistent.to_string(),
-                    r.frames.to_string(),
-                ]
-            })
-            .collect();
+        let text: Vec<Vec<String>> = rows.iter().map(ModeRow::cells).collect();
         write_text_csv(&out.join("modes.csv"), &header, &text)?;
         let json = serde_json::json!({
             "source": source,
             "frames": frames,
             "step_tolerance": STEP_TOL,
             "separation": km::SEPARATION,
-            "window": step_window(d, cands),
+            "window": step_window(self.ctx.d, cands),
             "max_n": MAX_N,
             "min_fraction": MIN_FRACTION,
             "candidates": cands.families.iter().map(|f| f.name(ModeKind::T).replace('T', "")).collect::<Vec<_>>(),
             "note": why,
             "modes": rows,
         });
-        super::write_report_file(&out.join("modes.json"), &serde_json::to_vec_pretty(&json).unwrap_or_default())?;
+        super::write_report_file(&out.join("modes.json"), &serde_json::to_vec_pretty(&json).unwrap_or_default())
+    }
 
-        // Averaged sine fits of the two-fold steps classified T.
+    /// The rows of modes_fits.csv of scope "mean": the sine fits A cos(k x + phi) of dq and dp
+    /// across k, averaged over frames, of every vector (GS and CLV) of the two-fold steps
+    /// classified T.
+    fn mean_fit_rows(&self, chosen: &[Chosen]) -> TextRows {
+        let cands = &self.candidates;
         let mut fit_rows = Vec::new();
         let families = cands.families.len();
-        for (acc, c) in steps.iter().zip(&chosen) {
+        for (acc, c) in self.steps.iter().zip(chosen) {
             let (Some(fits), Some((ModeKind::T, f))) = (acc.fits.as_ref(), c) else { continue };
             let Some(wave) = cands.families[*f].single() else { continue };
             let mean = fits.mean();
@@ -327,17 +335,22 @@ impl Analysis for Modes {
                 }
             }
         }
+        fit_rows
+    }
 
-        let mut produced = Vec::new();
-        let mut tables = vec!["modes.csv".to_string(), "modes.json".to_string()];
+    /// The pattern figures at the first frame of the positive steps classified as a mode of one
+    /// wave vector with that mode's degeneracy: Fig. 10 for T, Figs. 11 and 12 for LP. Their
+    /// report entries, the T steps' rows of modes_fits.csv and the LP steps' rows of
+    /// modes_lp.csv.
+    fn pattern_figures(&self, chosen: &[Chosen], out: &Path) -> Result<(Vec<Produced>, TextRows, TextRows)> {
+        let cands = &self.candidates;
         let shown = self.shown.as_ref();
-        let mut pattern_entries = Vec::new();
-        let mut lp_rows = Vec::new();
-        for (acc, c) in steps.iter().zip(&chosen) {
+        let (mut pattern_entries, mut fit_rows, mut lp_rows) = (Vec::new(), Vec::new(), Vec::new());
+        for (acc, c) in self.steps.iter().zip(chosen) {
             let (Some(frame), Some((kind, f))) = (shown, *c) else { continue };
             let family = &cands.families[f];
             let Some(wave) = family.single() else { continue };
-            if !is_positive(&acc.step, d) || !matches_degeneracy(&acc.step, kind, family) {
+            if !is_positive(&acc.step, self.ctx.d) || !matches_degeneracy(&acc.step, kind, family) {
                 continue;
             }
             if kind == ModeKind::T {
@@ -350,39 +363,18 @@ impl Analysis for Modes {
                 pattern_entries.push(entry);
             }
         }
-        if !fit_rows.is_empty() {
-            let header = ["first", "last", "i", "source", "n_x", "n_y", "scope", "amp_dqt", "resid_dqt", "rel_resid_dqt", "amp_dpt", "resid_dpt", "rel_resid_dpt"];
-            write_text_csv(&out.join("modes_fits.csv"), &header, &fit_rows)?;
-            tables.push("modes_fits.csv".into());
-        }
-        if !lp_rows.is_empty() {
-            let header = ["first", "last", "n_x", "n_y", "source", "figure", "pattern", "overlap", "amplitude", "phase", "residual"];
-            write_text_csv(&out.join("modes_lp.csv"), &header, &lp_rows)?;
-            tables.push("modes_lp.csv".into());
-        }
+        Ok((pattern_entries, fit_rows, lp_rows))
+    }
 
-        let found: Vec<String> = rows
-            .iter()
-            .map(|r| {
-                let weak = if r.name != r.best { format!(" of the best candidate {}, {:.2} beyond chance, below {MIN_FRACTION}", r.best, r.beyond_chance) } else { String::new() };
-                format!(
-                    "{} at i = {}..{} ({}-fold{}, λ = {:.4}{}, fraction {:.2}{weak}, {:.0}% of frames agree)",
-                    r.name,
-                    r.first,
-                    r.last,
-                    r.degeneracy,
-                    if r.detection == "degenerate" { String::new() } else { format!(", {}", r.detection) },
-                    r.lambda,
-                    if r.detection == "degenerate" { String::new() } else { format!(" with its exponents spread over {:.4}", r.spread) },
-                    r.fraction_gs.or(r.fraction_clv).unwrap_or(f64::NAN),
-                    100.0 * r.agreement
-                )
-            })
-            .collect();
+    /// The caption of the mode table: how steps are found and classified and what was found,
+    /// or why there is no table, or that no step was found.
+    fn caption(&self, rows: &[ModeRow], why: Option<&str>, frames: u64, source: &str) -> String {
+        let (cands, d) = (&self.candidates, self.ctx.d);
+        let found: Vec<String> = rows.iter().map(ModeRow::summary).collect();
         let mut lengths: Vec<String> = cands.step_lengths().iter().rev().map(|l| l.to_string()).collect();
         let last = lengths.pop().unwrap_or_default();
         let lengths = if lengths.is_empty() { last } else { format!("{} or {last}", lengths.join(", ")) };
-        let caption = match (&why, found.is_empty()) {
+        match (why, found.is_empty()) {
             (Some(why), _) => format!("No mode table: {why}."),
             (None, true) => format!(
                 "No degenerate steps of {} exponents (neighbours equal within {STEP_TOL} combined standard errors, or set apart by gaps {:.0} times their spread) within {} indices of the null space in the forward GS spectrum, and no block next to the null space that stands apart from its neighbours with vectors of a mode: this system shows no Lyapunov modes at this precision. The table is empty.",
@@ -397,11 +389,73 @@ impl Analysis for Modes {
                 candidates_text(cands),
                 found.join("; ")
             ),
-        };
-        produced.push(Produced { title: "Lyapunov modes (Table III)".into(), caption, figures: vec![], tables });
-        produced.extend(pattern_entries);
-        produced.extend(dispersion(ctx, &rows, out)?);
-        Ok(produced)
+        }
+    }
+}
+
+/// How the step was found, in the words of [`ModeRow::detection`].
+fn detection(ctx: &Context, acc: &StepAcc) -> String {
+    match (acc.found, ctx.gs.as_ref()) {
+        (Found::Widened, _) => "widened".into(),
+        (Found::Vectors, _) => "vectors".into(),
+        (Found::Exponents, Some(g)) if !km::within_errors(&g.exponents, &g.stderr, STEP_TOL, &acc.step) => "separated".into(),
+        _ => "degenerate".into(),
+    }
+}
+
+/// The mean lambda of the step's forward GS exponents and their spread (largest minus
+/// smallest); both NaN without the forward spectrum.
+fn gs_exponents(ctx: &Context, step: &Step) -> (f64, f64) {
+    let of_step = ctx.gs.as_ref().map_or(&[][..], |g| &g.exponents[step.start..step.start + step.len]);
+    let lambda = if of_step.is_empty() { f64::NAN } else { of_step.iter().sum::<f64>() / step.len as f64 };
+    let spread = of_step.iter().copied().fold(f64::NEG_INFINITY, f64::max) - of_step.iter().copied().fold(f64::INFINITY, f64::min);
+    (lambda, if of_step.is_empty() { f64::NAN } else { spread })
+}
+
+impl ModeRow {
+    /// The row's cells in modes.csv (empty n_x, n_y where unclassified).
+    fn cells(&self) -> Vec<String> {
+        let r = self;
+        vec![
+            r.side.clone(),
+            r.first.to_string(),
+            r.last.to_string(),
+            r.degeneracy.to_string(),
+            r.detection.clone(),
+            fmt(r.lambda),
+            fmt(r.spread),
+            r.kind.clone(),
+            r.n_x.map_or(String::new(), |n| n.to_string()),
+            r.n_y.map_or(String::new(), |n| n.to_string()),
+            fmt(r.k),
+            r.name.clone(),
+            r.best.clone(),
+            fmt(r.beyond_chance),
+            fmt(r.fraction_gs.unwrap_or(f64::NAN)),
+            fmt(r.fraction_clv.unwrap_or(f64::NAN)),
+            fmt(r.agreement),
+            r.consistent.to_string(),
+            r.frames.to_string(),
+        ]
+    }
+
+    /// The step in words for the caption's list of what was found: its name, indices,
+    /// degeneracy, detection, lambda, fraction and agreement.
+    fn summary(&self) -> String {
+        let r = self;
+        let weak = if r.name != r.best { format!(" of the best candidate {}, {:.2} beyond chance, below {MIN_FRACTION}", r.best, r.beyond_chance) } else { String::new() };
+        format!(
+            "{} at i = {}..{} ({}-fold{}, λ = {:.4}{}, fraction {:.2}{weak}, {:.0}% of frames agree)",
+            r.name,
+            r.first,
+            r.last,
+            r.degeneracy,
+            if r.detection == "degenerate" { String::new() } else { format!(", {}", r.detection) },
+            r.lambda,
+            if r.detection == "degenerate" { String::new() } else { format!(" with its exponents spread over {:.4}", r.spread) },
+            r.fraction_gs.or(r.fraction_clv).unwrap_or(f64::NAN),
+            100.0 * r.agreement
+        )
     }
 }
 

@@ -176,160 +176,210 @@ impl Analysis for Overlaps {
 
     fn finish(self: Box<Self>, out: &Path, frames: u64) -> Result<Vec<Produced>> {
         let ctx = &self.ctx;
-        let idx: Vec<f64> = (1..=ctx.k).map(|i| i as f64).collect();
-        // a handful of indices (a map's two) are points, not a continuum
-        let line = if ctx.k <= 8 { Marker::LinePoints } else { Marker::Line };
-        let avg = ctx.averaged_over(frames);
-        let central = ctx.central_range();
+        let shared = Shared {
+            idx: (1..=ctx.k).map(|i| i as f64).collect(),
+            // a handful of indices (a map's two) are points, not a continuum
+            line: if ctx.k <= 8 { Marker::LinePoints } else { Marker::Line },
+            avg: ctx.averaged_over(frames),
+            central: ctx.central_range(),
+        };
         let mut produced = Vec::new();
-
         if let Some(gv) = &self.gv {
-            let (mean, std) = (gv.mean(), gv.std());
-            write_csv(
-                &out.join("overlap_gs_clv.csv"),
-                &["i", "i_over_D", "abs_g_dot_v_mean", "abs_g_dot_v_std"],
-                (0..ctx.k).map(|i| vec![(i + 1) as f64, ctx.reduced(i), mean[i], std[i]]),
-            )?;
-            let mut fig = Figure::new("GS and covariant vectors of the same exponent: <|g^i · v^i|>").x_label("i").y_label("<|g^i · v^i|>");
-            fig.series("<|g^i · v^i|>", &idx, &mean, line);
-            save_figure(&fig, out, "fig3_gs_clv_overlap")?;
-            let mut figures = vec!["fig3_gs_clv_overlap".to_string()];
-            if let Some((a, b)) = central {
-                let mut fig = Figure::new("<|g^i · v^i|>: central part of the spectrum").x_label("i").y_label("<|g^i · v^i|>");
-                fig.series("<|g^i · v^i|>", &idx[a..=b], &mean[a..=b], Marker::LinePoints);
-                save_figure(&fig, out, "fig3_gs_clv_overlap_center")?;
-                figures.push("fig3_gs_clv_overlap_center".into());
-            }
-            produced.push(Produced {
-                title: "Gram-Schmidt versus covariant vectors (Fig. 3)".into(),
-                caption: format!(
-                    "Time average of |g^i · v^i| for the GS and covariant vectors of the same exponent λ_i against i, {avg}{}.{}",
-                    central.map(|(a, b)| format!("; the second plot enlarges the central (mode and null-space) part, i = {}..{}", a + 1, b + 1)).unwrap_or_default(),
-                    if central.is_some() {
-                        let n = ctx.n;
-                        let kept = (2 * n - 2..2 * n).all(|i| (mean[i] - 1.0).abs() < 1e-9);
-                        format!(
-                            " It is 1 at i = 1 and i = 2N-2 = {}, where v^i = g^i for any start (the paper).{} At i = {}..{} it is {}: those covariant vectors are E_(k+3) - s E_k after a backward time s (see Fig. 2), turned towards the position shifts E_k as s grows, while those GS vectors are the momentum shifts E_(k+3), so that it vanishes like 1/s in a long window.",
-                            2 * n - 2,
-                            if kept {
-                                format!(
-                                    " It is 1 at i = {}, {} too, by the backward stage's start: the null space's exponents are equal, so the backward iteration does not turn its covariant vectors within it, and with C = identity (`--c-init identity`, the default) they keep the GS directions (`--c-init random` gives others).",
-                                    2 * n - 1,
-                                    2 * n
-                                )
-                            } else {
-                                String::new()
-                            },
-                            2 * n + 1,
-                            2 * n + 3,
-                            (2 * n..2 * n + 3).map(|i| format!("{:.2e}", mean[i])).collect::<Vec<_>>().join(", ")
-                        )
-                    } else {
-                        String::new()
-                    }
-                ),
-                figures,
-                tables: vec!["overlap_gs_clv.csv".into()],
-            });
+            produced.push(self.fig3(gv, &shared, out)?);
         }
-
         if let (Some(vg), false) = (&self.vg, self.fig4_js.is_empty()) {
-            let means: Vec<&Mean> = vg.iter().collect();
-            let (header, rows) = per_j_table(ctx, &self.fig4_js, &means, "abs_v");
-            csv(out, "overlap_clv_gs.csv", &header, rows)?;
-            let mut fig = Figure::new("Covariant vector v^j against all GS vectors: <|v^j · g^i|>").x_label("i").y_label("<|v^j · g^i|>");
-            for (m, j) in vg.iter().zip(&self.fig4_js) {
-                fig.series(&format!("j = {}", j + 1), &idx, &m.mean(), line);
-            }
-            save_figure(&fig, out, "fig4_clv_gs_overlap")?;
-            let which = if self.fig4_js == self.js {
-                "the selected covariant vectors".to_string()
-            } else {
-                format!(
-                    "the covariant vectors of the paper's j = 370, 393, 400 and 700: the last unstable vector before the mode region, the unstable and the stable mode vector next to the null space (2N-3, 2N+4), and a stable vector that is no mode, the conjugate 4N+1-j of the paper's 93 scaled (its curve may step at i = {})",
-                    ctx.d - self.fig4_js.last().copied().unwrap_or_default()
-                )
-            };
-            produced.push(Produced {
-                title: "Covariant vectors in the GS basis (Fig. 4)".into(),
-                caption: format!(
-                    "Time average of |v^j · g^i| against i for {which}, j = {}, {avg}. Since V = G C with upper-triangular C, v^j lies in span{{g^1..g^j}}: the curves vanish for i > j.",
-                    list(&self.fig4_js)
-                ),
-                figures: vec!["fig4_clv_gs_overlap".into()],
-                tables: vec!["overlap_clv_gs.csv".into()],
-            });
+            produced.push(self.fig4(vg, &shared, out)?);
         }
-
         if !self.vv_js.is_empty() {
             let means: Vec<&Mean> = self.vv.iter().collect();
             let (header, rows) = per_j_table(ctx, &self.vv_js, &means, "abs_v");
             csv(out, "overlap_clv_clv.csv", &header, rows)?;
-            let pick = |j: usize| self.vv_js.iter().position(|&x| x == j).map(|p| self.vv[p].mean());
             if !self.js.is_empty() {
-                let mut figures = Vec::new();
-                for (title, js, stem) in [("Covariant vectors", &self.js, "fig13_clv_overlap"), ("Covariant vectors of the conjugate partners", &self.conjugate_js, "fig13_clv_overlap_conjugate")] {
-                    if js.is_empty() {
-                        continue;
-                    }
-                    let mut fig = Figure::new(&format!("{title}: <|v^j · v^i|>, i != j")).x_label("i").y_label("<|v^j · v^i|>");
-                    for &j in js {
-                        if let Some(m) = pick(j) {
-                            fig.series(&format!("j = {}", j + 1), &idx, &without_self(&m, j), line);
-                        }
-                    }
-                    save_figure(&fig, out, stem)?;
-                    figures.push(stem.to_string());
-                }
-                produced.push(Produced {
-                    title: "Scalar products between covariant vectors (Fig. 13)".into(),
-                    caption: format!(
-                        "Time average of |v^j · v^i| against i (i != j) for the selected covariant vectors j = {}{}, {avg}.{}",
-                        list(&self.js),
-                        if self.conjugate_js.is_empty() { String::new() } else { format!(", and in the second plot for their conjugate partners j = {} (4N+1-j, as the paper's lower panel)", list(&self.conjugate_js)) },
-                        // A map's or Lorenz's stable and unstable subspaces are one vector each.
-                        if ctx.is_disks() { " The null space 2N-2..2N+3 is orthogonal to all other covariant vectors. Vectors of the same (stable or unstable) subspace are not orthogonal." } else { "" }
-                    ),
-                    figures,
-                    tables: vec!["overlap_clv_clv.csv".into()],
-                });
+                produced.push(self.fig13(&shared, out)?);
             }
-            if let (Some(central), false) = (central, self.mode_js.is_empty()) {
-                // The paper restricts the abscissa to the mode regime: the steps, their
-                // conjugates and the null space between them, with a margin.
-                let (a, b) = match self.mode_steps.iter().map(|s| s.start).min() {
-                    Some(first) => (first.saturating_sub(4), ctx.d - 1 - first.saturating_sub(4)),
-                    None => central,
-                };
-                let mut fig = Figure::new("Mode vectors: <|v^j · v^i|> in the mode regime, i != j").x_label("i").y_label("<|v^j · v^i|>");
-                for &j in &self.mode_js {
-                    if let Some(m) = pick(j) {
-                        let y = without_self(&m, j);
-                        fig.series(&format!("j = {}", j + 1), &idx[a..=b], &y[a..=b], Marker::LinePoints);
-                    }
-                }
-                save_figure(&fig, out, "fig14_mode_overlap")?;
-                produced.push(Produced {
-                    title: "Scalar products of mode vectors (Fig. 14)".into(),
-                    caption: format!(
-                        "Time average of |v^j · v^i| for j = {} ({}) against i = {}..{} (i != j), {avg}.{}",
-                        list(&self.mode_js),
-                        if !self.mode_steps.is_empty() {
-                            "the last index of each positive mode step, found as the mode table finds them, which says what they are"
-                        } else {
-                            "2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any; fewer than two mode steps were found to choose by"
-                        },
-                        a + 1,
-                        b + 1,
-                        mode_overlaps(ctx.d, &self.mode_steps, pick),
-                    ),
-                    figures: vec!["fig14_mode_overlap".into()],
-                    tables: vec!["overlap_clv_clv.csv".into()],
-                });
+            if let (Some(central), false) = (shared.central, self.mode_js.is_empty()) {
+                produced.push(self.fig14(central, &shared, out)?);
             }
         }
         Ok(produced)
     }
+}
+
+/// What the figures of [`Overlaps`] share.
+struct Shared {
+    /// The abscissa i = 1..k.
+    idx: Vec<f64>,
+    /// How a curve over all i is drawn.
+    line: Marker,
+    /// The captions' "averaged over N frames (...)".
+    avg: String,
+    /// The central (mode and null-space) part of the spectrum, 0-based and inclusive, if any.
+    central: Option<(usize, usize)>,
+}
+
+impl Overlaps {
+    /// <|v^j . v^i|> for j, where j is one of `vv_js`.
+    fn vv_mean(&self, j: usize) -> Option<Vec<f64>> {
+        self.vv_js.iter().position(|&x| x == j).map(|p| self.vv[p].mean())
+    }
+
+    /// Fig. 3, <|g^i . v^i|> against i (and its central part), with overlap_gs_clv.csv.
+    fn fig3(&self, gv: &Mean, shared: &Shared, out: &Path) -> Result<Produced> {
+        let ctx = &self.ctx;
+        let (idx, central) = (&shared.idx, shared.central);
+        let (mean, std) = (gv.mean(), gv.std());
+        write_csv(
+            &out.join("overlap_gs_clv.csv"),
+            &["i", "i_over_D", "abs_g_dot_v_mean", "abs_g_dot_v_std"],
+            (0..ctx.k).map(|i| vec![(i + 1) as f64, ctx.reduced(i), mean[i], std[i]]),
+        )?;
+        let mut fig = Figure::new("GS and covariant vectors of the same exponent: <|g^i · v^i|>").x_label("i").y_label("<|g^i · v^i|>");
+        fig.series("<|g^i · v^i|>", idx, &mean, shared.line);
+        save_figure(&fig, out, "fig3_gs_clv_overlap")?;
+        let mut figures = vec!["fig3_gs_clv_overlap".to_string()];
+        if let Some((a, b)) = central {
+            let mut fig = Figure::new("<|g^i · v^i|>: central part of the spectrum").x_label("i").y_label("<|g^i · v^i|>");
+            fig.series("<|g^i · v^i|>", &idx[a..=b], &mean[a..=b], Marker::LinePoints);
+            save_figure(&fig, out, "fig3_gs_clv_overlap_center")?;
+            figures.push("fig3_gs_clv_overlap_center".into());
+        }
+        Ok(Produced {
+            title: "Gram-Schmidt versus covariant vectors (Fig. 3)".into(),
+            caption: format!(
+                "Time average of |g^i · v^i| for the GS and covariant vectors of the same exponent λ_i against i, {}{}.{}",
+                shared.avg,
+                central.map(|(a, b)| format!("; the second plot enlarges the central (mode and null-space) part, i = {}..{}", a + 1, b + 1)).unwrap_or_default(),
+                if central.is_some() { fig3_null_space(ctx.n, &mean) } else { String::new() }
+            ),
+            figures,
+            tables: vec!["overlap_gs_clv.csv".into()],
+        })
+    }
+
+    /// Fig. 4, <|v^j . g^i|> against i for the j of `fig4_js`, with overlap_clv_gs.csv.
+    fn fig4(&self, vg: &[Mean], shared: &Shared, out: &Path) -> Result<Produced> {
+        let ctx = &self.ctx;
+        let means: Vec<&Mean> = vg.iter().collect();
+        let (header, rows) = per_j_table(ctx, &self.fig4_js, &means, "abs_v");
+        csv(out, "overlap_clv_gs.csv", &header, rows)?;
+        let mut fig = Figure::new("Covariant vector v^j against all GS vectors: <|v^j · g^i|>").x_label("i").y_label("<|v^j · g^i|>");
+        for (m, j) in vg.iter().zip(&self.fig4_js) {
+            fig.series(&format!("j = {}", j + 1), &shared.idx, &m.mean(), shared.line);
+        }
+        save_figure(&fig, out, "fig4_clv_gs_overlap")?;
+        let which = if self.fig4_js == self.js {
+            "the selected covariant vectors".to_string()
+        } else {
+            format!(
+                "the covariant vectors of the paper's j = 370, 393, 400 and 700: the last unstable vector before the mode region, the unstable and the stable mode vector next to the null space (2N-3, 2N+4), and a stable vector that is no mode, the conjugate 4N+1-j of the paper's 93 scaled (its curve may step at i = {})",
+                ctx.d - self.fig4_js.last().copied().unwrap_or_default()
+            )
+        };
+        Ok(Produced {
+            title: "Covariant vectors in the GS basis (Fig. 4)".into(),
+            caption: format!(
+                "Time average of |v^j · g^i| against i for {which}, j = {}, {}. Since V = G C with upper-triangular C, v^j lies in span{{g^1..g^j}}: the curves vanish for i > j.",
+                list(&self.fig4_js),
+                shared.avg
+            ),
+            figures: vec!["fig4_clv_gs_overlap".into()],
+            tables: vec!["overlap_clv_gs.csv".into()],
+        })
+    }
+
+    /// Fig. 13, <|v^j . v^i|> against i (i != j) for the selected j, and in a second plot for
+    /// their conjugate partners `conjugate_js` (table overlap_clv_clv.csv).
+    fn fig13(&self, shared: &Shared, out: &Path) -> Result<Produced> {
+        let ctx = &self.ctx;
+        let mut figures = Vec::new();
+        for (title, js, stem) in [("Covariant vectors", &self.js, "fig13_clv_overlap"), ("Covariant vectors of the conjugate partners", &self.conjugate_js, "fig13_clv_overlap_conjugate")] {
+            if js.is_empty() {
+                continue;
+            }
+            let mut fig = Figure::new(&format!("{title}: <|v^j · v^i|>, i != j")).x_label("i").y_label("<|v^j · v^i|>");
+            for &j in js {
+                if let Some(m) = self.vv_mean(j) {
+                    fig.series(&format!("j = {}", j + 1), &shared.idx, &without_self(&m, j), shared.line);
+                }
+            }
+            save_figure(&fig, out, stem)?;
+            figures.push(stem.to_string());
+        }
+        Ok(Produced {
+            title: "Scalar products between covariant vectors (Fig. 13)".into(),
+            caption: format!(
+                "Time average of |v^j · v^i| against i (i != j) for the selected covariant vectors j = {}{}, {}.{}",
+                list(&self.js),
+                if self.conjugate_js.is_empty() { String::new() } else { format!(", and in the second plot for their conjugate partners j = {} (4N+1-j, as the paper's lower panel)", list(&self.conjugate_js)) },
+                shared.avg,
+                // A map's or Lorenz's stable and unstable subspaces are one vector each.
+                if ctx.is_disks() { " The null space 2N-2..2N+3 is orthogonal to all other covariant vectors. Vectors of the same (stable or unstable) subspace are not orthogonal." } else { "" }
+            ),
+            figures,
+            tables: vec!["overlap_clv_clv.csv".into()],
+        })
+    }
+
+    /// Fig. 14, <|v^j . v^i|> (i != j) for the mode vectors `mode_js` in the mode regime, with
+    /// how far they overlap as the paper finds ([`mode_overlaps`]; table overlap_clv_clv.csv).
+    fn fig14(&self, central: (usize, usize), shared: &Shared, out: &Path) -> Result<Produced> {
+        let ctx = &self.ctx;
+        // The paper restricts the abscissa to the mode regime: the steps, their
+        // conjugates and the null space between them, with a margin.
+        let (a, b) = match self.mode_steps.iter().map(|s| s.start).min() {
+            Some(first) => (first.saturating_sub(4), ctx.d - 1 - first.saturating_sub(4)),
+            None => central,
+        };
+        let mut fig = Figure::new("Mode vectors: <|v^j · v^i|> in the mode regime, i != j").x_label("i").y_label("<|v^j · v^i|>");
+        for &j in &self.mode_js {
+            if let Some(m) = self.vv_mean(j) {
+                let y = without_self(&m, j);
+                fig.series(&format!("j = {}", j + 1), &shared.idx[a..=b], &y[a..=b], Marker::LinePoints);
+            }
+        }
+        save_figure(&fig, out, "fig14_mode_overlap")?;
+        Ok(Produced {
+            title: "Scalar products of mode vectors (Fig. 14)".into(),
+            caption: format!(
+                "Time average of |v^j · v^i| for j = {} ({}) against i = {}..{} (i != j), {}.{}",
+                list(&self.mode_js),
+                if !self.mode_steps.is_empty() {
+                    "the last index of each positive mode step, found as the mode table finds them, which says what they are"
+                } else {
+                    "2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any; fewer than two mode steps were found to choose by"
+                },
+                a + 1,
+                b + 1,
+                shared.avg,
+                mode_overlaps(ctx.d, &self.mode_steps, |j| self.vv_mean(j)),
+            ),
+            figures: vec!["fig14_mode_overlap".into()],
+            tables: vec!["overlap_clv_clv.csv".into()],
+        })
+    }
+}
+
+/// Fig. 3's caption on the null space of N disks, from <|g^i . v^i|> (`mean`): which of its
+/// values of 1 hold for any start of the backward pass and which come from C = identity, and
+/// the values at i = 2N+1..2N+3.
+fn fig3_null_space(n: usize, mean: &[f64]) -> String {
+    let kept = (2 * n - 2..2 * n).all(|i| (mean[i] - 1.0).abs() < 1e-9);
+    format!(
+        " It is 1 at i = 1 and i = 2N-2 = {}, where v^i = g^i for any start (the paper).{} At i = {}..{} it is {}: those covariant vectors are E_(k+3) - s E_k after a backward time s (see Fig. 2), turned towards the position shifts E_k as s grows, while those GS vectors are the momentum shifts E_(k+3), so that it vanishes like 1/s in a long window.",
+        2 * n - 2,
+        if kept {
+            format!(
+                " It is 1 at i = {}, {} too, by the backward stage's start: the null space's exponents are equal, so the backward iteration does not turn its covariant vectors within it, and with C = identity (`--c-init identity`, the default) they keep the GS directions (`--c-init random` gives others).",
+                2 * n - 1,
+                2 * n
+            )
+        } else {
+            String::new()
+        },
+        2 * n + 1,
+        2 * n + 3,
+        (2 * n..2 * n + 3).map(|i| format!("{:.2e}", mean[i])).collect::<Vec<_>>().join(", ")
+    )
 }
 
 /// Fig. 14's finding measured, where the paper states it (Sec. 5.6, on Fig. 14): "each vector representing
