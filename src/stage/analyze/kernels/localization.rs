@@ -43,7 +43,9 @@ pub fn localization_width(mean_entropy: f64, n_particles: usize) -> f64 {
 
 /// Time average of the entropy S for each vector index of a stream of frames (paper Fig. 5:
 /// W_i = exp(<S_i>) / N), with its standard error from the means of consecutive blocks of
-/// frames (batch means). Non-finite entropies (NaN vectors) are skipped.
+/// frames (batch means). Non-finite entropies (NaN vectors) are skipped, each index
+/// counting its own: that is why this is not [`crate::statistics::Accumulator`], whose
+/// blocks count every step for every index.
 #[derive(Clone, Debug)]
 pub struct LocalizationAverage {
     n_particles: usize,
