@@ -392,9 +392,11 @@ impl Kernels {
     }
 }
 
-/// The floor of one QR with explicit Q of a D x k block, 8/3 D k^2 flops, at `gflops`, in ms.
+/// The floor of one QR with explicit Q of a D x k block at `gflops`, in ms: Householder
+/// factorisation and forming Q take 2 D k^2 - 2/3 k^3 flops each, 8/3 D^3 together at k = D.
 fn qr_floor_ms(d: usize, k: usize, gflops: f64) -> f64 {
-    8.0 / 3.0 * d as f64 * (k as f64).powi(2) / (gflops * 1e9) * 1e3
+    let (d, k) = (d as f64, k as f64);
+    (4.0 * d * k * k - 4.0 / 3.0 * k.powi(3)) / (gflops * 1e9) * 1e3
 }
 
 /// The backward sweep's two kernels on a realistic R and G: C_{n-1} = R_n^{-1} C_n (with the

@@ -8,6 +8,10 @@
 //! step's kernels), [`report`] (what a person sees); [`statistics`] holds the time averages
 //! and their errors all of them share, and [`machine`] says what memory there is.
 
+// Index loops over the rows and columns of matrices and tangent blocks read as the formulas
+// they implement do; clippy's iterator rewrite of them would not.
+#![allow(clippy::needless_range_loop)]
+
 pub mod bench;
 pub mod config;
 pub mod error;

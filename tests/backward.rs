@@ -184,9 +184,9 @@ fn the_gs_spectrum_over_the_window_is_the_forward_runs_over_those_steps() {
     assert_eq!(fs.len() as u64, last + 1 - first);
     let seen: serde_json::Value = serde_json::from_slice(&ok(clv(&["inspect", dir.join("frames.mcap").to_str().unwrap(), "--json"])).stdout).unwrap();
     assert_eq!(seen["with_gs_local"].as_u64(), Some(fs.len() as u64), "{seen}");
-    for i in 0..16 {
+    for (i, want) in window.iter().enumerate().take(16) {
         let mean = fs.iter().map(|f| f.gs_local[i]).sum::<f64>() / fs.len() as f64;
-        assert!((mean - window[i]).abs() < 1e-12 * (1.0 + window[i].abs()), "lambda_{}: frames {mean}, gs_window {}", i + 1, window[i]);
+        assert!((mean - want).abs() < 1e-12 * (1.0 + want.abs()), "lambda_{}: frames {mean}, gs_window {want}", i + 1);
     }
 }
 

@@ -184,7 +184,7 @@ fn options(args: &BackwardArgs, matches: &ArgMatches, meta: &clv::store::RunMeta
             opts.frames_path = None;
         } else if !to_stdout && opts.frames_path.is_none() {
             // --save-every m on resuming a sweep that kept none: into the default file.
-            opts.frames_path = Some(BackwardOptions::record_frames_path(&args.dir, &clv::store::RunDir { path: args.dir.clone() }.frames_path())?);
+            opts.frames_path = Some(recorded_frames_path(&args.dir, None)?);
         }
     }
     if stored.is_none() || given("vectors_every") {
@@ -201,7 +201,7 @@ fn recorded_frames_path(run: &Path, out: Option<PathBuf>) -> Result<PathBuf> {
     let path = out.unwrap_or_else(|| clv::store::RunDir { path: run.to_path_buf() }.frames_path());
     let recorded = BackwardOptions::record_frames_path(run, &path)?;
     let name = recorded.to_string_lossy().to_string();
-    let in_previous = recorded.is_relative() && recorded.components().next().is_some_and(|c| c.as_os_str().to_string_lossy().starts_with("previous-"));
+    let in_previous = recorded.is_relative() && recorded.components().next().is_some_and(|c| clv::store::RunDir::is_previous_results(c.as_os_str()));
     if in_previous || (recorded.components().count() == 1 && (!name.ends_with(".mcap") || name.starts_with("seg-"))) {
         return Err(Error::param("out", format!(
             "{} would be {name} in the run directory, where only frame files ending in .mcap (other than the run's seg-*.mcap) may go, beside the run's own files; give such a name (frames.mcap is the default), or a path outside the run directory",

@@ -123,6 +123,8 @@ pub struct Head<'a> {
 /// and then summary.json, which marks the report finished.
 /// `failed`: what the analyses that failed said; their sections are missing, and the report
 /// stays unfinished (no summary.json, the page says so).
+/// `frames`: how many were read, of steps `first..=last`.
+#[allow(clippy::too_many_arguments)]
 pub fn write_index(head: &Head, out: &Path, produced: &[Produced], warnings: &[String], failed: &[String], frames: u64, first: u64, last: u64) -> Result<()> {
     let finished = failed.is_empty() && head.whole;
     let title = if finished { "clv analyses" } else { "clv analyses: incomplete" };

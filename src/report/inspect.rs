@@ -134,7 +134,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     for entry in std::fs::read_dir(&dir.path).map_err(|e| crate::Error::io(&dir.path, e))?.flatten() {
         disk_bytes += entry.metadata().map(|m| m.len()).unwrap_or(0);
         let name = entry.file_name().to_string_lossy().into_owned();
-        if name.starts_with("previous-") && entry.path().is_dir() {
+        if crate::store::RunDir::is_previous_results(&entry.file_name()) && entry.path().is_dir() {
             previous.push(name.clone());
         }
         if name.ends_with(".mcap.corrupt") || name.ends_with(".mcap.superseded") {

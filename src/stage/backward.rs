@@ -302,11 +302,12 @@ impl Window {
         let total = config.relax_steps + config.steps;
         let kept = store.clv_steps + store.transient;
         if store.clv_steps == 0 {
-            return Err(Error::Other(format!(
+            return Err(Error::Other(
                 "the forward run kept no CLV window (--clv-steps 0: the Gram-Schmidt spectrum only), so there is nothing for a backward sweep; \
                  to get covariant vectors, extend it with `clv forward --resume RUN_DIR --steps MORE --clv-steps N` (RUN_DIR the run's directory), which keeps what the backward stage needs \
                  for a window of the last N steps (with a transient of N/2 steps after it, or --transient T)"
-            )));
+                    .into(),
+            ));
         }
         if opts.transient >= kept {
             return Err(Error::param("transient", format!("must be below the {kept} steps the run kept for the backward stage (--clv-steps + --transient of the forward run)")));
@@ -674,7 +675,7 @@ pub fn run(
         sweep.record(resume_at, false).save(&progress_file)?;
     }
     let mut frame_file = match &frames_path {
-        Some(f) => Some(open_frame_file(f, &dir, &meta, opts, prior.as_ref())?),
+        Some(f) => Some(open_frame_file(f, &dir, &meta, opts, window, prior.as_ref())?),
         None => None,
     };
 
@@ -775,11 +776,10 @@ fn frames_sent_before(prior: &Progress, opts: &BackwardOptions, window: Window) 
 /// The sweep's frame file: a new one, or, resuming, the interrupted one with the frames the
 /// progress record counts (those of the steps that are multiples of --save-every among the
 /// ones the sweep had emitted, window.last down).
-fn open_frame_file(file: &Path, dir: &RunDir, meta: &RunMeta, opts: &BackwardOptions, prior: Option<&Progress>) -> Result<FrameFile> {
+fn open_frame_file(file: &Path, dir: &RunDir, meta: &RunMeta, opts: &BackwardOptions, window: Window, prior: Option<&Progress>) -> Result<FrameFile> {
     let metadata = stream_info(dir, meta, opts).metadata();
     match prior {
         Some(p) => {
-            let window = Window::of(meta, opts)?;
             let kept: Vec<u64> = ((window.last + 1).saturating_sub(p.stats.frames)..=window.last).rev().filter(|&m| on_stride(m, opts.save_every)).collect();
             FrameFile::salvage(file, &metadata, &kept, &format!("clv backward {} {}", dir.path.display(), opts.flags_into(file)))
         }
@@ -884,9 +884,9 @@ struct Sweep<'a> {
 }
 
 impl<'a> Sweep<'a> {
-    /// The sweep at the newest step of the window: C from `--c-init`, or where the interrupted
-    /// sweep of the progress record `prior` (read from `progress_file`) left it; its wall time
-    /// counts from `started`.
+    /// The sweep at the run's last step (t_omega, beyond the window by the backward
+    /// transient): C from `--c-init`, or where the interrupted sweep of the progress record
+    /// `prior` (read from `progress_file`) left it; its wall time counts from `started`.
     fn start(opts: &'a BackwardOptions, window: Window, config: &RunConfig, prior: Option<&Progress>, progress_file: &Path, par: faer::Par, started: Instant) -> Result<Self> {
         let (d, k) = (config.system.dim(), config.vectors);
         let c = match prior {
@@ -953,13 +953,17 @@ impl<'a> Sweep<'a> {
                 }
             };
             on_progress(self.stats.recomputed_steps, self.stats.frames);
-            if let Some(file) = frame_file.as_deref_mut() {
-                file.sync()?;
+            if let Some(Err(e)) = frame_file.as_deref_mut().map(FrameFile::sync) {
+                failure = Some(e);
+                break;
             }
             self.clock();
             let at = seg.s0;
             let _ = free_tx.try_send(seg);
-            self.record(at, false).save(progress_file)?;
+            if let Err(e) = self.record(at, false).save(progress_file) {
+                failure = Some(e);
+                break;
+            }
             // The recomputation gets every thread only now: the record above is written on
             // this thread, and a spinning QR worker must not share its core.
             cores.set_sweeping(false);

@@ -32,8 +32,10 @@ pub fn check_energy(n: u64, energy0: f64, energy: f64) -> Result<()> {
         return Ok(());
     }
     let drift = ((energy - energy0) / energy0).abs();
-    // A non-finite energy (a blown-up trajectory) is no accuracy either.
-    if !(drift <= ENERGY_TOLERANCE) {
+    // A non-finite energy (a blown-up trajectory) is no accuracy either: NaN fails `<=`.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    let accurate = drift <= ENERGY_TOLERANCE;
+    if !accurate {
         return Err(Error::Dynamics(format!(
             "step {n}: the energy drifted by {drift:.2e} (relative) from its start value {energy0}; \
              the dynamics has lost its accuracy, so the run stops here rather than report wrong numbers"
@@ -79,7 +81,6 @@ pub fn create(path: &Path, meta: &RunMeta, feedback: &mut Feedback) -> Result<Ou
     drive(&dir, meta, fwd, energy0, 0.0, true, feedback).map(|report| Outcome { report, resumed_from: None, already_finished: false })
 }
 
-
 /// Put run.json in place if the run's creation was cut short just before (see
 /// [`RunDir::complete_creation`]); [`resume`] does this first.
 pub fn complete_creation(path: &Path, feedback: &mut Feedback) -> Result<()> {
@@ -100,7 +101,7 @@ pub fn resume(path: &Path, threads: Option<usize>, feedback: &mut Feedback) -> R
             path.display(),
             meta.config.steps,
             longer.config.steps,
-            previous_results(path, meta.config.steps).display()
+            dir.previous_results(meta.config.steps).display()
         ));
         meta = longer;
     }
@@ -114,7 +115,7 @@ pub fn resume(path: &Path, threads: Option<usize>, feedback: &mut Feedback) -> R
 /// the one moved aside, and the extension would then be refused; so the extension's command
 /// is asked for instead.
 fn interrupted_extension(dir: &RunDir, meta: &RunMeta) -> Result<Option<RunMeta>> {
-    let kept = previous_results(&dir.path, meta.config.steps);
+    let kept = dir.previous_results(meta.config.steps);
     if dir.spectrum_path().exists() || !kept.join("spectrum.json").exists() {
         return Ok(None);
     }
@@ -221,12 +222,12 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
             ));
         }
     }
-    let inside = std::fs::read_dir(path).map_err(|e| Error::io(path, e))?.flatten().filter(|e| !e.file_name().to_string_lossy().starts_with("previous-")).map(|e| e.path());
+    let inside = std::fs::read_dir(path).map_err(|e| Error::io(path, e))?.flatten().filter(|e| !RunDir::is_previous_results(&e.file_name())).map(|e| e.path());
     with_sweep.extend(inside.filter(|p| p.is_dir() && is_report(p)));
     let with_sweep: Vec<&Path> = with_sweep.iter().map(PathBuf::as_path).collect();
     // A report is moved under its lock: one being written now is refused, not torn.
     let report_locks = with_sweep.iter().filter(|p| is_report(p)).map(|p| crate::report::dir::lock_report(p)).collect::<Result<Vec<_>>>()?;
-    let kept = dir.archive_results(&previous_results(path, old.config.steps), &with_sweep)?;
+    let kept = dir.archive_results(&dir.previous_results(old.config.steps), &with_sweep)?;
     drop(report_locks);
     write_atomic(&dir.meta_path(), &crate::store::checked_json::to_vec(&meta)?)?;
     let mut msg = format!(
@@ -248,12 +249,6 @@ pub fn extend(path: &Path, ext: Extension, threads: Option<usize>, also: &[&Path
 fn is_report(dir: &Path) -> bool {
     matches!(crate::report::dir::report_in(dir), crate::report::dir::ReportDir::Report { .. })
 }
-
-/// Where [`extend`] keeps the results of the run in `run` as it was with `steps` steps.
-pub fn previous_results(run: &Path, steps: u64) -> PathBuf {
-    run.join(format!("previous-{steps}-steps"))
-}
-
 
 /// [`resume`] once the run's lock is held and `meta` is what run.json says.
 fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Result<Outcome> {
@@ -301,9 +296,6 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
     feedback.notice(format!("resuming {} at step {step} of {total}", path.display()));
     recomputed(drive(dir, meta, fwd, last.stats.energy_initial, last.stats.wall_seconds, false, feedback)?, step)
 }
-
-
-
 
 fn report_of(meta: &RunMeta, fwd: &Forward, energy0: f64, wall: f64) -> SpectrumReport {
     let start = Invariants { energy: energy0, ..Default::default() };

@@ -56,7 +56,7 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
     if let Some(steps) = check_report(&report_dir, &run_dir, stored.as_ref())? {
         // The run was made longer since (`clv forward --resume --steps`): its report of
         // then is kept beside the results of that length, as `clv run` keeps them itself.
-        let kept = forward_run::previous_results(&run_dir, steps).join("report");
+        let kept = RunDir { path: run_dir.clone() }.previous_results(steps).join("report");
         if kept.exists() {
             return Err(Error::param("out", format!(
                 "{} holds the report of the run in {} as it was with {steps} steps, and {} exists already; move one of them, then give the command again",

@@ -13,7 +13,7 @@
 //! RUN_DIR/previous-S-steps/         the stages' results of the run as it was with S steps,
 //!                                   moved aside when it was made longer
 //! RUN_DIR/run.json.from-segments    the newest segment's copy of an edited or damaged run.json
-//! RUN_DIR/*.corrupt, *.superseded   damaged segments set aside, and those a repair replaced
+//! RUN_DIR/*.corrupt, *.superseded   damaged segments set aside, and those a repair replaced (repair.rs)
 //! ```
 //!
 //! Why this shape: the Ginelli backward pass needs, newest first, what the forward pass

@@ -307,19 +307,28 @@ pub struct RunDir {
 pub type RunLock = super::lock::WriteLock;
 
 impl RunDir {
+    /// Where an extension keeps the results of the run as it was with `steps` steps.
+    pub fn previous_results(&self, steps: u64) -> PathBuf {
+        self.path.join(format!("previous-{steps}-steps"))
+    }
+
+    /// Whether `name`, a file name in the run directory, is one of [`RunDir::previous_results`].
+    pub fn is_previous_results(name: &std::ffi::OsStr) -> bool {
+        name.to_string_lossy().starts_with("previous-")
+    }
+
     /// Move what the stages wrote about the run as it was (its spectrum, and the backward
     /// stage's files) and `also` into `to`; `to`, if it holds anything. A move cut short is
     /// finished by the next call (each file is renamed whole); a file that would replace one
     /// already there stops it.
     pub fn archive_results(&self, to: &Path, also: &[&Path]) -> Result<Option<PathBuf>> {
-            let dir = self;
-        let frames = dir.frames_path();
-        let names = [dir.spectrum_path(), dir.clv_spectrum_path(), dir.progress_path(), super::frames::tmp_path(&frames), frames];
+        let frames = self.frames_path();
+        let names = [self.spectrum_path(), self.clv_spectrum_path(), self.progress_path(), super::frames::tmp_path(&frames), frames];
         // The CLV spectra of earlier sweeps with other options describe the shorter run too.
         // `also` first: the frame files a record names go before the record (backward.json), so
         // that a move cut short still finds them the next time.
         let mut present: Vec<PathBuf> = Vec::new();
-        for p in also.iter().map(|p| p.to_path_buf()).chain(names).chain(dir.earlier_clv_spectra()) {
+        for p in also.iter().map(|p| p.to_path_buf()).chain(names).chain(self.earlier_clv_spectra()) {
             if p.exists() && !present.contains(&p) {
                 present.push(p);
             }
@@ -341,7 +350,7 @@ impl RunDir {
         if to.exists() {
             super::segment::sync_dir(to)?;
         }
-        super::segment::sync_dir(&dir.path)?;
+        super::segment::sync_dir(&self.path)?;
         Ok(to.exists().then(|| to.to_path_buf()))
     }
 

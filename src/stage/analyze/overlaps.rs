@@ -481,7 +481,7 @@ mod tests {
         // D = 12; steps 3..4 (j = 4, conjugate 9..10) and 5..6 (j = 6, conjugate 7..8).
         let d = 12;
         let steps = [Step { start: 2, len: 2, mean: 0.2 }, Step { start: 4, len: 2, mean: 0.1 }];
-        let mut means = vec![vec![0.05; d], vec![0.05; d]];
+        let mut means = [vec![0.05; d], vec![0.05; d]];
         means[0][2] = 0.5; // own step of j = 4
         means[0][9] = 0.3; // its conjugate step
         means[1][4] = 0.2; // own step of j = 6

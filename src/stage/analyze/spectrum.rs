@@ -105,14 +105,14 @@ impl Analysis for Spectrum {
             format!(
                 "Forward Gram-Schmidt exponents (time average of ln R_ii) and backward covariant exponents (time average of the local CLV exponents), both over the same {frames} frames' steps, against the reduced index {reduced}: \
                  {}. Kolmogorov-Sinai entropy h_KS, the sum of the positive exponents (Pesin's identity): {} (GS), {clv_h} (CLV). \
-                 The GS spectrum over the whole forward run{} is more precise (columns lambda_gs, stderr_gs of spectrum.csv; the figure's GS spectrum is lambda_gs_window): h_KS = {}.",
+                 The GS spectrum over the whole forward run ({} steps) is more precise (columns lambda_gs, stderr_gs of spectrum.csv; the figure's GS spectrum is lambda_gs_window): h_KS = {}.",
                 if clv_err.iter().all(|e| e.is_nan()) {
                     "too few frames for standard errors (NaN in the table), so whether they agree within them is not tested"
                 } else {
                     "they agree within the errors wherever the spectrum is not degenerate"
                 },
                 Estimate::or_unknown(self.acc_gs.ks_entropy(1.0, neutral)),
-                format!(" ({} steps)", ctx.run.config.steps),
+                ctx.run.config.steps,
                 Estimate::or_unknown(run_h),
             )
         } else {
