@@ -126,7 +126,6 @@ fn main() {
         x[x.len() / 2]
     };
     let (solve, vgc, prop) = (median(solve_ms), median(vgc_ms), median(prop_ms));
-    drop(propagate);
     let [restore, read, advance, write] = parts.map(median);
     println!("the tangent map's parts, medians: restore {restore:.2} ms, into the tangent layout {read:.2}, advance (MD and tangent) {advance:.2}, back and normalised {write:.2}");
     println!("one thread, medians: R^-1 C {solve:.2} ms, V = G C {vgc:.2} ms, V by the tangent map (restore, layout both ways, advance, normalise) {prop:.2} ms");
