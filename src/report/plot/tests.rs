@@ -5,6 +5,8 @@ use super::*;
 use std::f64::consts::{PI, TAU};
 
 // ---- A minimal INFLATE decoder (stored and fixed-Huffman blocks only) ----
+// Its RFC 1951 tables are copied from the RFC, not imported from the encoder: a wrong
+// table there must not pass its own round trip.
 
 const LEN_BASE: [u32; 29] = [
     3, 4, 5, 6, 7, 8, 9, 10, 11, 13, 15, 17, 19, 23, 27, 31, 35, 43, 51, 59, 67, 83, 99, 115, 131,
