@@ -12,7 +12,7 @@ use crate::report::{SpectrumReport, Statistics};
 use crate::store::records::{encode_r, Checkpoint, Stats};
 use crate::store::run::{write_atomic, RunDir, RunLock, RunMeta, StoreR};
 use crate::store::schema::{CHECKPOINT, R, STATS};
-use crate::store::repair::{discard_partial_segments, read_last, triage, Triage};
+use crate::store::repair::{discard_partial_segments, triage, Triage};
 use crate::store::sink::{Policy, Sink};
 use crate::system::Invariants;
 use super::signals::StopOnSignals;
@@ -266,13 +266,12 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
         Ok(Outcome { report, resumed_from: Some(from), already_finished: false })
     };
     let total = meta.config.relax_steps + meta.config.steps;
-    let Some(newest) = newest_intact else {
+    let Some(last) = newest_intact else {
         feedback.notice("no intact checkpoint found; starting the run over from step 0".into());
         let fwd = Forward::new(&meta.config)?;
         let energy0 = fwd.system.invariants().energy;
         return recomputed(drive(dir, meta, fwd, energy0, 0.0, true, feedback)?, 0);
     };
-    let last = read_last(&newest)?;
     let step = last.checkpoint.state.step;
     let fwd = Forward::resume(&meta.config, &last.checkpoint.state)?;
     if step >= total {

@@ -40,8 +40,9 @@ pub fn discard_partial_segments(dir: &RunDir, notice: &mut dyn FnMut(String)) ->
 
 /// What a resume keeps of the finished segments.
 pub struct Triage {
-    /// The newest segment before any damage: the run continues from its last checkpoint.
-    pub newest_intact: Option<PathBuf>,
+    /// The last checkpoint of the newest segment before any damage: the run continues
+    /// from it.
+    pub newest_intact: Option<LastCheckpoint>,
     /// Intact segments after the damage, set aside until their replacements are written.
     pub superseded: Vec<PathBuf>,
 }
@@ -56,15 +57,24 @@ pub struct Triage {
 /// which the backward stage would stop at: the segments after it are recomputed the same way.
 pub fn triage(dir: &RunDir, checkpoint_every: u64, notice: &mut dyn FnMut(String)) -> Result<Triage> {
     let segments = dir.segments()?;
-    let mut reads = Vec::with_capacity(segments.len());
-    for seg in &segments {
+    let mut reads: Vec<Result<()>> = Vec::with_capacity(segments.len());
+    // The newest segment read before the first damaged one, with its last checkpoint: the
+    // one the run continues from unless a gap comes earlier.
+    let mut newest_read: Option<(usize, LastCheckpoint)> = None;
+    for (i, seg) in segments.iter().enumerate() {
         match read_last(&seg.path) {
             // A file that cannot be read (permissions, a failing disk) is not damaged:
             // recomputing it and everything after it would cost hours for nothing.
             Err(e @ Error::Io { .. }) => {
                 return Err(Error::Other(format!("{e}; nothing was changed: make the file readable (its permissions, the disk) and resume again")));
             }
-            read => reads.push(read.map(drop)),
+            Ok(last) => {
+                if reads.iter().all(Result::is_ok) {
+                    newest_read = Some((i, last));
+                }
+                reads.push(Ok(()));
+            }
+            Err(e) => reads.push(Err(e)),
         }
     }
     let damaged = reads.iter().position(Result::is_err).unwrap_or(segments.len());
@@ -99,7 +109,12 @@ pub fn triage(dir: &RunDir, checkpoint_every: u64, notice: &mut dyn FnMut(String
         };
         std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
     }
-    Ok(Triage { newest_intact: intact.checked_sub(1).map(|i| segments[i].path.clone()), superseded })
+    let newest_intact = match (intact.checked_sub(1), newest_read) {
+        (None, _) => None,
+        (Some(i), Some((read, last))) if read == i => Some(last),
+        (Some(i), _) => Some(read_last(&segments[i].path)?),
+    };
+    Ok(Triage { newest_intact, superseded })
 }
 
 /// What the newest intact segment says about where the run stands.
@@ -109,7 +124,7 @@ pub struct LastCheckpoint {
 }
 
 /// The last checkpoint and stats of a finished segment, reading it whole (CRCs checked).
-pub fn read_last(path: &Path) -> Result<LastCheckpoint> {
+fn read_last(path: &Path) -> Result<LastCheckpoint> {
     let (mut cp, mut stats) = (None, None);
     read_segment(path, ReadMode::Strict, |m| {
         let bad = |e: String| Error::corrupt(path, format!("step {}: {e}", m.step));
