@@ -214,6 +214,21 @@ fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
     assert!(!out.status.success() && stderr(&out).contains("disk full") && stderr(&out).contains(&format!("clv backward {d} --resume")), "{}", stderr(&out));
     ok(clv(&["backward", d, "--quiet", "--out", part.to_str().unwrap(), "--resume"]));
     assert!(frames(&part) == frames(&full));
+    // Into a stream, a full disk mid-sweep (its progress record) leaves the stream cut short:
+    // its reader must not take the frames sent so far for a whole stream.
+    let report = dir.join("cut-report");
+    let mut sweep = Command::new(env!("CARGO_BIN_EXE_clv"))
+        .args(["backward", d, "--quiet", "--out", "-"])
+        .env("CLV_FAULT_DISK_FULL_AFTER", "300000")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let analysis = Command::new(env!("CARGO_BIN_EXE_clv")).args(["analyze", "-", "--out", report.to_str().unwrap(), "--quiet"]).stdin(sweep.stdout.take().unwrap()).output().unwrap();
+    let sweep = sweep.wait_with_output().unwrap();
+    assert!(!sweep.status.success() && stderr(&sweep).contains("disk full"), "{}", stderr(&sweep));
+    assert!(!analysis.status.success() && !report.join("summary.json").exists(), "a cut stream was analysed as whole: {}", stderr(&analysis));
+    assert!(stderr(&analysis).contains("ends early"), "{}", stderr(&analysis));
     // A new sweep stopped by a full disk before its first segment, after a finished sweep
     // with other options: --resume continues the new one, not the finished one.
     ok(clv(&["backward", d, "--quiet", "--save-every", "0"]));

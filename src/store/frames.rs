@@ -321,9 +321,22 @@ impl FrameFile {
 
 /// The frame stream on standard output.
 pub struct FrameStdout {
-    out: McapOut<NoSeek<BufWriter<Watched<std::io::Stdout>>>>,
+    /// The stream until [`FrameStdout::finish`] ends it. A stream dropped unfinished (the
+    /// sweep failed) is left as it is, cut short: mcap's writer would write the closing
+    /// records when dropped, and a reader would take the stream for a whole one.
+    out: Option<McapOut<NoSeek<BufWriter<Watched<std::io::Stdout>>>>>,
     /// The reader closed the pipe: nothing more can be written, and that is not an error.
     closed: bool,
+}
+
+impl Drop for FrameStdout {
+    fn drop(&mut self) {
+        // Every frame was flushed when it was written; what the writer still holds is only
+        // what would close the stream.
+        if let Some(out) = self.out.take() {
+            std::mem::forget(out);
+        }
+    }
 }
 
 fn is_broken_pipe(e: &mcap::McapError, witness: &Witness) -> bool {
@@ -336,19 +349,22 @@ impl FrameStdout {
         let witness = Witness::default();
         let out = McapOut::new(NoSeek::new(BufWriter::with_capacity(1 << 20, witness.watch(std::io::stdout()))), &witness, false, metadata)
             .map_err(|e| witness.mcap_error(Path::new("<stdout>"), e))?;
-        Ok(FrameStdout { out, closed: false })
+        Ok(FrameStdout { out: Some(out), closed: false })
     }
 
     /// Write a frame and flush it (its own chunk), so the reader sees it at once; a closed
     /// pipe is `Flow::Stop`, not an error.
     pub fn write(&mut self, frame: &Frame) -> Result<Flow> {
-        match self.out.write(frame.step, &frame.encode()).and_then(|_| self.out.writer.flush()) {
+        let Some(out) = self.out.as_mut().filter(|_| !self.closed) else {
+            return Ok(Flow::Stop);
+        };
+        match out.write(frame.step, &frame.encode()).and_then(|_| out.writer.flush()) {
             Ok(()) => Ok(Flow::Continue),
-            Err(e) if is_broken_pipe(&e, &self.out.witness) => {
+            Err(e) if is_broken_pipe(&e, &out.witness) => {
                 self.closed = true;
                 Ok(Flow::Stop)
             }
-            Err(e) => Err(self.out.witness.mcap_error(Path::new("<stdout>"), e)),
+            Err(e) => Err(out.witness.mcap_error(Path::new("<stdout>"), e)),
         }
     }
 
@@ -358,10 +374,13 @@ impl FrameStdout {
         if self.closed {
             return Ok(false);
         }
+        let Some(mut out) = self.out.take() else {
+            return Ok(false);
+        };
         // mcap's finish leaves the closing records in our buffer, whose flush on drop would
         // lose a failure: flushed here.
-        let witness = self.out.witness.clone();
-        let flushed = self.out.writer.finish().and_then(|_| Ok(self.out.writer.into_inner().into_inner().flush()?));
+        let witness = out.witness.clone();
+        let flushed = out.writer.finish().and_then(|_| Ok(out.writer.into_inner().into_inner().flush()?));
         match flushed {
             Ok(()) => Ok(true),
             Err(e) if is_broken_pipe(&e, &witness) => Ok(false),
