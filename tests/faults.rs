@@ -141,7 +141,8 @@ fn a_crash_between_any_two_durable_steps_is_recovered() {
             assert!(frames(&f) == want_frames, "resumed backward crashed at {at}: the frames differ");
         }
     }
-    let missed: Vec<_> = CRASH_POINTS.iter().filter(|p| !reached.contains(*p)).collect();
+    // Only an extension moves results: tests/store.rs crashes it there.
+    let missed: Vec<_> = CRASH_POINTS.iter().filter(|p| !reached.contains(*p) && **p != "result-moved").collect();
     assert!(missed.is_empty(), "crash points never reached: {missed:?}");
 }
 

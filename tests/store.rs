@@ -225,7 +225,7 @@ fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
     assert!(common::frames(&extended.join("frames.mcap")) == common::frames(&long.join("frames.mcap")), "covariant vectors");
     // Killed while it extends: repeating the command gives the same run.
     let want = contents(&extended);
-    for at in ["atomic-synced#1", "atomic-renamed#1", "segment-synced#2", "segment-renamed#3", "forward-done#1", "atomic-renamed#2"] {
+    for at in ["result-moved#1", "result-moved#4", "atomic-synced#1", "atomic-renamed#1", "segment-synced#2", "segment-renamed#3", "forward-done#1", "atomic-renamed#2"] {
         let dir = scratch(&format!("extend-crash-{at}")).join("run");
         copy_dir(&short, &dir);
         let out = extend(&dir, &[("CLV_FAULT_CRASH_AT", at)]);
@@ -253,6 +253,21 @@ fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
     assert!(!out.status.success() && common::stderr(&out).contains("give the extension's command again"), "{}", common::stderr(&out));
     ok(extend(&torn, &[]));
     assert!(contents(&torn) == want, "the extension given again after a torn run.tmp");
+    // Killed while the shorter run's results move aside, after spectrum.json went first: the
+    // run is not taken for finished at its old length; a plain --resume and inspect ask for
+    // the extension's command, and a backward sweep for the finished forward run first.
+    let moving = scratch("extend-crash-moving").join("run");
+    copy_dir(&short, &moving);
+    assert_eq!(extend(&moving, &[("CLV_FAULT_CRASH_AT", "result-moved#1")]).status.code(), Some(clv::store::fault::CRASH_STATUS));
+    assert!(moving.join("previous-530-steps/spectrum.json").exists() && !moving.join("spectrum.json").exists());
+    let out = clv(&["forward", "--resume", moving.to_str().unwrap(), "--quiet"]);
+    assert!(!out.status.success() && common::stderr(&out).contains("give the extension's command again"), "{}", common::stderr(&out));
+    let shown = String::from_utf8(ok(clv(&["inspect", moving.to_str().unwrap()])).stdout).unwrap();
+    assert!(shown.contains("an extension of it was interrupted: give the extension's command again"), "{shown}");
+    let out = clv(&["backward", moving.to_str().unwrap(), "--quiet"]);
+    assert!(!out.status.success() && common::stderr(&out).contains("no spectrum.json"), "{}", common::stderr(&out));
+    ok(extend(&moving, &[]));
+    assert!(contents(&moving) == want, "the extension given again after it was killed moving the results");
     // A full disk there: the message gives the extension's command, with its new length.
     let full = scratch("extend-full").join("run");
     copy_dir(&short, &full);

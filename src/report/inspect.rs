@@ -28,6 +28,9 @@ pub struct Inspection {
     /// Step of the newest intact checkpoint.
     pub steps_done: Option<u64>,
     pub finished: bool,
+    /// An extension of the run was cut off while it moved the results aside
+    /// ([`RunDir::extension_interrupted`]): its command, given again, finishes it.
+    pub extension_interrupted: bool,
     /// A clv process holds the run's lock: it is being written now.
     pub running: bool,
     pub checkpoints: u64,
@@ -168,6 +171,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         total_steps,
         steps_done: newest.as_ref().map(|(s, _)| s.step),
         finished: dir.spectrum_path().exists() && newest.as_ref().is_some_and(|(s, _)| s.step == total_steps),
+        extension_interrupted: dir.extension_interrupted(meta.config.steps),
         running: dir.is_being_written(),
         checkpoints: segments.iter().map(|s| s.checkpoints).sum(),
         // A segment left unfinished by a kill is the expected trace of an interrupted run,
@@ -294,10 +298,11 @@ impl Inspection {
             "steps: {} of {} ({}), checkpoint every {}, CLV window {} + transient {}",
             self.steps_done.map_or("none".into(), |x| x.to_string()),
             self.total_steps,
-            match (self.finished, self.running) {
-                (_, true) => "a clv process is writing it now",
-                (true, false) => "finished",
-                (false, false) => "not finished: clv forward --resume",
+            match (self.finished, self.running, self.extension_interrupted) {
+                (_, true, _) => "a clv process is writing it now",
+                (true, false, _) => "finished",
+                (false, false, true) => "an extension of it was interrupted: give the extension's command again, clv forward --resume RUN_DIR --steps M with its new length M (and its --clv-steps and --transient if it had them)",
+                (false, false, false) => "not finished: clv forward --resume",
             },
             self.run.store.checkpoint_every,
             self.run.store.clv_steps,

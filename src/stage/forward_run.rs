@@ -115,10 +115,10 @@ pub fn resume(path: &Path, threads: Option<usize>, feedback: &mut Feedback) -> R
 /// the one moved aside, and the extension would then be refused; so the extension's command
 /// is asked for instead.
 fn interrupted_extension(dir: &RunDir, meta: &RunMeta) -> Result<Option<RunMeta>> {
-    let kept = dir.previous_results(meta.config.steps);
-    if dir.spectrum_path().exists() || !kept.join("spectrum.json").exists() {
+    if !dir.extension_interrupted(meta.config.steps) {
         return Ok(None);
     }
+    let kept = dir.previous_results(meta.config.steps);
     let tmp = dir.path.join("run.tmp");
     let same_run = |m: &RunMeta| m.config.steps > meta.config.steps && crate::config::RunConfig { steps: meta.config.steps, ..m.config.clone() }.same_but_threads(&meta.config);
     let longer = std::fs::read(&tmp).ok().and_then(|bytes| crate::store::checked_json::from_slice::<RunMeta>(&tmp, &bytes).ok()).map(|(m, _)| m).filter(same_run);

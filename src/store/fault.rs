@@ -98,6 +98,8 @@ pub const CRASH_POINTS: &[&str] = &[
     // resuming a frame file: the interrupted file moved aside, its frames copied
     "salvage-moved",
     "salvage-copied",
+    // an extension: one of the shorter run's results moved into previous-S-steps/
+    "result-moved",
 ];
 
 /// The exit status of a process stopped at a crash point.

@@ -312,6 +312,13 @@ impl RunDir {
         self.path.join(format!("previous-{steps}-steps"))
     }
 
+    /// Whether an extension of the run as it is with `steps` steps was cut off after it
+    /// began to move the run's results aside ([`RunDir::archive_results`] moves
+    /// spectrum.json first) and before its new run.json was in place.
+    pub fn extension_interrupted(&self, steps: u64) -> bool {
+        !self.spectrum_path().exists() && self.previous_results(steps).join("spectrum.json").exists()
+    }
+
     /// Whether `name`, a file name in the run directory, is one of [`RunDir::previous_results`].
     pub fn is_previous_results(name: &std::ffi::OsStr) -> bool {
         name.to_string_lossy().starts_with("previous-")
@@ -323,12 +330,14 @@ impl RunDir {
     /// already there stops it.
     pub fn archive_results(&self, to: &Path, also: &[&Path]) -> Result<Option<PathBuf>> {
         let frames = self.frames_path();
-        let names = [self.spectrum_path(), self.clv_spectrum_path(), self.progress_path(), super::frames::tmp_path(&frames), frames];
-        // The CLV spectra of earlier sweeps with other options describe the shorter run too.
-        // `also` first: the frame files a record names go before the record (backward.json), so
-        // that a move cut short still finds them the next time.
+        let names = [self.clv_spectrum_path(), self.progress_path(), super::frames::tmp_path(&frames), frames];
+        // spectrum.json first: once it is gone, the run is known to be in the middle of an
+        // extension ([`RunDir::extension_interrupted`]), and is not finished at its old length.
+        // Then `also`: the frame files a record names go before the record (backward.json),
+        // so that a move cut short still finds them the next time. The CLV spectra of earlier
+        // sweeps with other options describe the shorter run too.
         let mut present: Vec<PathBuf> = Vec::new();
-        for p in also.iter().map(|p| p.to_path_buf()).chain(names).chain(self.earlier_clv_spectra()) {
+        for p in std::iter::once(self.spectrum_path()).chain(also.iter().map(|p| p.to_path_buf())).chain(names).chain(self.earlier_clv_spectra()) {
             if p.exists() && !present.contains(&p) {
                 present.push(p);
             }
@@ -346,6 +355,7 @@ impl RunDir {
                 )));
             }
             std::fs::rename(&from, &dest).map_err(|e| Error::io(&from, e))?;
+            super::fault::crash_point("result-moved");
         }
         if to.exists() {
             super::segment::sync_dir(to)?;
