@@ -1003,6 +1003,17 @@ fn damaged_or_edited_records_are_refused_not_continued_from() {
     let rep = dir.parent().unwrap().join("report");
     ok(clv(&["analyze", d, "--out", rep.to_str().unwrap(), "--only", "spectrum", "--quiet"]));
     assert!(std::fs::read_to_string(rep.join("index.html")).unwrap().contains("part.mcap"));
+    // A record cut short (no longer JSON) of a sweep into the run's own frames.mcap: the way
+    // out names the frames that sweep left, which would stop the new sweep too.
+    assert!(crashed(&clv_env(&["backward", d, "--quiet"], &[("CLV_FAULT_CRASH_AT", "frames-synced#8")]), "frames-synced#8"));
+    let text = std::fs::read(&record).unwrap();
+    std::fs::write(&record, &text[..text.len() / 2]).unwrap();
+    let refused = clv(&["backward", d, "--quiet", "--resume"]);
+    let left = dir.join("frames.mcap.tmp");
+    assert!(!refused.status.success() && stderr(&refused).contains(&format!("delete {} (the frames it left)", left.display())), "{}", stderr(&refused));
+    std::fs::remove_file(&left).unwrap();
+    ok(clv(&["backward", d, "--quiet"]));
+    assert!(frames(&dir.join("frames.mcap")) == frames(&want));
 
     let spectrum = dir.join("spectrum.json");
     let good = std::fs::read(&spectrum).unwrap();

@@ -564,12 +564,13 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
     let prior: Option<Progress> = match record {
         Some(text) => {
             let p = Progress::read(&dir.path, &progress_file, text.as_bytes()).map_err(|e| {
-                // The frames the sweep left would stop a new one: name them, as far as the
-                // damaged record still says where they are.
-                let left = serde_json::from_str::<serde_json::Value>(&text)
-                    .ok()
-                    .and_then(|v| v["options"]["frames_path"].as_str().map(|f| tmp_path(&dir.path.join(f))))
-                    .filter(|t| t.exists())
+                // The frames the sweep left would stop a new one: name them, where the damaged
+                // record still says where they are, or else in the file this command names.
+                let recorded = serde_json::from_str::<serde_json::Value>(&text).ok().and_then(|v| v["options"]["frames_path"].as_str().map(|f| tmp_path(&dir.path.join(f))));
+                let left = recorded
+                    .into_iter()
+                    .chain(frames_path.as_deref().map(tmp_path))
+                    .find(|t| t.exists())
                     .map_or(String::new(), |t| format!("delete {} (the frames it left) and ", t.display()));
                 Error::Other(format!("{e}; the sweep cannot be continued from it: {left}give the command without --resume to start the sweep over (the forward run is not affected)"))
             })?;
