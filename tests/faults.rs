@@ -108,6 +108,11 @@ fn a_crash_between_any_two_durable_steps_is_recovered() {
             let out = clv_env(&args.iter().map(String::as_str).collect::<Vec<_>>(), &env);
             if crashed(&out, &at) {
                 reached.insert(*point);
+                if at == "atomic-synced#1" {
+                    // Killed while it was created: run.tmp but no run.json yet.
+                    let seen = clv(&["inspect", r]);
+                    assert!(stderr(&seen).contains(&format!("`clv forward --resume {r}` completes it")), "{}", stderr(&seen));
+                }
                 if *point == "segment-synced" {
                     // A segment cut short by a crash is what --resume recomputes, not damage.
                     let seen = ok(clv(&["inspect", r]));
@@ -1014,6 +1019,13 @@ fn damaged_or_edited_records_are_refused_not_continued_from() {
     std::fs::remove_file(&left).unwrap();
     ok(clv(&["backward", d, "--quiet"]));
     assert!(frames(&dir.join("frames.mcap")) == frames(&want));
+    // The finished sweep's CLV spectrum damaged: --resume names it and where the fix is.
+    let spectrum = dir.join("clv_spectrum.json");
+    let good = std::fs::read(&spectrum).unwrap();
+    std::fs::write(&spectrum, &good[..good.len() / 2]).unwrap();
+    let refused = clv(&["backward", d, "--quiet", "--resume"]);
+    assert!(!refused.status.success() && stderr(&refused).contains(&format!("`clv inspect {d}` says how to compute it again")), "{}", stderr(&refused));
+    std::fs::write(&spectrum, good).unwrap();
 
     let spectrum = dir.join("spectrum.json");
     let good = std::fs::read(&spectrum).unwrap();

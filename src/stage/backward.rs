@@ -846,7 +846,7 @@ impl Recomputation {
 fn finished_earlier(dir: &RunDir, opts: &BackwardOptions) -> Result<BackwardReport> {
     let path = report_path(dir);
     let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    let (mut report, _): (BackwardReport, _) = checked_json::from_slice(&path, text.as_bytes())?;
+    let (mut report, _): (BackwardReport, _) = checked_json::from_slice(&path, text.as_bytes()).map_err(|e| Error::Other(format!("{e}; `clv inspect {}` says how to compute it again", dir.path.display())))?;
     let run = dir.path.display();
     report.notes = vec![if opts.streams() {
         format!("the backward sweep of {run} finished earlier and its frames went to the reader of that stream: this stream carries none; start it again without --resume for the frames")

@@ -497,6 +497,14 @@ impl RunDir {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound && dir.segments().is_ok_and(|s| !s.is_empty()) => {
                 return Err(dir.unreadable_meta(format!("it is missing ({e}), though the directory holds run segments")));
             }
+            // Killed while it was created, between writing run.tmp and renaming it.
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound && path.join("run.tmp").exists() => {
+                return Err(Error::Other(format!(
+                    "{}: {e}: the run was interrupted while it was being created (its run.tmp is there); `clv forward --resume {}` completes it",
+                    meta_path.display(),
+                    path.display()
+                )));
+            }
             Err(e) => return Err(Error::Other(format!("{}: {e}; is {} a run directory written by `clv forward --out`?", meta_path.display(), path.display()))),
         };
         // Damaged or edited (its checksum), a run.json can no longer be trusted with any
