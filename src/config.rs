@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 pub enum SystemConfig {
     /// The Henon map x' = a - x^2 + b y, y' = x (paper section 4).
     Henon { a: f64, b: f64 },
-    /// The Lorenz-63 flow (a flow without conservation laws: PHYSICS.md's small tests).
+    /// The Lorenz-63 flow (a flow without conservation laws, with exponents known to four digits).
     Lorenz { sigma: f64, rho: f64, beta: f64 },
     /// N hard disks in a periodic Lx x Ly box (paper section 5); density = N/(Lx Ly) and
     /// aspect = Ly/Lx are kept for the record.
@@ -311,7 +311,7 @@ mod tests {
         }
         let paper = RunConfig::preset("paper").unwrap();
         let SystemConfig::Disks { lx, ly, .. } = paper.system else { panic!() };
-        // Paper section 5 (and PHYSICS.md): Lx = 39.442544, Ly = 7.171372.
+        // Paper section 5: Lx = 39.442544, Ly = 7.171372.
         assert!((lx - 39.442544).abs() < 1e-6 && (ly - 7.171372).abs() < 1e-6);
         assert!(RunConfig::preset("nope").unwrap_err().to_string().contains("default, paper, henon"));
         let mut none = RunConfig::preset("default").unwrap();

@@ -87,7 +87,7 @@ fn henon_clvs_are_the_manifold_directions() {
     }
 }
 
-/// The Lorenz flow (PHYSICS.md): exponents (0.9056, 0, -14.5723), the GS ones summing to
+/// The Lorenz flow: exponents (0.9056, 0, -14.5723) (Sprott, Chaos and Time-Series Analysis, 2003), the GS ones summing to
 /// -(sigma + 1 + beta) = -13.6667 exactly, and the CLV of the zero exponent parallel
 /// to the vector field at every frame (the flow direction is covariant), where g^2 is not.
 #[test]

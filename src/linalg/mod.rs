@@ -234,7 +234,7 @@ mod tests {
         dot.abs() / (m[(0, j)].hypot(m[(1, j)]) * u[0].hypot(u[1]))
     }
 
-    /// The exact tests of PHYSICS.md: the non-normal map [[2, 1], [0, 0.5]] has lambda =
+    /// Exact tests: the non-normal map [[2, 1], [0, 0.5]] has lambda =
     /// +-ln 2, GS vectors e_1, e_2 and CLVs (1, 0), (1, -1.5) (the smallest case in which
     /// they differ); the Henon Jacobian at its fixed point x* = y* = 0.883896268 has
     /// ln |mu| = 0.65427061, -1.85824342 for mu = -1.92373886, 0.15594632, and its

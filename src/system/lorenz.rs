@@ -4,7 +4,7 @@
 //! Why a third system: it is a flow with no conservation law, so one exponent is zero
 //! because of the flow direction alone (its CLV is parallel to the vector field), and the
 //! divergence -(sigma + 1 + beta) is the same at every point, so the exponents sum to it
-//! exactly (PHYSICS.md). The state and the tangent vectors are integrated together with
+//! exactly. The state and the tangent vectors are integrated together with
 //! fixed-step fourth-order Runge-Kutta, the Jacobian evaluated on the stages of the orbit:
 //! the tangent map is then the exact derivative of the discrete flow map, and a replay from
 //! a checkpoint repeats every bit.

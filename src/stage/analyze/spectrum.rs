@@ -23,7 +23,7 @@ pub struct Spectrum {
 
 /// The CLV exponent a finite window gives the three trailing null-space vectors: backward
 /// iteration from t_omega turns e_(k+3) into e_(k+3) - s e_k after the backward time s (the
-/// exact identity D phi^t e_(k+3) = t e_k + e_(k+3), PHYSICS.md), a growth of sqrt(1 + s^2)
+/// exact identity D phi^t e_(k+3) = t e_k + e_(k+3) of a free flight in the null space), a growth of sqrt(1 + s^2)
 /// and not exponential; the time average over s1..s2 is
 /// -ln((1 + s2^2) / (1 + s1^2)) / (2 (s2 - s1)), which vanishes only like ln t / t.
 pub fn null_shear_exponent(s1: f64, s2: f64) -> f64 {

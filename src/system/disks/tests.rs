@@ -328,8 +328,8 @@ fn paper_columns_are_the_permuted_transpose_and_read_back() {
 
 /// The collision frequency per disk of the fluid at density 0.7 is the Enskog value
 /// omega = 2 rho sigma g(sigma) sqrt(pi kT / m) = 9.30, with Henderson's contact value
-/// g(sigma) = (1 - 7 eta / 16) / (1 - eta)^2 at packing fraction eta = pi rho / 4 (PHYSICS.md;
-/// K/N = kT = 1). Collisions a detection misses would show here; Enskog-Henderson is good to
+/// g(sigma) = (1 - 7 eta / 16) / (1 - eta)^2 at packing fraction eta = pi rho / 4 (Henderson,
+/// Mol. Phys. 30, 971 (1975); K/N = kT = 1). Collisions a detection misses would show here; Enskog-Henderson is good to
 /// a few per cent at this density (9.22 measured in the paper's run of 1.37e8 collisions).
 #[test]
 fn collision_rate_is_enskogs() {
