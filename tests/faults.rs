@@ -1324,3 +1324,51 @@ fn a_cut_frame_file_is_named_and_written_whole_again() {
     let err = stderr(&clv(&["analyze", tmp.to_str().unwrap(), "--out", dir.parent().unwrap().join("tmp-report").to_str().unwrap(), "--quiet"]));
     assert!(err.contains(&format!("the unfinished file of an interrupted sweep into {}: continue that sweep with `clv backward", file.display())) && err.contains(&format!("--out {} ", file.display())), "{err}");
 }
+
+/// `clv run` killed (SIGKILL, no chance to clean up) while its forward stage writes segments,
+/// and again while its backward stage and analyses run: the same command given again
+/// finishes the job, and the report is the one an uninterrupted run writes (every table and
+/// figure byte for byte; index.html but for the line that names the run directory).
+#[test]
+fn clv_run_killed_in_any_stage_is_finished_by_the_same_command() {
+    let base = scratch("faults", "run-sigkill");
+    let (want, out) = (base.join("want"), base.join("killed"));
+    let args = |dir: &Path| -> Vec<String> { ["run", "--out", dir.to_str().unwrap(), "--steps", "4000", "--quiet"].iter().map(|s| s.to_string()).collect() };
+    ok(clv(&strs(&args(&want))));
+    // Start the command, SIGKILL it as soon as `reached` holds: whether it was still running.
+    let kill_when = |reached: &dyn Fn() -> bool| {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(args(&out)).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+        let started = std::time::Instant::now();
+        while !reached() && child.try_wait().unwrap().is_none() && started.elapsed() < Duration::from_secs(120) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let running = child.try_wait().unwrap().is_none();
+        let _ = child.kill();
+        child.wait().unwrap();
+        running
+    };
+    let run = out.join("run");
+    let has_segment = || std::fs::read_dir(&run).is_ok_and(|d| d.flatten().any(|e| e.file_name().to_string_lossy().starts_with("seg-") && e.file_name().to_string_lossy().ends_with(".mcap")));
+    assert!(kill_when(&has_segment), "the forward stage ended before the kill");
+    assert!(!run.join("spectrum.json").exists(), "killed in the forward stage, the run is not finished");
+    let forward_done = || run.join("spectrum.json").exists();
+    let landed = kill_when(&forward_done);
+    assert!(!landed || !out.join("report/summary.json").exists(), "a killed job left a finished report");
+    ok(clv(&strs(&args(&out))));
+    let report = |dir: &Path| -> std::collections::BTreeMap<String, Vec<u8>> {
+        std::fs::read_dir(dir.join("report"))
+            .unwrap()
+            .flatten()
+            .map(|e| (e.file_name().to_string_lossy().into_owned(), std::fs::read(e.path()).unwrap()))
+            .map(|(name, bytes)| {
+                let bytes = if name == "index.html" { String::from_utf8(bytes).unwrap().lines().filter(|l| !l.starts_with("<p>Source:")).collect::<Vec<_>>().join("\n").into_bytes() } else { bytes };
+                (name, bytes)
+            })
+            .collect()
+    };
+    let (a, b) = (report(&want), report(&out));
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>(), "the files of the two reports");
+    for (name, bytes) in &a {
+        assert!(b[name] == *bytes, "{name} differs from the uninterrupted run's");
+    }
+}
