@@ -863,6 +863,50 @@ fn hard_disk_vectors_are_covariant_by_finite_differences() {
     assert!(v["agree"] == true && v["sampled"].as_u64() == Some(8), "{v}");
 }
 
+/// The tables of a hard-disk report agree with scripts/verify_report.py, which recomputes them
+/// from the frames with its own numpy code (spectrum, localization, projections, overlaps,
+/// null space, Theta minima), on the frames of every 3rd step as the report samples them; a
+/// report with one number of localization.csv altered (relative 1e-6) is a disagreement.
+#[test]
+fn an_independent_recomputation_agrees_with_the_report_tables() {
+    if !common::python_has("mcap, cbor2, numpy") {
+        return;
+    }
+    let base = scratch("verify-report");
+    let (run, frames, report) = (base.join("run"), base.join("frames.mcap"), base.join("report"));
+    ok(clv(&["forward", "--n", "8", "--aspect", "2/11", "--steps", "600", "--relax-steps", "100", "--clv-steps", "300", "--seed", "1", "--quiet", "--out", run.to_str().unwrap()]));
+    ok(clv(&["backward", run.to_str().unwrap(), "--out", frames.to_str().unwrap(), "--with-gs", "--quiet"]));
+    ok(clv(&["analyze", frames.to_str().unwrap(), "--every", "3", "--out", report.to_str().unwrap(), "--quiet"]));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/verify_report.py");
+    let verify = |report: &Path| Command::new("python3").arg(&script).arg(report).arg(&frames).output().unwrap();
+    let out = ok(verify(&report));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["agree"] == true && v["every"] == 3 && v["sampled"].as_u64() == Some(100), "{v}");
+    for table in ["spectrum.csv", "localization.csv", "projections.csv", "overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv", "nullspace_alpha.csv", "nullspace_beta.csv", "theta_min.csv"] {
+        assert!(v["checked"][table].as_f64().is_some_and(|d| d < 1e-12), "{table}: {v}");
+    }
+
+    // The same report with W_clv of i = 2 off by a relative 1e-6.
+    let altered = base.join("altered");
+    std::fs::create_dir_all(&altered).unwrap();
+    for entry in std::fs::read_dir(&report).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, altered.join(path.file_name().unwrap())).unwrap();
+    }
+    let table = read(&report.join("localization.csv"));
+    let mut lines: Vec<String> = table.lines().map(str::to_string).collect();
+    let column = lines[0].split(',').position(|c| c == "W_clv").unwrap();
+    let mut fields: Vec<String> = lines[2].split(',').map(str::to_string).collect();
+    assert_eq!(fields[0], "2");
+    fields[column] = format!("{:e}", fields[column].parse::<f64>().unwrap() * (1.0 + 1e-6));
+    lines[2] = fields.join(",");
+    std::fs::write(altered.join("localization.csv"), lines.join("\n") + "\n").unwrap();
+    let out = verify(&altered);
+    let err = common::stderr(&out);
+    assert!(!out.status.success() && err.contains("disagreement: localization.csv W_clv 2 "), "{err}");
+    assert_eq!(err.lines().filter(|l| l.starts_with("disagreement")).count(), 1, "{err}");
+}
+
 /// Frames of the k < D leading vectors: the report says once what needs all D and is left
 /// out (the mode steps, the Oseledec angles), rather than figures going missing unsaid.
 #[test]
