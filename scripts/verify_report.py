@@ -9,15 +9,19 @@ Each quantity is recomputed here with numpy from the frames alone (read by read_
 and compared with the report's CSV files:
 
   spectrum.csv         lambda_clv = mean over all frames of the local CLV exponents,
-                       lambda_gs_window = mean over all frames of the local GS exponents;
+                       lambda_gs_window = mean over all frames of the local GS exponents, and
+                       their errors stderr_clv, stderr_gs_window (batch means, below);
   localization.csv     W_gs, W_clv: W_i = exp(<S_i>) / N with S = -sum_n mu_n ln mu_n, mu_n the
-                       share of |v|^2 on disk n (its dq_x, dq_y, dp_x, dp_y);
+                       share of |v|^2 on disk n (its dq_x, dq_y, dp_x, dp_y); stderr_gs,
+                       stderr_clv = W times the batch-means error of <S> over the sampled frames;
   projections.csv      eta_q = <|dq|^2>, eta_p = <|dp|^2> and <cos Theta> = <dq.dp / |dq||dp|>
                        for GS and CLV; a frame whose |dq|^2 or |dp|^2 is below 1e-24 (round-off:
                        a pure position or momentum vector, as the null-space GS vectors) has no
                        Theta and is left out of the mean, which is NaN where no frame has one;
-  overlap_gs_clv.csv   abs_g_dot_v_mean = <|g^i . v^i|>;
-  overlap_clv_gs.csv   abs_vJ_mean = <|v^J . g^i|>, overlap_clv_clv.csv abs_vJ_mean = <|v^J . v^i|>;
+                       eta_q_gs_std, eta_q_clv_std = sample std (n - 1) of |dq|^2 over the frames;
+  overlap_gs_clv.csv   abs_g_dot_v_mean = <|g^i . v^i|>, abs_g_dot_v_std its sample std (n - 1);
+  overlap_clv_gs.csv   abs_vJ_mean = <|v^J . g^i|>, overlap_clv_clv.csv abs_vJ_mean = <|v^J . v^i|>,
+                       and abs_vJ_std the sample std (n - 1) of each over the sampled frames;
   nullspace_alpha.csv, nullspace_beta.csv   g^i . e_k and v^i . e_k (and the row norms) of the six
                        null-space vectors at the earliest sampled frame, with the natural basis
                        e_1 = (p, 0)/|p|, e_2, e_3 = x, y translations of the positions,
@@ -28,12 +32,30 @@ and compared with the report's CSV files:
 
 Sampling: the spectrum uses every frame of the file; the vector statistics use the frames
 of the steps that are multiples of m = summary.json's options.every that carry vectors (as
-the report says in its head). Tables the report does not have are skipped.
+the report says in its head). Frames are put in step order whatever the file's order. Tables
+(and _std / stderr columns) the report does not have are skipped.
+
+Batch means (stderr columns): B = the run's `blocks` setting, read from run.json in the
+frame file's metadata (summary.json does not hold it; --blocks overrides). Of T frames (all
+of them for the spectrum, the sampled ones for localization) blocks of L = max(floor(T / B), 1)
+frames are counted from the NEWEST frame, as many as fit: n = floor(T / L) blocks, which is
+B when L > 1 and T < B (L + 1) but more otherwise (43 sampled frames, B = 20: 21 blocks of 2;
+71 frames: 23 blocks of 3). This was found by trying alternatives against the CSVs: exactly
+B blocks of L (leaving T - B L frames out) misses by up to 13 %, blocks counted from the
+oldest frame by 19-34 %, std with n instead of n - 1 by 2.5 %; the rule above agrees to
+~1e-15 relative. The oldest T mod L frames count in the means, not in the errors. The error
+is the sample std (n - 1) of the block means / sqrt(n); NaN with n < 2.
 
 Tolerance: round-off. A value agrees when |mine - report| <= 1e-10 max(1, |report|) (the
 quantities are averages of O(1) numbers; the report writes them with all digits); NaN only
-against NaN. The largest absolute difference of each table goes into the JSON on stdout:
-{"agree": ..., "checked": {table: max_abs_diff}, "frames": n, "sampled": n, "every": m}.
+against NaN. A stderr agrees when |mine - report| <= 1e-9 |report| or <= 1e-15 (the errors of
+exactly vanishing exponents are round-off, ~1e-16). A _std agrees when |mine - report| <=
+1e-9 |report| or the variances agree to the round-off of <x^2> - <x>^2, |mine^2 - report^2|
+<= 1e-12 <x^2>: clv's std of a constant (|v^i . v^i| = 1) can be ~1e-8 = sqrt(1e-16), not 0,
+and of nearly constant ones (eta_q of the null-space CLVs) off by ~1e-7 relative.
+The JSON on stdout: {"agree": ..., "checked": {table: largest |mine - report| over its mean
+and stderr columns}, "checked_std": {table: the same over its _std columns}, "columns":
+{table: [columns compared]}, "frames": n, "sampled": n, "every": m, "blocks": B, ...}.
 
 Only the physics and the report's conventions (file layout, columns, the ordering
 (dq_x1, dq_y1, ..., dq_yN, dp_x1, ..., dp_yN), 1-based indices) are shared with clv; the code
@@ -48,9 +70,10 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from read_frames import read_frames  # noqa: E402
+from read_frames import metadata, read_frames  # noqa: E402
 
 TOL = 1e-10
+TOL_ERR = 1e-9
 ROUND_OFF_SQ = 1e-24
 
 
@@ -63,20 +86,71 @@ def read_csv(path):
     return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]} if rows else {}
 
 
+def batch_stderr(x, blocks):
+    """Batch-means standard error of the mean over axis 0 of x (rows in increasing step order).
+
+    Blocks of L = floor(T / blocks) rows (at least 1), as many as fit (n = floor(T / L),
+    which can exceed blocks: 43 rows, 20 blocks -> 21 blocks of 2), counted from the newest
+    row; the oldest T mod L rows fill no block and are left out. The error is the sample
+    std (n - 1) of the block means over sqrt(n); NaN with n < 2.
+    """
+    x = np.asarray(x, float)
+    t = x.shape[0]
+    length = max(t // blocks, 1)
+    count = t // length
+    if count < 2:
+        return np.full(x.shape[1:], np.nan)
+    means = x[t - count * length :].reshape((count, length) + x.shape[1:]).mean(axis=1)
+    return means.std(axis=0, ddof=1) / np.sqrt(count)
+
+
+def sample_std(x):
+    """Sample standard deviation (n - 1) over axis 0; NaN with fewer than two rows."""
+    x = np.asarray(x, float)
+    return x.std(axis=0, ddof=1) if x.shape[0] > 1 else np.full(x.shape[1:], np.nan)
+
+
 class Checker:
     def __init__(self):
-        self.checked, self.bad = {}, []
+        self.checked, self.checked_std, self.columns, self.bad = {}, {}, {}, []
 
-    def compare(self, table, column, index, mine, report):
-        """Compare mine with report element by element; index labels the rows."""
+    def compare_std(self, table, column, index, x, report):
+        """A _std column: mine = sample_std(x) over axis 0 of x (frames, rows).
+
+        Agrees if |mine - report| <= TOL_ERR |report|, or if the variances agree to the
+        round-off of a difference of means, |mine^2 - report^2| <= 1e-12 <x^2> (a variance
+        computed as <x^2> - <x>^2 cancels: of an exactly constant value clv writes a std of
+        up to ~1e-8 = sqrt(1e-16), not 0). The worst |mine - report| goes to checked_std."""
+        mine, report = sample_std(x)[index - 1], np.asarray(report, float)
+        scale = (np.asarray(x, float) ** 2).mean(axis=0)[index - 1]
+        worst = self.checked_std.get(table, 0.0)
+        self.columns.setdefault(table, []).append(column)
+        for idx, m, r, q in zip(np.ravel(index), mine, report, scale):
+            if np.isnan(m) or np.isnan(r):
+                ok = np.isnan(m) and np.isnan(r)
+            else:
+                worst = max(worst, abs(m - r))
+                ok = abs(m - r) <= TOL_ERR * abs(r) or abs(m * m - r * r) <= 1e-12 * q
+            if not ok:
+                self.bad.append(f"disagreement: {table} {column} {int(idx)} mine {float(m)!r} report {float(r)!r}")
+        self.checked_std[table] = float(worst)
+
+    def compare(self, table, column, index, mine, report, tol=TOL):
+        """Compare mine with report element by element; index labels the rows.
+
+        tol is relative: |mine - report| <= tol max(1, |report|), or for errors (tol =
+        TOL_ERR) <= tol |report| with an absolute floor of 1e-15 (errors of exactly
+        constant columns are round-off, ~1e-16)."""
         mine, report = np.broadcast_to(np.asarray(mine, float), np.shape(report)), np.asarray(report, float)
         worst = self.checked.get(table, 0.0)
+        self.columns.setdefault(table, []).append(column)
         for idx, x, y in zip(np.ravel(index), np.ravel(mine), np.ravel(report)):
             if np.isnan(x) or np.isnan(y):
                 ok = np.isnan(x) and np.isnan(y)
             else:
                 worst = max(worst, abs(x - y))
-                ok = abs(x - y) <= TOL * max(1.0, abs(y))
+                bound = TOL * max(1.0, abs(y)) if tol == TOL else max(tol * abs(y), 1e-15)
+                ok = abs(x - y) <= bound
             if not ok:
                 self.bad.append(f"disagreement: {table} {column} {int(idx)} mine {float(x)!r} report {float(y)!r}")
         self.checked[table] = float(worst)
@@ -88,11 +162,14 @@ def disk_weights(x, n):
     return dq[:, 0::2] ** 2 + dq[:, 1::2] ** 2 + dp[:, 0::2] ** 2 + dp[:, 1::2] ** 2
 
 
-def localization(x, n):
+def localization(x, n, blocks):
+    """W = exp(<S>) / N and its error W * batch_stderr(S)."""
     mu = disk_weights(x, n)
     mu = mu / mu.sum(axis=1, keepdims=True)
     terms = np.where(mu > 0, mu * np.log(np.where(mu > 0, mu, 1.0)), 0.0)
-    return np.exp(-terms.sum(axis=1).mean(axis=0)) / n
+    entropy = -terms.sum(axis=1)
+    w = np.exp(entropy.mean(axis=0)) / n
+    return w, w * batch_stderr(entropy, blocks)
 
 
 def projections(x, n):
@@ -102,7 +179,7 @@ def projections(x, n):
     cos = np.where(has_theta, (dq * dp).sum(axis=1) / np.sqrt(np.where(has_theta, eq * ep, 1.0)), 0.0)
     count = has_theta.sum(axis=0)
     mean_cos = np.where(count > 0, cos.sum(axis=0) / np.maximum(count, 1), np.nan)
-    return eq.mean(axis=0), ep.mean(axis=0), mean_cos
+    return {"eta_q": eq.mean(axis=0), "eta_p": ep.mean(axis=0), "cos_theta": mean_cos}, {"eta_q": eq, "eta_p": ep}
 
 
 def natural_basis(phase, n):
@@ -120,6 +197,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("report")
     ap.add_argument("frames")
+    ap.add_argument("--blocks", type=int, help="the run's blocks setting (default: run.json's, from the frame file's metadata)")
     args = ap.parse_args()
     rep = lambda name: read_csv(os.path.join(args.report, name))  # noqa: E731
 
@@ -133,15 +211,27 @@ def main():
     if d % 4:
         sys.exit(f"{args.frames}: D = {d} is not 4N: not a hard-disk run")
     n = d // 4
+    if args.blocks is not None:
+        blocks = args.blocks
+    else:
+        run = metadata(args.frames).get("run.json", {})
+        blocks = (run.get("config", run) or {}).get("blocks")
+        if blocks is None:
+            sys.exit(f"{args.frames}: no run.json blocks setting in its metadata: give --blocks")
+    blocks = int(blocks)
     c = Checker()
 
     # Spectrum: every frame.
     sp = rep("spectrum.csv")
     if sp is not None:
         i = sp["i"].astype(int)
-        c.compare("spectrum.csv", "lambda_clv", i, np.mean([f["local"] for f in frames], axis=0)[i - 1], sp["lambda_clv"])
+        local = np.array([f["local"] for f in frames])
+        c.compare("spectrum.csv", "lambda_clv", i, local.mean(axis=0)[i - 1], sp["lambda_clv"])
+        c.compare("spectrum.csv", "stderr_clv", i, batch_stderr(local, blocks)[i - 1], sp["stderr_clv"], TOL_ERR)
         if all(f["gs_local"] is not None for f in frames):
-            c.compare("spectrum.csv", "lambda_gs_window", i, np.mean([f["gs_local"] for f in frames], axis=0)[i - 1], sp["lambda_gs_window"])
+            gs_local = np.array([f["gs_local"] for f in frames])
+            c.compare("spectrum.csv", "lambda_gs_window", i, gs_local.mean(axis=0)[i - 1], sp["lambda_gs_window"])
+            c.compare("spectrum.csv", "stderr_gs_window", i, batch_stderr(gs_local, blocks)[i - 1], sp["stderr_gs_window"], TOL_ERR)
 
     # Vector statistics: the frames of the steps that are multiples of m.
     sampled = [f for f in frames if f["step"] % every == 0 and f["v"] is not None]
@@ -155,17 +245,27 @@ def main():
     for name, x in vecs.items():
         if loc is not None:
             i = loc["i"].astype(int)
-            c.compare("localization.csv", f"W_{name}", i, localization(x, n)[i - 1], loc[f"W_{name}"])
+            w, err = localization(x, n, blocks)
+            c.compare("localization.csv", f"W_{name}", i, w[i - 1], loc[f"W_{name}"])
+            if f"stderr_{name}" in loc:
+                c.compare("localization.csv", f"stderr_{name}", i, err[i - 1], loc[f"stderr_{name}"], TOL_ERR)
         if pr is not None:
             i = pr["i"].astype(int)
-            for col, mine in zip(("eta_q", "eta_p", "cos_theta"), projections(x, n)):
+            means, per_frame = projections(x, n)
+            for col, mine in means.items():
                 c.compare("projections.csv", f"{col}_{name}", i, mine[i - 1], pr[f"{col}_{name}"])
+            for col, values in per_frame.items():  # eta_q_gs_std (eta_p_*_std where the report has it)
+                if f"{col}_{name}_std" in pr:
+                    c.compare_std("projections.csv", f"{col}_{name}_std", i, values, pr[f"{col}_{name}_std"])
 
     v, g = vecs["clv"], vecs.get("gs")
     ov = rep("overlap_gs_clv.csv")
     if ov is not None and g is not None:
         i = ov["i"].astype(int)
-        c.compare("overlap_gs_clv.csv", "abs_g_dot_v_mean", i, np.abs(np.einsum("tdi,tdi->ti", g, v)).mean(axis=0)[i - 1], ov["abs_g_dot_v_mean"])
+        a = np.abs(np.einsum("tdi,tdi->ti", g, v))
+        c.compare("overlap_gs_clv.csv", "abs_g_dot_v_mean", i, a.mean(axis=0)[i - 1], ov["abs_g_dot_v_mean"])
+        if "abs_g_dot_v_std" in ov:
+            c.compare_std("overlap_gs_clv.csv", "abs_g_dot_v_std", i, a, ov["abs_g_dot_v_std"])
     for table, other in (("overlap_clv_gs.csv", g), ("overlap_clv_clv.csv", v)):
         ov = rep(table)
         if ov is None or other is None:
@@ -174,7 +274,10 @@ def main():
         for col in ov:
             if col.startswith("abs_v") and col.endswith("_mean"):
                 j = int(col[len("abs_v") : -len("_mean")])
-                c.compare(table, col, i, np.abs(np.einsum("td,tdi->ti", v[:, :, j - 1], other)).mean(axis=0)[i - 1], ov[col])
+                a = np.abs(np.einsum("td,tdi->ti", v[:, :, j - 1], other))
+                c.compare(table, col, i, a.mean(axis=0)[i - 1], ov[col])
+                if f"abs_v{j}_std" in ov:
+                    c.compare_std(table, f"abs_v{j}_std", i, a, ov[f"abs_v{j}_std"])
 
     # Null space at the earliest sampled frame (sampled is in increasing step order).
     e = natural_basis(sampled[0]["phase"], n)
@@ -205,7 +308,7 @@ def main():
 
     if not c.checked:
         sys.exit(f"{args.report}: none of the tables this script checks is there")
-    print(json.dumps({"agree": not c.bad, "checked": c.checked, "frames": len(frames), "sampled": len(sampled), "every": every, "tolerance": TOL}))
+    print(json.dumps({"agree": not c.bad, "checked": c.checked, "checked_std": c.checked_std, "columns": c.columns, "frames": len(frames), "sampled": len(sampled), "every": every, "blocks": blocks, "tolerance": TOL, "tolerance_errors": TOL_ERR}))
     if c.bad:
         for line in c.bad:
             print(line, file=sys.stderr)

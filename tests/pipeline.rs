@@ -885,6 +885,18 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     for table in ["spectrum.csv", "localization.csv", "projections.csv", "overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv", "nullspace_alpha.csv", "nullspace_beta.csv", "theta_min.csv"] {
         assert!(v["checked"][table].as_f64().is_some_and(|d| d < 1e-12), "{table}: {v}");
     }
+    // The errors are checked too: batch means (stderr columns, in "checked" above) and the
+    // _std columns. A _std is the root of a difference of means, so round-off in it is
+    // ~1e-16 / std (1e-11 for the nearly constant eta_q of the null-space CLVs) up to
+    // sqrt(1e-16) for a constant: its bound is looser.
+    for (table, columns) in [("spectrum.csv", &["stderr_clv", "stderr_gs_window"][..]), ("localization.csv", &["stderr_gs", "stderr_clv"]), ("projections.csv", &["eta_q_gs_std", "eta_q_clv_std"]), ("overlap_gs_clv.csv", &["abs_g_dot_v_std"]), ("overlap_clv_gs.csv", &["abs_v12_std"]), ("overlap_clv_clv.csv", &["abs_v7_std"])] {
+        for column in columns {
+            assert!(v["columns"][table].as_array().unwrap().iter().any(|c| c == column), "{table} {column}: {v}");
+        }
+    }
+    for table in ["projections.csv", "overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv"] {
+        assert!(v["checked_std"][table].as_f64().is_some_and(|d| d < 1e-7), "{table}: {v}");
+    }
 
     // The same report with W_clv of i = 2 off by a relative 1e-6.
     let altered = base.join("altered");
@@ -904,6 +916,21 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     let out = verify(&altered);
     let err = common::stderr(&out);
     assert!(!out.status.success() && err.contains("disagreement: localization.csv W_clv 2 "), "{err}");
+    assert_eq!(err.lines().filter(|l| l.starts_with("disagreement")).count(), 1, "{err}");
+
+    // The report with stderr_clv of i = 3 in spectrum.csv off by a relative 1e-6 instead.
+    std::fs::copy(report.join("localization.csv"), altered.join("localization.csv")).unwrap();
+    let table = read(&report.join("spectrum.csv"));
+    let mut lines: Vec<String> = table.lines().map(str::to_string).collect();
+    let column = lines[0].split(',').position(|c| c == "stderr_clv").unwrap();
+    let mut fields: Vec<String> = lines[3].split(',').map(str::to_string).collect();
+    assert_eq!(fields[0], "3");
+    fields[column] = format!("{:e}", fields[column].parse::<f64>().unwrap() * (1.0 + 1e-6));
+    lines[3] = fields.join(",");
+    std::fs::write(altered.join("spectrum.csv"), lines.join("\n") + "\n").unwrap();
+    let out = verify(&altered);
+    let err = common::stderr(&out);
+    assert!(out.status.code() == Some(1) && err.contains("disagreement: spectrum.csv stderr_clv 3 "), "{err}");
     assert_eq!(err.lines().filter(|l| l.starts_with("disagreement")).count(), 1, "{err}");
 }
 
