@@ -50,9 +50,9 @@ Tolerance: round-off. A value agrees when |mine - report| <= 1e-10 max(1, |repor
 quantities are averages of O(1) numbers; the report writes them with all digits); NaN only
 against NaN. A stderr agrees when |mine - report| <= 1e-9 |report| or <= 1e-15 (the errors of
 exactly vanishing exponents are round-off, ~1e-16). A _std agrees when |mine - report| <=
-1e-9 |report| or the variances agree to the round-off of <x^2> - <x>^2, |mine^2 - report^2|
-<= 1e-12 <x^2>: clv's std of a constant (|v^i . v^i| = 1) can be ~1e-8 = sqrt(1e-16), not 0,
-and of nearly constant ones (eta_q of the null-space CLVs) off by ~1e-7 relative.
+1e-9 |report| or <= 1e-12 (the spread of a constant, |v^i . v^i| = 1, is round-off). Until
+2026-11-27 clv summed x and x^2 over the frames, and its _std of a constant came out ~1e-8
+= sqrt(1e-16) instead of 0; this check found it.
 The JSON on stdout: {"agree": ..., "checked": {table: largest |mine - report| over its mean
 and stderr columns}, "checked_std": {table: the same over its _std columns}, "columns":
 {table: [columns compared]}, "frames": n, "sampled": n, "every": m, "blocks": B, ...}.
@@ -117,20 +117,17 @@ class Checker:
     def compare_std(self, table, column, index, x, report):
         """A _std column: mine = sample_std(x) over axis 0 of x (frames, rows).
 
-        Agrees if |mine - report| <= TOL_ERR |report|, or if the variances agree to the
-        round-off of a difference of means, |mine^2 - report^2| <= 1e-12 <x^2> (a variance
-        computed as <x^2> - <x>^2 cancels: of an exactly constant value clv writes a std of
-        up to ~1e-8 = sqrt(1e-16), not 0). The worst |mine - report| goes to checked_std."""
+        Agrees if |mine - report| <= TOL_ERR |report| or <= 1e-12 (the spread of a constant
+        is round-off). The worst |mine - report| goes to checked_std."""
         mine, report = sample_std(x)[index - 1], np.asarray(report, float)
-        scale = (np.asarray(x, float) ** 2).mean(axis=0)[index - 1]
         worst = self.checked_std.get(table, 0.0)
         self.columns.setdefault(table, []).append(column)
-        for idx, m, r, q in zip(np.ravel(index), mine, report, scale):
+        for idx, m, r in zip(np.ravel(index), mine, report):
             if np.isnan(m) or np.isnan(r):
                 ok = np.isnan(m) and np.isnan(r)
             else:
                 worst = max(worst, abs(m - r))
-                ok = abs(m - r) <= TOL_ERR * abs(r) or abs(m * m - r * r) <= 1e-12 * q
+                ok = abs(m - r) <= TOL_ERR * abs(r) or abs(m - r) <= 1e-12
             if not ok:
                 self.bad.append(f"disagreement: {table} {column} {int(idx)} mine {float(m)!r} report {float(r)!r}")
         self.checked_std[table] = float(worst)

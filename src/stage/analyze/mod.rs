@@ -574,24 +574,31 @@ pub struct Analysed {
     pub warnings: Vec<String>,
 }
 
-/// Running mean and standard deviation over frames of a set of quantities.
+/// Running mean and standard deviation over frames of a set of quantities. The spread is
+/// Welford's running sum of squared deviations: the sums of x and x^2 would cancel to
+/// round-off of <x^2> (a constant 1 over 43 frames showed a spread of 1.8e-8, not 0).
 #[derive(Clone, Debug)]
 pub struct Mean {
     pub n: u64,
     sum: Vec<f64>,
-    sum2: Vec<f64>,
+    /// Welford's running mean and sum of squared deviations from it.
+    running: Vec<f64>,
+    m2: Vec<f64>,
 }
 
 impl Mean {
     pub fn new(len: usize) -> Self {
-        Mean { n: 0, sum: vec![0.0; len], sum2: vec![0.0; len] }
+        Mean { n: 0, sum: vec![0.0; len], running: vec![0.0; len], m2: vec![0.0; len] }
     }
     pub fn add(&mut self, x: impl IntoIterator<Item = f64>) {
-        for ((s, s2), x) in self.sum.iter_mut().zip(self.sum2.iter_mut()).zip(x) {
-            *s += x;
-            *s2 += x * x;
-        }
         self.n += 1;
+        let n = self.n as f64;
+        for (((s, mu), m2), x) in self.sum.iter_mut().zip(self.running.iter_mut()).zip(self.m2.iter_mut()).zip(x) {
+            *s += x;
+            let delta = x - *mu;
+            *mu += delta / n;
+            *m2 += delta * (x - *mu);
+        }
     }
     pub fn mean(&self) -> Vec<f64> {
         self.sum.iter().map(|s| s / self.n as f64).collect()
@@ -604,7 +611,7 @@ impl Mean {
             return vec![f64::NAN; self.sum.len()];
         }
         let n = self.n as f64;
-        self.sum.iter().zip(&self.sum2).map(|(s, s2)| ((s2 - s * s / n) / (n - 1.0)).max(0.0).sqrt()).collect()
+        self.m2.iter().map(|m2| (m2 / (n - 1.0)).max(0.0).sqrt()).collect()
     }
 }
 
@@ -778,5 +785,21 @@ mod tests {
         // Sample deviation of {1, 3}: sqrt(((1-2)^2 + (3-2)^2) / (2 - 1)) = sqrt(2).
         let s = m.std();
         assert!((s[0] - 2f64.sqrt()).abs() < 1e-15 && s[1] == 0.0, "{s:?}");
+    }
+
+    /// A constant shows no spread, and a small spread on a large value is not lost to
+    /// cancellation (the sums of x and x^2 gave 1.8e-8 for a constant 1 over 43 frames).
+    #[test]
+    fn mean_std_does_not_cancel() {
+        let mut m = Mean::new(2);
+        let xs: Vec<f64> = (0..43).map(|i| 1e4 + 1e-3 * ((i * 7919) % 43) as f64 / 43.0).collect();
+        for &x in &xs {
+            m.add([0.1, x]);
+        }
+        let mean = xs.iter().sum::<f64>() / 43.0;
+        let two_pass = (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / 42.0).sqrt();
+        let s = m.std();
+        assert_eq!(s[0], 0.0);
+        assert!((s[1] - two_pass).abs() < 1e-9 * two_pass, "{} against {two_pass}", s[1]);
     }
 }
