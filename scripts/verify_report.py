@@ -11,6 +11,21 @@ and compared with the report's CSV files:
   spectrum.csv         lambda_clv = mean over all frames of the local CLV exponents,
                        lambda_gs_window = mean over all frames of the local GS exponents, and
                        their errors stderr_clv, stderr_gs_window (batch means, below);
+  local_exponents.csv  time and lambda_i of each row's frame (matched by step): the frame's time
+                       and its local CLV exponent i, ln |D phi^tau v^i| / tau, as the frame holds it;
+  finite_time_exponents.csv   for each (i, delta): the local exponents averaged over consecutive
+                       windows of delta frames counted from the NEWEST frame (the oldest T mod
+                       delta frames fill no window), and windows = their number, mean, std (n - 1;
+                       NaN from one window), min and max of exponent i over them;
+  domination.csv       for each delta, over the same windows: a pair (i, i + 1) swaps in a window
+                       where exponent i + 1 exceeds exponent i; overall = the swap fraction over
+                       all windows and all D - 1 pairs, outside_null = the same over the pairs not
+                       both inside the null space 2N-2..2N+3 (the two pairs that straddle its
+                       borders count), pair_i_j = one pair's, border_unstable_null and
+                       border_null_stable = the pairs (2N-3, 2N-2) and (2N+3, 2N+4),
+                       split_unstable_null (split_null_stable) = the fraction of windows where some
+                       exponent of 1..2N-3 lies below some of 2N-2..2N+3 (some of 2N-2..2N+3 below
+                       some of 2N+4..D); a column not recomputed here is a disagreement;
   localization.csv     W_gs, W_clv: W_i = exp(<S_i>) / N with S = -sum_n mu_n ln mu_n, mu_n the
                        share of |v|^2 on disk n (its dq_x, dq_y, dp_x, dp_y); stderr_gs,
                        stderr_clv = W times the batch-means error of <S> over the sampled frames;
@@ -30,7 +45,8 @@ and compared with the report's CSV files:
                        over the sampled frames and the pairs (v^j, v^(j+s)), j + s <= J, of
                        Theta = arccos |v^i . v^j|, computed as 2 arcsin(|v^i -+ v^j| / 2).
 
-Sampling: the spectrum uses every frame of the file; the vector statistics use the frames
+Sampling: the spectrum, the local and finite-time exponents and domination use every frame
+of the file; the vector statistics use the frames
 of the steps that are multiples of m = summary.json's options.every that carry vectors (as
 the report says in its head). Frames are put in step order whatever the file's order. Tables
 (and _std / stderr columns) the report does not have are skipped.
@@ -179,6 +195,48 @@ def projections(x, n):
     return {"eta_q": eq.mean(axis=0), "eta_p": ep.mean(axis=0), "cos_theta": mean_cos}, {"eta_q": eq, "eta_p": ep}
 
 
+def windows(local, delta):
+    """Finite-time exponents: means of local over consecutive windows of delta frames, counted
+    from the newest frame (the oldest T mod delta frames fill no window): (W, k).
+
+    Each window is summed one frame at a time from its newest frame, then divided by delta:
+    the null-space exponents vanish, their differences are round-off, and whether such a pair
+    swaps in domination.csv depends on the order of summation (numpy's mean missed one swap
+    of 1860 at delta = 5 in the test's run; this order matches all)."""
+    t = local.shape[0]
+    count = t // delta
+    x = local[t - count * delta :].reshape((count, delta) + local.shape[1:])
+    total = np.zeros((count,) + local.shape[1:])
+    for k in range(delta - 1, -1, -1):
+        total = total + x[:, k]
+    return total / delta
+
+
+def domination(x, n):
+    """Swap fractions of the finite-time exponents x (W windows, k) of N disks.
+
+    A pair (i, i + 1) swaps in a window where exponent i + 1 exceeds exponent i. overall:
+    mean over all windows and pairs; outside_null: the same over the pairs not both inside
+    the null space 2N-2..2N+3 (the two that straddle its borders count); pair_i_j: one pair;
+    border_unstable_null, border_null_stable: the pairs (2N-3, 2N-2), (2N+3, 2N+4);
+    split_unstable_null (split_null_stable): the fraction of windows in which some exponent
+    of 1..2N-3 lies below some exponent of 2N-2..2N+3 (some of the null space below some of
+    2N+4..D)."""
+    k = x.shape[1]
+    swap = x[:, 1:] > x[:, :-1]  # column a - 1: the pair (a, a + 1)
+    lo, hi = 2 * n - 2, 2 * n + 3  # the null space, 1-based
+    out = [a - 1 for a in range(1, k) if not (lo <= a and a + 1 <= hi)]
+    result = {"windows": x.shape[0], "overall": swap.mean(), "outside_null": swap[:, out].mean()}
+    for a in range(1, k):
+        result[f"pair_{a}_{a + 1}"] = swap[:, a - 1].mean()
+    if hi < k:
+        result["border_unstable_null"] = swap[:, lo - 2].mean()
+        result["border_null_stable"] = swap[:, hi - 1].mean()
+        result["split_unstable_null"] = np.mean(x[:, : lo - 1].min(axis=1) < x[:, lo - 1 : hi].max(axis=1))
+        result["split_null_stable"] = np.mean(x[:, lo - 1 : hi].min(axis=1) < x[:, hi:].max(axis=1))
+    return result
+
+
 def natural_basis(phase, n):
     """e_1..e_6 of the null space as columns (D, 6)."""
     d = 4 * n
@@ -219,16 +277,50 @@ def main():
     c = Checker()
 
     # Spectrum: every frame.
+    local = np.array([f["local"] for f in frames])
     sp = rep("spectrum.csv")
     if sp is not None:
         i = sp["i"].astype(int)
-        local = np.array([f["local"] for f in frames])
         c.compare("spectrum.csv", "lambda_clv", i, local.mean(axis=0)[i - 1], sp["lambda_clv"])
         c.compare("spectrum.csv", "stderr_clv", i, batch_stderr(local, blocks)[i - 1], sp["stderr_clv"], TOL_ERR)
         if all(f["gs_local"] is not None for f in frames):
             gs_local = np.array([f["gs_local"] for f in frames])
             c.compare("spectrum.csv", "lambda_gs_window", i, gs_local.mean(axis=0)[i - 1], sp["lambda_gs_window"])
             c.compare("spectrum.csv", "stderr_gs_window", i, batch_stderr(gs_local, blocks)[i - 1], sp["stderr_gs_window"], TOL_ERR)
+
+    # Local exponents, finite-time exponents and domination: every frame.
+    le = rep("local_exponents.csv")
+    if le is not None and len(le.get("step", [])):
+        steps = np.array([f["step"] for f in frames])
+        rows = np.searchsorted(steps, le["step"].astype(np.int64))
+        if np.any(rows >= len(frames)) or np.any(steps[np.minimum(rows, len(frames) - 1)] != le["step"]):
+            c.bad.append("disagreement: local_exponents.csv has steps that are not frames")
+            rows = np.minimum(rows, len(frames) - 1)
+        idx = le["step"].astype(np.int64)
+        c.compare("local_exponents.csv", "time", idx, np.array([frames[r]["time"] for r in rows]), le["time"])
+        for col in le:
+            if col.startswith("lambda_"):
+                c.compare("local_exponents.csv", col, idx, local[rows, int(col[len("lambda_") :]) - 1], le[col])
+    ft = rep("finite_time_exponents.csv")
+    if ft is not None and len(ft.get("i", [])):
+        for col in ("windows", "mean", "std", "min", "max"):
+            mine = []
+            for i, delta in zip(ft["i"].astype(int), ft["delta"].astype(int)):
+                x = windows(local, delta)[:, i - 1]
+                mine.append({"windows": len(x), "mean": x.mean(), "std": sample_std(x[:, None])[0], "min": x.min(), "max": x.max()}[col])
+            c.compare("finite_time_exponents.csv", col, ft["i"].astype(int), mine, ft[col])
+    dm = rep("domination.csv")
+    if dm is not None and len(dm.get("delta", [])):
+        deltas = dm["delta"].astype(int)
+        mine = {}
+        for delta in deltas:
+            for col, value in domination(windows(local, delta), n).items():
+                mine.setdefault(col, []).append(value)
+        for col in dm:
+            if col in mine:
+                c.compare("domination.csv", col, deltas, mine[col], dm[col])
+            elif col != "delta":
+                c.bad.append(f"disagreement: domination.csv column {col} is not recomputed here")
 
     # Vector statistics: the frames of the steps that are multiples of m.
     sampled = [f for f in frames if f["step"] % every == 0 and f["v"] is not None]

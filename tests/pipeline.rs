@@ -882,12 +882,12 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     let out = ok(verify(&report));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(v["agree"] == true && v["every"] == 3 && v["sampled"].as_u64() == Some(100), "{v}");
-    for table in ["spectrum.csv", "localization.csv", "projections.csv", "overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv", "nullspace_alpha.csv", "nullspace_beta.csv", "theta_min.csv"] {
+    for table in ["spectrum.csv", "local_exponents.csv", "finite_time_exponents.csv", "domination.csv", "localization.csv", "projections.csv", "overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv", "nullspace_alpha.csv", "nullspace_beta.csv", "theta_min.csv"] {
         assert!(v["checked"][table].as_f64().is_some_and(|d| d < 1e-12), "{table}: {v}");
     }
     // The errors are checked too: batch means (stderr columns, in "checked" above) and the
     // _std columns, sample deviations over the frames (Welford's sums in clv: a constant's is 0).
-    for (table, columns) in [("spectrum.csv", &["stderr_clv", "stderr_gs_window"][..]), ("localization.csv", &["stderr_gs", "stderr_clv"]), ("projections.csv", &["eta_q_gs_std", "eta_q_clv_std"]), ("overlap_gs_clv.csv", &["abs_g_dot_v_std"]), ("overlap_clv_gs.csv", &["abs_v12_std"]), ("overlap_clv_clv.csv", &["abs_v7_std"])] {
+    for (table, columns) in [("spectrum.csv", &["stderr_clv", "stderr_gs_window"][..]), ("localization.csv", &["stderr_gs", "stderr_clv"]), ("projections.csv", &["eta_q_gs_std", "eta_q_clv_std"]), ("overlap_gs_clv.csv", &["abs_g_dot_v_std"]), ("overlap_clv_gs.csv", &["abs_v12_std"]), ("overlap_clv_clv.csv", &["abs_v7_std"]), ("local_exponents.csv", &["time", "lambda_1"]), ("finite_time_exponents.csv", &["windows", "mean", "std", "min", "max"]), ("domination.csv", &["overall", "outside_null", "border_unstable_null", "split_null_stable"])] {
         for column in columns {
             assert!(v["columns"][table].as_array().unwrap().iter().any(|c| c == column), "{table} {column}: {v}");
         }
