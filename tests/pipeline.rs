@@ -896,40 +896,32 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
         assert!(v["checked_std"][table].as_f64().is_some_and(|d| d < 1e-12), "{table}: {v}");
     }
 
-    // The same report with W_clv of i = 2 off by a relative 1e-6.
+    // A copy of the report to alter.
     let altered = base.join("altered");
     std::fs::create_dir_all(&altered).unwrap();
     for entry in std::fs::read_dir(&report).unwrap() {
         let path = entry.unwrap().path();
         std::fs::copy(&path, altered.join(path.file_name().unwrap())).unwrap();
     }
-    let table = read(&report.join("localization.csv"));
-    let mut lines: Vec<String> = table.lines().map(str::to_string).collect();
-    let column = lines[0].split(',').position(|c| c == "W_clv").unwrap();
-    let mut fields: Vec<String> = lines[2].split(',').map(str::to_string).collect();
-    assert_eq!(fields[0], "2");
-    fields[column] = format!("{:e}", fields[column].parse::<f64>().unwrap() * (1.0 + 1e-6));
-    lines[2] = fields.join(",");
-    std::fs::write(altered.join("localization.csv"), lines.join("\n") + "\n").unwrap();
-    let out = verify(&altered);
-    let err = common::stderr(&out);
-    assert!(!out.status.success() && err.contains("disagreement: localization.csv W_clv 2 "), "{err}");
-    assert_eq!(err.lines().filter(|l| l.starts_with("disagreement")).count(), 1, "{err}");
-
-    // The report with stderr_clv of i = 3 in spectrum.csv off by a relative 1e-6 instead.
-    std::fs::copy(report.join("localization.csv"), altered.join("localization.csv")).unwrap();
-    let table = read(&report.join("spectrum.csv"));
-    let mut lines: Vec<String> = table.lines().map(str::to_string).collect();
-    let column = lines[0].split(',').position(|c| c == "stderr_clv").unwrap();
-    let mut fields: Vec<String> = lines[3].split(',').map(str::to_string).collect();
-    assert_eq!(fields[0], "3");
-    fields[column] = format!("{:e}", fields[column].parse::<f64>().unwrap() * (1.0 + 1e-6));
-    lines[3] = fields.join(",");
-    std::fs::write(altered.join("spectrum.csv"), lines.join("\n") + "\n").unwrap();
-    let out = verify(&altered);
-    let err = common::stderr(&out);
-    assert!(out.status.code() == Some(1) && err.contains("disagreement: spectrum.csv stderr_clv 3 "), "{err}");
-    assert_eq!(err.lines().filter(|l| l.starts_with("disagreement")).count(), 1, "{err}");
+    // One number of one table off by a relative 1e-6 (in a copy of the report, the other
+    // tables as written): exactly that one disagreement, and exit 1.
+    let one_altered = |file: &str, column: &str, i: usize| {
+        let table = read(&report.join(file));
+        let mut lines: Vec<String> = table.lines().map(str::to_string).collect();
+        let at = lines[0].split(',').position(|c| c == column).unwrap();
+        let mut fields: Vec<String> = lines[i].split(',').map(str::to_string).collect();
+        assert_eq!(fields[0], i.to_string());
+        fields[at] = format!("{:e}", fields[at].parse::<f64>().unwrap() * (1.0 + 1e-6));
+        lines[i] = fields.join(",");
+        std::fs::write(altered.join(file), lines.join("\n") + "\n").unwrap();
+        let out = verify(&altered);
+        std::fs::copy(report.join(file), altered.join(file)).unwrap();
+        let err = common::stderr(&out);
+        assert!(out.status.code() == Some(1) && err.contains(&format!("disagreement: {file} {column} {i} ")), "{err}");
+        assert_eq!(err.lines().filter(|l| l.starts_with("disagreement")).count(), 1, "{err}");
+    };
+    one_altered("localization.csv", "W_clv", 2);
+    one_altered("spectrum.csv", "stderr_clv", 3);
 }
 
 /// Frames of the k < D leading vectors: the report says once what needs all D and is left
