@@ -1009,10 +1009,7 @@ mod tests {
         let mut rng = Rng::new(5);
         let mut spec = spectrum(N, 4);
         let at = 2 * N - 7;
-        for (j, x) in [0.1003, 0.1001, 0.0999, 0.0997].into_iter().enumerate() {
-            spec.exponents[at + j] = x;
-            spec.exponents[d - 1 - at - j] = -x;
-        }
+        plant_block(&mut spec, at, &[0.1003, 0.1001, 0.0999, 0.0997]);
         spec.stderr.iter_mut().for_each(|e| *e = 1e-5);
         let ctx = context("disks", N, d, LX, LY, Some(spec), true);
         let phase = phase(N, LX, LY, &mut rng);
@@ -1108,10 +1105,7 @@ mod tests {
         let mut rng = Rng::new(9);
         let mut spec = spectrum(N, 2);
         let at = 2 * N - 9; // 0-based first index of the block, just above the T pair
-        for (j, x) in [0.6, 0.55, 0.5, 0.45].into_iter().enumerate() {
-            spec.exponents[at + j] = x;
-            spec.exponents[d - 1 - at - j] = -x;
-        }
+        plant_block(&mut spec, at, &[0.6, 0.55, 0.5, 0.45]);
         let detected = km::mode_steps(&spec.exponents, &spec.stderr, STEP_TOL, step_window(d, &Candidates::new(LX, LY, MAX_N)), &[4, 2]);
         assert_eq!(detected.iter().map(|s| (s.start, s.len)).collect::<Vec<_>>(), [(at + 4, 2), (d - at - 6, 2)], "the exponents alone see the T pair only");
         let ctx = context("disks", N, d, LX, LY, Some(spec), true);
@@ -1160,10 +1154,7 @@ mod tests {
         let mut rng = Rng::new(11);
         let mut spec = spectrum(N, 2);
         let at = 2 * N - 11; // 0-based first index of the block of six, just above the T pair
-        for (j, x) in [0.70, 0.68, 0.66, 0.64, 0.62, 0.60].into_iter().enumerate() {
-            spec.exponents[at + j] = x;
-            spec.exponents[d - 1 - at - j] = -x;
-        }
+        plant_block(&mut spec, at, &[0.70, 0.68, 0.66, 0.64, 0.62, 0.60]);
         let detected = km::mode_steps(&spec.exponents, &spec.stderr, STEP_TOL, step_window(d, &Candidates::new(LX, LY, MAX_N)), &[4, 2]);
         assert_eq!(detected.iter().map(|s| (s.start, s.len)).collect::<Vec<_>>(), [(at + 6, 2), (d - at - 8, 2)], "the exponents alone see the T pair only");
         let ctx = context("disks", N, d, LX, LY, Some(spec), true);

@@ -66,6 +66,16 @@ pub fn spectrum(n: usize, len: usize) -> SpectrumSummary {
     SpectrumSummary { stderr: vec![1e-3; e.len()], exponents: e, ks_entropy: None, blocks: None, warnings: Vec::new() }
 }
 
+/// Set exponents `at`, `at + 1`, ... to `xs` and their conjugates to `-xs`, keeping the
+/// spectrum symmetric.
+pub fn plant_block(spec: &mut SpectrumSummary, at: usize, xs: &[f64]) {
+    let d = spec.exponents.len();
+    for (j, &x) in xs.iter().enumerate() {
+        spec.exponents[at + j] = x;
+        spec.exponents[d - 1 - at - j] = -x;
+    }
+}
+
 /// The context of a stream of `system` ("disks", "henon" or "lorenz"; N disks in an lx x ly
 /// box) with D = d, its run the preset of that system with k = d vectors and a backward
 /// window of 1000 steps (20 blocks of 50 frames).
