@@ -41,12 +41,116 @@ and compared with the report's CSV files:
                        null-space vectors at the earliest sampled frame, with the natural basis
                        e_1 = (p, 0)/|p|, e_2, e_3 = x, y translations of the positions,
                        e_4 = (0, p)/|p|, e_5, e_6 = x, y translations of the momenta;
-  theta_min.csv        for every separation s = 1..J-1 (J - 1 the table's largest): min and mean
-                       over the sampled frames and the pairs (v^j, v^(j+s)), j + s <= J, of
-                       Theta = arccos |v^i . v^j|, computed as 2 arcsin(|v^i -+ v^j| / 2).
+  theta_min.csv        for every separation s = 1..J-1: min and mean over the sampled frames and
+                       the pairs (v^j, v^(j+s)), j + s <= J, of Theta = arccos |v^i . v^j|,
+                       computed as 2 arcsin(|v^i -+ v^j| / 2). J of F^(J) = v^1..v^J is the
+                       paper's 370 of 393 scaled to m = 2N - 3 (round(370 m / 393)), at most m,
+                       and ends before the first positive mode step (as resolved below); a table
+                       with other separations than 1..J-1 is a disagreement;
+  theta_histograms.csv Fig. 16: theta_lo, theta_hi = the 90 one-degree bins of [0, pi/2] (the
+                       last closed), density_sep_s = count / (total * bin width) of the same Theta
+                       for s in 1, 2, 4 and the paper's 20, 50, 100, 200, 300 scaled by D/792
+                       (at least 1, each once, all < J); a table with other separations is a
+                       disagreement. An angle within 1e-10 rad of a bin edge may lie on either
+                       side of it in clv (which takes arccos of the normalised dot product,
+                       good to ~1e-13 above 1e-3 rad, where it switches to the formula used
+                       here): in a bin such an angle could reach, clv's count (its density
+                       times total * width) must lie between the count of the angles that are
+                       surely in it and that plus those that could be; the JSON's
+                       theta_at_bin_edges says how many there were (none so far);
+  convergence_clv.csv  t = b L tau and lambda_i = the mean of the first b batch means (below) of
+                       the local CLV exponents over every frame, oldest block first;
+  convergence_gs.csv   the same of the forward run's block averages in the frame file's
+                       spectrum.json (the frames do not hold the forward run: this recomputes
+                       the table from what clv read, it does not check those averages), with
+                       t = b block_steps tau;
+  convergence_tests.csv  per spectrum (0 GS, 1 CLV) with at least 4 blocks, over the exponents
+                       outside the null space 2N-2..2N+3 whose block means spread (sample std)
+                       beyond 1e-9 of the largest spread: tested = their number, z_i = (mean of
+                       the newer half of the blocks - mean of the older half) / the hypot of the
+                       two halves' standard errors (an odd count's middle block left out),
+                       drifting_fraction = the share with |z| > 2, max_abs_z and its 1-based
+                       max_z_index (the first of equals), h_ks_z = z of the per-block sum of
+                       those with a positive sum, h_ks_chance = P(|t| > |h_ks_z|) for Student's
+                       t with 2 (floor(B/2) - 1) degrees of freedom (a finite closed-form series,
+                       Abramowitz & Stegun 26.7.3-4; clv uses a continued fraction; 1 where
+                       h_ks_z is not finite), r1 = the lag-1 autocorrelation of the block means
+                       averaged over the tested exponents, r1_limit = -1/B + 2/sqrt(B);
+  spectrum.csv         also lambda_gs, stderr_gs: the forward run's spectrum, compared with the
+                       frame file's spectrum.json it is copied from (not recomputable: the
+                       frames hold only the window).
 
-Sampling: the spectrum, the local and finite-time exponents and domination use every frame
-of the file; the vector statistics use the frames
+The Lyapunov modes (modes.csv, modes.json, modes_fits.csv, modes_lp.csv, modes_dispersion.csv,
+and the per-disk tables fig10_T<n>_i<i>.csv, LP<n>_i<i>.csv of Figs. 10-12) follow clv's own
+rules, which are not physics but its conventions: they are re-implemented here from their
+descriptions in clv's doc comments (src/stage/analyze/mode_steps.rs, modes.rs,
+kernels/modes.rs), so a disagreement says the code does not do what they say. The steps are
+found in the forward GS spectrum of the frame file's spectrum.json (exponents e, errors s; not
+recomputable from the frames), and resolved with the vectors of one frame, the newest sampled
+one (the first clv reads). Candidates: the wave vectors k = 2 pi (n_x/L_x, n_y/L_y) up to sign
+with |k| <= 2 pi 4 / max(L_x, L_y) (1 + 1e-9), by |k| then falling n_x, n_y, each alone and
+those of one |k| (relative 1e-9) together after them; their Table III patterns over the disks
+(per wave vector [e c, e s], c, s = cos, sin(k.q_n); T: e the unit vector across k, its first
+nonzero component positive, L: along k, P: the disk momentum p_n; LP = the L of every wave
+vector then the P of every one) orthonormalised (QR). A group of vectors is classified by
+the mean over its vectors of |P dq|^2 / |dq|^2 of their position parts (GS vectors where the
+frames have them, else CLVs): the candidate with the largest fraction - dim / 2N wins (the last
+of equals), and classifies clearly if (fraction - c) / (1 - c) >= 0.3, c = dim / 2N. Steps:
+  - detected: walking outwards from the null space (0-based 2N-3..2N+2) on either side for
+    W = max(D/16, 8, the T plus LP dimension of the smallest |k|'s largest family) indices (at
+    most 2N-4), a group of one of the candidates' step lengths (longest first) is a step if it
+    is a maximal run of neighbours with |e_i - e_(i+1)| <= 3 hypot(s_i, s_(i+1)), or, while
+    every index walked is in a step, if its largest inner gap is below 0.1 of both gaps to its
+    outer neighbours; else one index is walked;
+  - a step that mirrors an earlier positive one (D - start - length) takes its resolution; a
+    step classified clearly as L, P or LP but shorter than that LP mode is widened to the
+    block of the LP size containing it, on its side of the null space, overlapping no other
+    detected step, that stands apart (its spread e_first - e_last below both outer gaps) and
+    whose LP fraction is the largest (the last of equals);
+  - a step is a mode if widened, found by vectors, or classified clearly as T or as L, P,
+    LP with at least the LP size; a step stays if it is a mode or in the region bordering the
+    null space (the step at it, then each next one that is a mode);
+  - from the null space outwards on the positive side, past the steps so far: the first block
+    of a step length (longest first) that overlaps none, stands apart and is clearly the mode
+    of its length (T: the T size, else the LP size), or else the first pair of lengths
+    (a, b) (a outer loop) whose block of a + b stands apart and whose parts (a nearer the null
+    space, then b) are each that, is added ("vectors") with its mirror where that overlaps
+    none; until there is none.
+modes.csv (and modes.json's rows, and the settings it lists: frames, window, candidates,
+source, the thresholds), per step over the sampled frames: the votes of each frame's best
+candidate; best = the most votes (the lowest candidate of equals); fraction_gs, fraction_clv
+= the mean over frames of best's fraction of the GS / CLV group (NaN without); beyond_chance
+= excess of fraction_gs (else fraction_clv); kind, n_x, n_y (first wave vector), k, name
+only where that is >= 0.3 ("-", empty, NaN, "unclassified" otherwise); agreement = best's
+votes / frames; consistent = classified with its degeneracy; lambda, spread = mean and
+max - min of e over the step; detection = widened, vectors, else degenerate if every
+neighbour pair is within 3 combined errors, else separated; side "+" for a step ending at
+or before 2N-3. modes_fits.csv, scope mean: for the 2-steps classified T of one wave vector,
+the mean over frames of the least-squares fit A cos(k x) + B sin(k x) of the components across
+k of dq (and of dp) of each GS and CLV vector against its position along k x = e_k.q_n:
+amp = hypot(A, B), resid = rms residual, rel_resid = resid / amp; scope "step S": the same
+of the step's last vector at the shown frame S, for the positive steps classified T with
+their degeneracy, whose components across k and wrapped positions along k are
+fig10_T<n>_i<i>.csv (the CLV's sign matched to the GS vector). modes_lp.csv and
+LP<n>_i<first>.csv: for the positive steps classified L, P or LP of one wave vector with the
+LP size, at the shown frame, the least-squares combination of the group (GS, CLV) whose
+position part (Fig. 11; momentum part, Fig. 12) best matches the raw L sin, P sin (L cos,
+P cos) pattern, normalised and signed to overlap it positively: overlap = |cos| of its part
+and the pattern, and the fit's amplitude, phase = atan2(-B, A) (compared modulo 2 pi) and
+rms residual, of its part along k (L) or of (delta . p_n) / |p_n|^2 (P) against the wrapped
+position along k. modes_dispersion.csv: the positive consistent steps by kind then k, with
+stderr = the mean of s over the step and lambda_over_k. Rows match by their keys (step,
+vector, source, scope, ...; the dispersion's by their order); a row or column on one side
+only is a disagreement. A decision (a threshold or an argmax) within round-off of flipping
+would show as a disagreement in the rows; none has been seen.
+
+Not checked: transversality.csv (Fig. 15's principal angles Psi, Phi per frame),
+nullspace_series.csv and nullspace_tables.json, domination_pairs.csv, the columns i_over_D,
+zero_by_symmetry and lambda_clv_null_shear of spectrum.csv, modes.json's note, and the
+captions (index.html, summary.json).
+
+Sampling: the spectrum, the local and finite-time exponents, domination and convergence use
+every frame of the file; the vector statistics (modes and Theta too) use the frames
 of the steps that are multiples of m = summary.json's options.every that carry vectors (as
 the report says in its head). Frames are put in step order whatever the file's order. Tables
 (and _std / stderr columns) the report does not have are skipped.
@@ -64,23 +168,37 @@ is the sample std (n - 1) of the block means / sqrt(n); NaN with n < 2.
 
 Tolerance: round-off. A value agrees when |mine - report| <= 1e-10 max(1, |report|) (the
 quantities are averages of O(1) numbers; the report writes them with all digits); NaN only
-against NaN. A stderr agrees when |mine - report| <= 1e-9 |report| or <= 1e-15 (the errors of
-exactly vanishing exponents are round-off, ~1e-16). A _std agrees when |mine - report| <=
+against NaN; text cells (names, kinds, indices of modes) must be equal. The same bound holds
+for the mode fractions, fits and least-squares reconstructions (sums over 2N disks of
+products of O(1) numbers, and 2 x 2 or 2N x 4 least-squares problems of well separated
+singular values: ~1e-14 seen), the t-distribution chance (two methods for it agree to
+~1e-14) and the histogram densities (ratios of integer counts). A stderr agrees when
+|mine - report| <= 1e-9 |report| or <= 1e-15 (the errors of exactly vanishing exponents are
+round-off, ~1e-16). A _std agrees when |mine - report| <=
 1e-9 |report| or <= 1e-12 (the spread of a constant, |v^i . v^i| = 1, is round-off). Until
 2026-11-27 clv summed x and x^2 over the frames, and its _std of a constant came out ~1e-8
 = sqrt(1e-16) instead of 0; this check found it.
 The JSON on stdout: {"agree": ..., "checked": {table: largest |mine - report| over its mean
 and stderr columns}, "checked_std": {table: the same over its _std columns}, "columns":
-{table: [columns compared]}, "frames": n, "sampled": n, "every": m, "blocks": B, ...}.
+{table: [columns compared]}, "frames": n, "sampled": n, "every": m, "blocks": B,
+"mode_steps": [[first, last, how found]], "theta_j": J, "theta_at_bin_edges": n, ...}.
+A disagreement is one line on stderr: "disagreement: TABLE COLUMN ROW [(what the row is)]
+mine X report Y", ROW the index i, step, separation or bin where the table has one, else the
+row's number in the file (from 1).
 
 Only the physics and the report's conventions (file layout, columns, the ordering
-(dq_x1, dq_y1, ..., dq_yN, dp_x1, ..., dp_yN), 1-based indices) are shared with clv; the code
-is not: nothing here comes from clv's Rust.
+(dq_x1, dq_y1, ..., dq_yN, dp_x1, ..., dp_yN), 1-based indices, and the mode rules above as
+clv's doc comments state them, with what they leave open read from its code: the order in
+which lengths and pairs are tried, which of equals wins, the 1e-9 of equal |k|, the cap of
+the walk at 2N-4 indices) are shared with clv; the code is not: the numpy here is written
+from those descriptions, not translated from clv's Rust.
 """
 import argparse
 import csv
 import json
+import math
 import os
+import re
 import sys
 
 import numpy as np
@@ -100,6 +218,14 @@ def read_csv(path):
     with open(path) as f:
         rows = list(csv.DictReader(f))
     return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]} if rows else {}
+
+
+def read_rows(path):
+    """Rows of a CSV file as dicts of their cells as written (None if the file is absent)."""
+    if not os.path.exists(path):
+        return None
+    with open(path) as f:
+        return list(csv.DictReader(f))
 
 
 def batch_stderr(x, blocks):
@@ -166,6 +292,48 @@ class Checker:
                 ok = abs(x - y) <= bound
             if not ok:
                 self.bad.append(f"disagreement: {table} {column} {int(idx)} mine {float(x)!r} report {float(y)!r}")
+        self.checked[table] = float(worst)
+
+    def compare_rows(self, table, keys, mine, report, label, tol=TOL):
+        """Rows of a table with text cells: each report row (numbered from 1 in the file) is
+        matched with mine by its `keys` cells; text cells must be equal, numbers agree as in
+        compare (tol; NaN, or an empty cell, only against NaN). A row or a column of the
+        report that is not recomputed here, or a row of mine the report lacks, is a
+        disagreement. label(row) names the row in messages."""
+        worst = self.checked.get(table, 0.0)
+        self.columns.setdefault(table, [])
+        index = {tuple(str(m[k]) for k in keys): m for m in mine}
+        seen = set()
+        for r, row in enumerate(report, 1):
+            key = tuple(row[k] for k in keys)
+            m = index.get(key)
+            if m is None:
+                self.bad.append(f"disagreement: {table} row {r} ({label(row)}) is not recomputed here")
+                continue
+            seen.add(key)
+            for col, y in row.items():
+                if col in keys:
+                    continue
+                if col not in m:
+                    self.bad.append(f"disagreement: {table} column {col} is not recomputed here")
+                    continue
+                if col not in self.columns[table]:
+                    self.columns[table].append(col)
+                x = m[col]
+                if isinstance(x, str):
+                    ok = x == y
+                else:
+                    x, y = float(x), float(y) if y != "" else math.nan
+                    if math.isnan(x) or math.isnan(y):
+                        ok = math.isnan(x) and math.isnan(y)
+                    else:
+                        worst = max(worst, abs(x - y))
+                        ok = abs(x - y) <= tol * max(1.0, abs(y))
+                if not ok:
+                    self.bad.append(f"disagreement: {table} {col} {r} ({label(row)}) mine {x!r} report {y!r}")
+        for key, m in index.items():
+            if key not in seen:
+                self.bad.append(f"disagreement: {table} lacks a row mine has ({label(m)})")
         self.checked[table] = float(worst)
 
 
@@ -248,6 +416,557 @@ def natural_basis(phase, n):
     return e
 
 
+
+# ---------------------------------------------------------------------------------------
+# Lyapunov modes (paper Sec. 5.5, Table III): modes.csv, modes.json, modes_fits.csv,
+# modes_lp.csv, modes_dispersion.csv and the per-disk pattern tables of Figs. 10-12.
+
+MAX_N = 4  # candidate wave vectors: |k| <= 2 pi MAX_N / max(L_x, L_y)
+MIN_FRACTION = 0.3  # least share beyond chance that classifies a step
+STEP_TOL = 3.0  # neighbours within this many combined standard errors are degenerate
+SEPARATION = 0.1  # a group whose spread is below this fraction of both outer gaps is a step
+KINDS = ("T", "L", "P", "LP")
+
+
+def wave_k(w, lx, ly):
+    return (math.tau * w[0] / lx, math.tau * w[1] / ly)
+
+
+def wave_norm(w, lx, ly):
+    return math.hypot(*wave_k(w, lx, ly))
+
+
+def wave_axes(w, lx, ly):
+    """Unit vectors along k and across it (first nonzero component of the latter positive)."""
+    kx, ky = wave_k(w, lx, ly)
+    k = math.hypot(kx, ky)
+    along = (kx / k, ky / k)
+    across = (along[1], 0.0 - along[0]) if along[1] > 0 else (0.0 - along[1], along[0])
+    return along, across
+
+
+def mode_candidates(lx, ly):
+    """The candidate families [(waves, |k|)]: every wave vector k = 2 pi (n_x/L_x, n_y/L_y) up
+    to sign with |k| <= 2 pi MAX_N / max(L_x, L_y), by |k| (falling n_x, n_y within one |k|),
+    each alone, and those of one |k| together after the last of them."""
+    k_max = math.tau * MAX_N / max(lx, ly) * (1 + 1e-9)
+    nx_max, ny_max = int(k_max * lx / math.tau), int(k_max * ly / math.tau)
+    waves = [(a, b) for a in range(nx_max + 1) for b in range(-ny_max, ny_max + 1) if (a > 0 or b > 0) and wave_norm((a, b), lx, ly) <= k_max]
+    waves.sort(key=lambda w: (wave_norm(w, lx, ly), -w[0], -w[1]))
+    families, shell = [], []
+    for i, w in enumerate(waves):
+        k = wave_norm(w, lx, ly)
+        families.append(([w], k))
+        shell.append(w)
+        next_k = wave_norm(waves[i + 1], lx, ly) if i + 1 < len(waves) else math.inf
+        if next_k - k > 1e-9 * k:
+            if len(shell) > 1:
+                families.append((list(shell), wave_norm(shell[0], lx, ly)))
+            shell = []
+    return families
+
+
+def mode_dim(kind, family):
+    return (4 if kind == "LP" else 2) * len(family[0])
+
+
+def mode_name(kind, family):
+    return "+".join(f"{kind}({a},{b})" for a, b in family[0])
+
+
+def mode_patterns(kind, family, phase, lx, ly):
+    """Table III patterns (2N, dim): per wave vector [e c, e s] (T: e across k, L: e along k,
+    P: the disk momenta), c, s = cos, sin(k . q_n); LP = [L of every wave, P of every wave]."""
+    if kind == "LP":
+        return np.hstack([mode_patterns("L", family, phase, lx, ly), mode_patterns("P", family, phase, lx, ly)])
+    n = phase.size // 4
+    q, p = phase[: 2 * n].reshape(n, 2), phase[2 * n :].reshape(n, 2)
+    cols = []
+    for w in family[0]:
+        kx, ky = wave_k(w, lx, ly)
+        along, across = wave_axes(w, lx, ly)
+        arg = kx * q[:, 0] + ky * q[:, 1]
+        for f in (np.cos(arg), np.sin(arg)):
+            e = p if kind == "P" else np.array(across if kind == "T" else along)[None, :]
+            cols.append((e * f[:, None]).ravel())
+    return np.array(cols).T
+
+
+class ModeFrame:
+    """One frame's orthonormalised Table III bases of every candidate (family-major, kinds
+    T, L, P, LP: candidate index 4 f + kind) and the fractions of vector groups in them."""
+
+    def __init__(self, frame, families, lx, ly):
+        self.frame, self.families, self.n = frame, families, frame["phase"].size // 4
+        self.bases = [np.linalg.qr(mode_patterns(kind, fam, frame["phase"], lx, ly))[0] for fam in families for kind in KINDS]
+        self.dims = np.array([mode_dim(kind, fam) for fam in families for kind in KINDS])
+        self.cache = {}
+
+    def fractions(self, x, start, length):
+        """Mean over the vectors x[:, start:start+length] of |P dq|^2 / |dq|^2 in every
+        candidate's span (NaN where no vector has a nonzero position part)."""
+        dq = x[: 2 * self.n, start : start + length]
+        xx = (dq**2).sum(axis=0)
+        ok = np.isfinite(xx) & (xx > 0)
+        out = []
+        for q in self.bases:
+            fr = ((q.T @ dq) ** 2).sum(axis=0)[ok] / xx[ok]
+            fr = fr[np.isfinite(fr)]
+            out.append(fr.mean() if fr.size else np.nan)
+        return np.array(out)
+
+    def classifying(self):
+        return self.frame["g"] if self.frame["g"] is not None else self.frame["v"]
+
+    def classify(self, start, length):
+        """The best candidate of the classifying set's group (GS vectors, else CLVs): the
+        largest fraction beyond its chance dim / 2N (the last of equals); (c, fraction) or None."""
+        key = (start, length)
+        if key not in self.cache:
+            fr = self.fractions(self.classifying(), start, length)
+            score = np.where(np.isfinite(fr), fr - self.dims / (2 * self.n), -np.inf)
+            finite = np.flatnonzero(np.isfinite(fr))
+            c = None if not finite.size else int(finite[np.flatnonzero(score[finite] == score[finite].max())[-1]])
+            self.cache[key] = (c, fr)
+        c, fr = self.cache[key]
+        return None if c is None else (c, fr[c])
+
+    def clearly(self, start, length):
+        """classify, where its fraction is at least MIN_FRACTION beyond chance."""
+        m = self.classify(start, length)
+        if m is None or not excess(m[1], self.dims[m[0]], 4 * self.n) >= MIN_FRACTION:
+            return None
+        return m
+
+
+def excess(fraction, dim, d):
+    """(fraction - c) / (1 - c), c = dim / (D/2) a random vector's share; NaN where c >= 1."""
+    chance = dim / (d // 2)
+    return np.nan if chance >= 1 else (fraction - chance) / (1 - chance)
+
+
+def matches_degeneracy(length, c, families):
+    kind, fam = KINDS[c % 4], families[c // 4]
+    return length == mode_dim("T" if kind == "T" else "LP", fam)
+
+
+def joined(e, s, i, tol=STEP_TOL):
+    return abs(e[i] - e[i + 1]) <= tol * math.hypot(s[i], s[i + 1])
+
+
+def detect_steps(e, s, window, lengths):
+    """The candidate steps of the forward GS spectrum e (errors s) next to the null space (the
+    0-based indices 2N-3..2N+2), walking outwards on either side for up to `window` indices:
+    a group of one of `lengths` (longest first) is a step where it is a maximal run of
+    neighbours equal within STEP_TOL combined errors, or, as long as every index walked so
+    far is in a step, where its largest inner neighbour gap is below SEPARATION times both
+    gaps to its outer neighbours. [(start, length)], 0-based, in index order."""
+    d = len(e)
+    null_lo, null_hi = d // 2 - 3, d // 2 + 3
+    window = min(window, null_lo - 1)
+    runs, start = set(), 0
+    for i in range(d):
+        if i + 1 == d or not joined(e, s, i):
+            if i + 1 - start >= 2:
+                runs.add((start, i + 1 - start))
+            start = i + 1
+    gap = lambda i: abs(e[i] - e[i + 1])  # noqa: E731
+
+    def is_step(start, length, contiguous):
+        inner = [gap(i) for i in range(start, start + length - 1) if not math.isnan(gap(i))]
+        spread = max(inner, default=0.0)
+        separated = contiguous and math.isfinite(spread) and all(spread < SEPARATION * gap(i) for i in (start - 1, start + length - 1))
+        return (start, length) in runs or separated
+
+    steps = []
+    for positive in (True, False):
+        walked, contiguous = 0, True
+        while walked < window:
+            at = lambda length: null_lo - walked - length if positive else null_hi + walked  # noqa: E731
+            length = next((L for L in lengths if L >= 2 and walked + L <= window and is_step(at(L), L, contiguous)), None)
+            if length is None:
+                walked, contiguous = walked + 1, False
+            else:
+                steps.append((at(length), length))
+                walked += length
+    return sorted(steps)
+
+
+def resolve_steps(detected, mf, e, families, lengths):
+    """The mode steps, fixed at one frame mf (ModeFrame), from the detected steps (see the
+    docstring at the top: widened, pruned, found by their vectors). [((start, length), how)]
+    with how in "exponents", "widened", "vectors", in index order."""
+    d = len(e)
+    null_lo, null_hi = d // 2 - 3, d // 2 + 3
+    positive = lambda st: st[0] + st[1] <= null_lo  # noqa: E731
+    mirror = lambda st: (d - st[0] - st[1], st[1])  # noqa: E731
+    apart = lambda a, b: a[0] >= b[0] + b[1] or b[0] >= a[0] + a[1]  # noqa: E731
+
+    def stands_apart(st):
+        a, b = st[0], st[0] + st[1] - 1
+        spread = abs(e[a] - e[b])
+        return a > 0 and b + 1 < d and spread < abs(e[a - 1] - e[a]) and spread < abs(e[b] - e[b + 1])
+
+    out = []
+    for i, st in enumerate(detected):
+        partner = next((j for j, o in enumerate(detected) if positive(o) and not positive(st) and mirror(o) == st), None)
+        if partner is not None and partner < len(out):
+            out.append((mirror(out[partner][0]), out[partner][1]))
+            continue
+        widened = None
+        m = mf.clearly(*st)
+        if m is not None and KINDS[m[0] % 4] != "T" and st[1] < mode_dim("LP", families[m[0] // 4]):
+            f = m[0] // 4
+            length = mode_dim("LP", families[f])
+            best = None
+            for start in range(max(st[0] + st[1] - length, 0), st[0] + 1):
+                c = (start, length)
+                side = start + length <= null_lo or start >= null_hi
+                if start + length > d or not side or not all(j == i or apart(c, o) for j, o in enumerate(detected)) or not stands_apart(c):
+                    continue
+                lp = mf.fractions(mf.classifying(), start, length)[4 * f + 3]
+                if np.isfinite(lp) and (best is None or lp >= best[1]):
+                    best = (c, lp)
+            widened = best and best[0]
+        out.append((widened, "widened") if widened else (st, "exponents"))
+
+    def is_mode(item):
+        st, how = item
+        m = mf.clearly(*st)
+        return how != "exponents" or (m is not None and (KINDS[m[0] % 4] == "T" or st[1] >= mode_dim("LP", families[m[0] // 4])))
+
+    # The mode region bordering the null space: the step at it and each next one that is a mode.
+    keep = [False] * len(out)
+    for edge, outward in ((null_lo, -1), (null_hi, 1)):
+        end = edge
+        while True:
+            i = next((i for i, (st, _) in enumerate(out) if (st[0] + st[1] if outward < 0 else st[0]) == end), None)
+            if i is None or not (end == edge or is_mode(out[i])):
+                break
+            keep[i] = True
+            end = out[i][0][0] if outward < 0 else out[i][0][0] + out[i][0][1]
+    out = [item for item, k in zip(out, keep) if k or is_mode(item)]
+
+    def is_that_mode(st):
+        m = mf.clearly(*st)
+        return m is not None and matches_degeneracy(st[1], m[0], families)
+
+    edge = null_lo
+    while True:
+        below = next((st for st, _ in out if st[0] + st[1] == edge and positive(st)), None)
+        if below is not None:
+            edge = below[0]
+            continue
+        clear = lambda c: all(apart(c, o) for o, _ in out)  # noqa: E731
+        parts = next(([(edge - L, L)] for L in lengths if L < edge and clear((edge - L, L)) and stands_apart((edge - L, L)) and is_that_mode((edge - L, L))), None)
+        if parts is None:
+            for a in lengths:
+                for b in lengths:
+                    whole, inner, outer = (edge - a - b, a + b), (edge - a, a), (edge - a - b, b)
+                    if a + b < edge and clear(whole) and stands_apart(whole) and is_that_mode(inner) and is_that_mode(outer):
+                        parts = [inner, outer]
+                        break
+                if parts:
+                    break
+        if not parts:
+            break
+        for c in parts:
+            out.append((c, "vectors"))
+            if all(apart(mirror(c), o) for o, _ in out):
+                out.append((mirror(c), "vectors"))
+            edge = c[0]
+    return sorted(out)
+
+
+def fit_sine(x, y, k):
+    """Least squares y ~ A cos(k x) + B sin(k x): (amplitude, phase = atan2(-B, A), rms
+    residual), NaN from fewer than two finite points or singular normal equations."""
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if x.size < 2:
+        return (np.nan,) * 3
+    m = np.stack([np.cos(k * x), np.sin(k * x)], axis=1)
+    gram = m.T @ m
+    if abs(np.linalg.det(gram)) <= 1e-12 * gram.diagonal().max() ** 2:
+        return (np.nan,) * 3
+    (a, b), *_ = np.linalg.lstsq(m, y, rcond=None)
+    return (math.hypot(a, b), math.atan2(-b, a), float(np.sqrt(np.mean((y - m @ (a, b)) ** 2))))
+
+
+def across_fits(v, phase, w, lx, ly):
+    """Sine fits of dq and dp across k against the position along k (unwrapped): (q fit, p fit)."""
+    n = phase.size // 4
+    along, across = wave_axes(w, lx, ly)
+    x = phase[: 2 * n].reshape(n, 2) @ np.array(along)
+    k = wave_norm(w, lx, ly)
+    return tuple(fit_sine(x, part.reshape(n, 2) @ np.array(across), k) for part in (v[: 2 * n], v[2 * n :]))
+
+
+def fit_values(q, p):
+    """amp, resid, resid/amp of the dq fit and of the dp fit (the columns of modes_fits.csv)."""
+    return [q[0], q[2], q[2] / q[0], p[0], p[2], p[2] / p[0]]
+
+
+def pattern_axes(w, lx, ly):
+    """Position along k wrapped into the span over which the pattern repeats, its column name,
+    and the names of the components along and across k."""
+    k = wave_norm(w, lx, ly)
+    if w[1] == 0:
+        return lx, "q_x", "x", "y"
+    if w[0] == 0:
+        return ly, "q_y", "y", "x"
+    return math.tau * math.gcd(*w) / k, "e_k·q", "k", "t"
+
+
+def mode_tables(sampled, first, spectrum, lx, ly, d):
+    """The mode tables recomputed from the sampled frames (first: the frame the steps are
+    resolved at and the patterns drawn from) and the forward spectrum: ({file: [row dicts]}
+    for modes.csv (its rows are also modes.json's; "modes.json" holds the settings it lists),
+    modes_fits.csv, modes_lp.csv, modes_dispersion.csv, and "patterns": {file: {column:
+    values per disk}}; the resolved steps [((start, length), how)])."""
+    n = d // 4
+    families = mode_candidates(lx, ly)
+    e = np.asarray(spectrum["exponents"], float)
+    s = np.array([np.nan if x is None else x for x in spectrum["stderr"]], float)
+    lengths = sorted({mode_dim(kind, f) for f in families for kind in ("T", "LP")}, reverse=True)
+    k_min = families[0][1]
+    window = max(d // 16, 8, max(mode_dim("T", f) + mode_dim("LP", f) for f in families if f[1] == k_min))
+    shown = ModeFrame(first, families, lx, ly)
+    steps = resolve_steps(detect_steps(e, s, window, lengths), shown, e, families, lengths)
+    ncand = 4 * len(families)
+    acc = {st: {"votes": np.zeros(ncand, int), "gs": [], "clv": [], "fits": []} for st, _ in steps}
+    for f in sampled:
+        mf = shown if f is first else ModeFrame(f, families, lx, ly)
+        for st, _ in steps:
+            a = acc[st]
+            m = mf.classify(*st)
+            if m is not None:
+                a["votes"][m[0]] += 1
+            a["clv"].append(mf.fractions(f["v"], *st))
+            if f["g"] is not None:
+                a["gs"].append(mf.fractions(f["g"], *st))
+            if st[1] == 2:
+                a["fits"].append([[fit_values(*across_fits(x[:, st[0] + j], f["phase"], fam[0][0], lx, ly)) if x is not None and len(fam[0]) == 1 else [np.nan] * 6 for fam in families] for x in (f["g"], f["v"]) for j in range(2)])
+    frames_used = len(sampled)
+    rows, chosen = [], []
+    for st, how in steps:
+        a = acc[st]
+        votes = a["votes"]
+        best = None if votes.max(initial=0) == 0 else int(np.flatnonzero(votes == votes.max())[0])
+        gs = np.mean(a["gs"], axis=0) if a["gs"] else None
+        clv = np.mean(a["clv"], axis=0) if a["clv"] else None
+        pick = lambda m: None if best is None or m is None or not np.isfinite(m[best]) else float(m[best])  # noqa: E731
+        fraction = pick(gs) if pick(gs) is not None else pick(clv)
+        fam = None if best is None else families[best // 4]
+        kind = None if best is None else KINDS[best % 4]
+        beyond = np.nan if fraction is None else excess(fraction, mode_dim(kind, fam), d)
+        clear = beyond >= MIN_FRACTION
+        chosen.append(best if clear else None)
+        vals = e[st[0] : st[0] + st[1]]
+        if how == "exponents":
+            how = "degenerate" if all(joined(e, s, i) for i in range(st[0], st[0] + st[1] - 1)) else "separated"
+        rows.append({
+            "side": "+" if st[0] + st[1] <= d // 2 - 3 else "-", "first": str(st[0] + 1), "last": str(st[0] + st[1]),
+            "degeneracy": str(st[1]), "detection": how, "lambda": vals.sum() / st[1], "spread": vals.max() - vals.min(),
+            "kind": kind if clear else "-", "n_x": str(fam[0][0][0]) if clear else "", "n_y": str(fam[0][0][1]) if clear else "",
+            "k": fam[1] if clear else np.nan, "name": mode_name(kind, fam) if clear else "unclassified",
+            "best": "-" if best is None else mode_name(kind, fam), "beyond_chance": beyond,
+            "fraction_gs": np.nan if pick(gs) is None else pick(gs), "fraction_clv": np.nan if pick(clv) is None else pick(clv),
+            "agreement": 0.0 if best is None else votes[best] / max(frames_used, 1),
+            "consistent": str(bool(clear and matches_degeneracy(st[1], best, families))).lower(), "frames": str(frames_used),
+        })
+    head = {"frames": frames_used, "window": window, "max_n": MAX_N, "min_fraction": MIN_FRACTION, "step_tolerance": STEP_TOL, "separation": SEPARATION,
+            "candidates": ",".join(mode_name("T", f).replace("T", "") for f in families), "source": "GS vectors" if first["g"] is not None else "covariant vectors (the frames carry no GS vectors)"}
+    out = {"modes.csv": rows, "modes.json": head, "modes_fits.csv": [], "modes_lp.csv": [], "patterns": {}}
+    # modes_fits.csv, scope "mean": the two-fold steps classified T of one wave vector.
+    for (st, _), c, a in zip(steps, chosen, (acc[st] for st, _ in steps)):
+        if c is None or KINDS[c % 4] != "T" or len(families[c // 4][0]) != 1 or st[1] != 2:
+            continue
+        w = families[c // 4][0][0]
+        mean = np.mean(np.array(a["fits"], float), axis=0)  # (source x vector, family, 6)
+        for si, src in enumerate(("GS", "CLV")):
+            for j in range(2):
+                v = mean[si * 2 + j, c // 4]
+                if not np.all(np.isnan(v)):
+                    out["modes_fits.csv"].append(dict(zip(FIT_KEYS, [str(st[0] + 1), str(st[0] + 2), str(st[0] + j + 1), src, str(w[0]), str(w[1]), "mean"])) | dict(zip(FIT_COLS, v)))
+    # The pattern tables at the shown frame: positive steps classified as a mode of one wave
+    # vector with its degeneracy; T: Fig. 10 (last vector of the pair), else Figs. 11, 12.
+    phase, g, v = first["phase"], first["g"], first["v"]
+    for (st, _), c in zip(steps, chosen):
+        if c is None or len(families[c // 4][0]) != 1 or not st[0] + st[1] <= d // 2 - 3 or not matches_degeneracy(st[1], c, families):
+            continue
+        w = families[c // 4][0][0]
+        k = wave_norm(w, lx, ly)
+        along, across = (np.array(x) for x in wave_axes(w, lx, ly))
+        span, xname, a_name, t_name = pattern_axes(w, lx, ly)
+        x = np.mod(phase[: 2 * n].reshape(n, 2) @ along, span)
+        # file stems: "T1" for (1,0), "T1_m1" for (1,-1); the LP figures' "LP" whether L, P or LP
+        stem = lambda kind: f"{kind}{w[0]}" if w[1] == 0 else f"{kind}{w[0]}_{w[1]}".replace("-", "m")  # noqa: E731
+        if KINDS[c % 4] == "T":
+            i = st[0] + st[1] - 1
+            sources = ([("GS", g[:, i])] if g is not None else []) + [("CLV", v[:, i] * (-1.0 if g is not None and g[:, i] @ v[:, i] < 0 else 1.0))]
+            cols = {xname: x}
+            for part, comp in ((slice(0, 2 * n), f"dq{t_name}"), (slice(2 * n, 4 * n), f"dp{t_name}")):
+                for src, vec in sources:
+                    cols[f"{comp}_{src.lower()}"] = vec[part].reshape(n, 2) @ across
+            out["patterns"][f"fig10_{stem('T')}_i{i + 1}.csv"] = cols
+            for src, vec in sources:
+                out["modes_fits.csv"].append(dict(zip(FIT_KEYS, [str(st[0] + 1), str(st[0] + st[1]), str(i + 1), src, str(w[0]), str(w[1]), f"step {first['step']}"])) | dict(zip(FIT_COLS, fit_values(*across_fits(vec, phase, w, lx, ly)))))
+        else:
+            sources = ([("GS", g[:, st[0] : st[0] + st[1]])] if g is not None else []) + [("CLV", v[:, st[0] : st[0] + st[1]])]
+            targets = mode_patterns("LP", ([w], k), phase, lx, ly)  # L cos, L sin, P cos, P sin
+            cols = {xname: x}
+            for fig, part, ch, pattern in ((11, slice(0, 2 * n), "q", "sin"), (12, slice(2 * n, 4 * n), "p", "cos")):
+                for src, group in sources:
+                    for which, t in (("L", targets[:, 1 if pattern == "sin" else 0]), ("P", targets[:, 3 if pattern == "sin" else 2])):
+                        coef, *_ = np.linalg.lstsq(group[part], t, rcond=None)
+                        vec = group @ coef
+                        dot = vec[part] @ t
+                        overlap = abs(dot) / (np.linalg.norm(vec[part]) * np.linalg.norm(t))
+                        vec = vec * np.sign(dot) / np.linalg.norm(vec)
+                        field = vec[part].reshape(n, 2)
+                        if which == "L":
+                            y = field @ along
+                            cols[f"fig{fig}_L_d{ch}{a_name}_{src.lower()}"] = y
+                            cols[f"fig{fig}_L_d{ch}{t_name}_{src.lower()}"] = field @ across
+                        else:
+                            pn = phase[2 * n :].reshape(n, 2)
+                            y = (field * pn).sum(axis=1) / (pn**2).sum(axis=1)
+                            cols[f"fig{fig}_P_d{ch}_over_p_{src.lower()}"] = y
+                        amp, ph, res = fit_sine(x, y, k)
+                        out["modes_lp.csv"].append({"first": str(st[0] + 1), "last": str(st[0] + st[1]), "n_x": str(w[0]), "n_y": str(w[1]), "source": src, "figure": str(fig), "pattern": f"{which}_{pattern}", "overlap": overlap, "amplitude": amp, "phase": ph, "residual": res})
+            out["patterns"][f"{stem('LP')}_i{st[0] + 1}.csv"] = cols
+    # modes_dispersion.csv: the positive, consistently classified steps by kind, then |k|.
+    disp = [r for r in rows if r["side"] == "+" and r["consistent"] == "true" and np.isfinite(r["k"]) and np.isfinite(r["lambda"])]
+    disp.sort(key=lambda r: (r["kind"], r["k"]))
+    out["modes_dispersion.csv"] = [{"kind": r["kind"], "name": r["name"], "n_x": r["n_x"], "n_y": r["n_y"], "k": r["k"], "lambda": r["lambda"], "stderr": s[int(r["first"]) - 1 : int(r["last"])].sum() / int(r["degeneracy"]), "spread": r["spread"], "lambda_over_k": r["lambda"] / r["k"]} for r in disp]
+    return out, steps
+
+
+FIT_KEYS = ("first", "last", "i", "source", "n_x", "n_y", "scope")
+FIT_COLS = ("amp_dqt", "resid_dqt", "rel_resid_dqt", "amp_dpt", "resid_dpt", "rel_resid_dpt")
+
+
+# ---------------------------------------------------------------------------------------
+# Figs. 16-17: Theta = arccos |v^i . v^j| over the pairs of F^(J).
+
+THETA_BINS = 90  # on [0, pi/2], one degree wide
+# An angle within this of a bin edge may fall on either side of it in clv, which takes
+# arccos of the normalised dot product (error ~1e-16 / sin Theta <= 1e-13 above 1e-3 rad,
+# below which it switches to the same 2 arcsin(|v^i -+ v^j| / 2) as here): such an angle
+# counts in either bin.
+THETA_EDGE = 1e-10
+PAPER_SEPARATIONS = (1, 2, 4, 20, 50, 100, 200, 300)
+
+
+def f_size(d, steps):
+    """J of F^(J): the paper's 370 of 2N - 3 = 393 positive exponents scaled to this
+    system's m = 2N - 3 (rounded half up), at most m, ending before the first positive mode step."""
+    m = d // 2 - 3
+    before = min((st[0] for st in steps if st[0] + st[1] <= m), default=m)
+    return min(math.floor(370 * m / 393 + 0.5), m, before)
+
+
+def theta_separations(d, j):
+    """Fig. 16's separations: 1, 2, 4, the paper's larger ones scaled by D/792 (at least 1),
+    each once, all below J."""
+    return sorted(x for x in {s if s <= 4 else max(math.floor(s * d / 792 + 0.5), 1) for s in PAPER_SEPARATIONS} if x < j)
+
+
+def thetas(v, s, j):
+    """Theta of the pairs (v^a, v^(a+s)), a + s <= J, of every frame of v (T, D, k): (T, J - s)."""
+    f = v[:, :, :j]
+    a, b = f[:, :, s:], f[:, :, :-s]
+    sign = np.where(np.einsum("tdk,tdk->tk", a, b) >= 0, 1.0, -1.0)
+    return 2 * np.arcsin(np.minimum(np.linalg.norm(a - sign[:, None, :] * b, axis=1) / 2, 1.0))
+
+
+def theta_histogram(theta):
+    """Counts of THETA_BINS bins on [0, pi/2] (the last one closed) of the angles that are
+    clearly inside one bin, the number of finite angles, and per bin how many angles within
+    THETA_EDGE of one of its edges might be counted in it."""
+    theta = theta[np.isfinite(theta)].ravel()
+    w = math.pi / 2 / THETA_BINS
+    edge = np.rint(theta / w)
+    near = (np.abs(theta - edge * w) < THETA_EDGE) & (edge >= 1) & (edge < THETA_BINS)
+    counts = np.bincount(np.minimum((theta[~near] / w).astype(int), THETA_BINS - 1), minlength=THETA_BINS)
+    maybe = np.bincount(edge[near].astype(int) - 1, minlength=THETA_BINS) + np.bincount(edge[near].astype(int), minlength=THETA_BINS + 1)[:THETA_BINS]
+    return counts, theta.size, maybe
+
+
+# ---------------------------------------------------------------------------------------
+# Convergence of the spectra: the running estimates and the drift and independence tests
+# of the batch means (convergence_gs.csv, convergence_clv.csv, convergence_tests.csv).
+
+
+def block_means(x, blocks):
+    """The batch means of batch_stderr, oldest block first: (n, k) and the block length L."""
+    t = x.shape[0]
+    length = max(t // blocks, 1)
+    count = t // length
+    return x[t - count * length :].reshape(count, length, -1).mean(axis=1), length
+
+
+def student_t_two_sided(t, dof):
+    """P(|T| > t) for Student's t with an integer number of degrees of freedom, by the finite
+    series of Abramowitz & Stegun 26.7.3-4 (exact but for round-off, ~1e-16 absolute)."""
+    dof = int(round(dof))
+    theta = math.atan(abs(t) / math.sqrt(dof))
+    s, c = math.sin(theta), math.cos(theta)
+    if dof % 2 == 0:
+        term, total = 1.0, 1.0
+        for j in range(1, dof // 2):
+            term *= (2 * j - 1) / (2 * j) * c * c
+            total += term
+        a = s * total
+    else:
+        total = 0.0
+        if dof > 1:
+            term, total = c, c
+            for j in range(1, (dof - 1) // 2):
+                term *= (2 * j) / (2 * j + 1) * c * c
+                total += term
+        a = 2 / math.pi * (theta + s * total)
+    return 1.0 - a
+
+
+def halves_z(x):
+    """(mean of the newer half - mean of the older half) / the standard error of that
+    difference (the middle one of an odd count left out)."""
+    h = len(x) // 2
+    old, new = x[:h], x[len(x) - h :]
+    se = lambda y: np.std(y, ddof=1) / math.sqrt(len(y))  # noqa: E731
+    return (new.mean() - old.mean()) / math.hypot(se(old), se(new))
+
+
+def diagnose(means, neutral):
+    """The drift and independence tests of block means (n, k), oldest first, over the
+    exponents outside `neutral` whose spread over the blocks exceeds 1e-9 of the largest:
+    the fraction with |z| > 2, the largest |z| and its index, z of the sum of those whose
+    mean is positive and its two-sided Student t chance (2 (n//2 - 1) degrees of freedom),
+    the mean lag-1 autocorrelation r_1 and its limit -1/n + 2/sqrt(n); None with fewer than
+    4 blocks or none that vary."""
+    nb, k = means.shape
+    if nb < 4:
+        return None
+    spread = means.std(axis=0, ddof=1)
+    scale = np.nanmax(spread, initial=0.0)
+    varies = [i for i in range(k) if scale > 0 and spread[i] > 1e-9 * scale and i not in neutral]
+    if not varies:
+        return None
+    z = np.array([halves_z(means[:, i]) for i in varies])
+    dev = means[:, varies] - means[:, varies].mean(axis=0)
+    r1 = ((dev[1:] * dev[:-1]).sum(axis=0) / (dev**2).sum(axis=0)).mean()
+    top = int(np.argmax(np.abs(z))) if np.abs(z).max() > 0 else None
+    positive = [i for i in varies if means[:, i].sum() > 0]
+    sum_z = halves_z(means[:, positive].sum(axis=1)) if positive else math.nan
+    dof = 2 * (nb // 2 - 1)
+    return {
+        "blocks": nb, "tested": len(varies), "drifting_fraction": np.mean(np.abs(z) > 2), "max_abs_z": 0.0 if top is None else abs(z[top]),
+        "max_z_index": 1 if top is None else varies[top] + 1, "h_ks_z": sum_z,
+        "h_ks_chance": student_t_two_sided(sum_z, dof) if math.isfinite(sum_z) else 1.0, "r1": r1, "r1_limit": -1 / nb + 2 / math.sqrt(nb),
+    }
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("report")
@@ -266,11 +985,14 @@ def main():
     if d % 4:
         sys.exit(f"{args.frames}: D = {d} is not 4N: not a hard-disk run")
     n = d // 4
+    meta = metadata(args.frames)
+    run = meta.get("run.json", {})
+    config = run.get("config", run) or {}
+    forward = meta.get("spectrum.json")  # the forward GS spectrum: exponents, stderr, blocks
     if args.blocks is not None:
         blocks = args.blocks
     else:
-        run = metadata(args.frames).get("run.json", {})
-        blocks = (run.get("config", run) or {}).get("blocks")
+        blocks = config.get("blocks")
         if blocks is None:
             sys.exit(f"{args.frames}: no run.json blocks setting in its metadata: give --blocks")
     blocks = int(blocks)
@@ -287,6 +1009,38 @@ def main():
             gs_local = np.array([f["gs_local"] for f in frames])
             c.compare("spectrum.csv", "lambda_gs_window", i, gs_local.mean(axis=0)[i - 1], sp["lambda_gs_window"])
             c.compare("spectrum.csv", "stderr_gs_window", i, batch_stderr(gs_local, blocks)[i - 1], sp["stderr_gs_window"], TOL_ERR)
+        if forward is not None and "lambda_gs" in sp:  # the forward run's, as its spectrum.json has them
+            c.compare("spectrum.csv", "lambda_gs", i, np.asarray(forward["exponents"], float)[i - 1], sp["lambda_gs"])
+            c.compare("spectrum.csv", "stderr_gs", i, np.array([np.nan if x is None else x for x in forward["stderr"]], float)[i - 1], sp["stderr_gs"], TOL_ERR)
+
+    # Convergence: running means of the batch means (CLV: of every frame's local exponents;
+    # GS: the forward run's block averages in spectrum.json), and their tests.
+    tests = []
+    sources = [(0, "convergence_gs.csv", None), (1, "convergence_clv.csv", block_means(local, blocks))]
+    if forward is not None and (forward.get("blocks") or {}).get("exponents"):
+        sources[0] = (0, "convergence_gs.csv", (np.asarray(forward["blocks"]["exponents"], float), int(forward["blocks"]["block_steps"])))
+    tau = float(config.get("tau", np.nan))
+    neutral = range(max(2 * n - 3, 0), 2 * n + 3)
+    for ident, table, means in sources:
+        t = rep(table)
+        if means is None or t is None:
+            continue
+        means, length = means
+        running = np.cumsum(means, axis=0) / np.arange(1, len(means) + 1)[:, None]
+        rows = np.arange(1, len(means) + 1)
+        if len(t.get("t", [])) != len(means):
+            c.bad.append(f"disagreement: {table} has {len(t.get('t', []))} rows, mine {len(means)} blocks")
+            continue
+        c.compare(table, "t", rows, rows * (length * tau), t["t"])
+        for col in t:
+            if col.startswith("lambda_"):
+                c.compare(table, col, rows, running[:, int(col[len("lambda_") :]) - 1], t[col])
+        diag = diagnose(means, neutral)
+        if diag is not None:
+            tests.append({"spectrum_0gs_1clv": str(ident), "block_steps": float(length)} | diag)
+    ct = read_rows(os.path.join(args.report, "convergence_tests.csv"))
+    if ct is not None:
+        c.compare_rows("convergence_tests.csv", ("spectrum_0gs_1clv",), tests, ct, lambda r: "GS" if r["spectrum_0gs_1clv"] == "0" else "CLV")
 
     # Local exponents, finite-time exponents and domination: every frame.
     le = rep("local_exponents.csv")
@@ -380,24 +1134,98 @@ def main():
             c.compare(table, f"e{k + 1}", i, mine[:, k], t[f"e{k + 1}"])
         c.compare(table, "row_norm", i, np.linalg.norm(mine, axis=1), t["row_norm"])
 
-    # Figs. 16-17: Theta over pairs of F^(J), J - 1 the largest separation of the table.
+    # Lyapunov modes: the steps resolved at the newest sampled frame (the first clv reads:
+    # the backward pass runs backward in time), classified in every sampled frame.
+    steps, ambiguous = [], 0
+    system = config.get("system", {})
+    first = sampled[-1]
+    full = forward is not None and len(forward.get("exponents", [])) == d and v.shape[2] == d and d >= 8 and "lx" in system
+    if full:
+        mine, steps = mode_tables(sampled, first, forward, float(system["lx"]), float(system["ly"]), d)
+    else:  # clv writes an empty mode table (and says why)
+        mine = {"modes.csv": [], "modes_fits.csv": [], "modes_lp.csv": [], "modes_dispersion.csv": [], "patterns": {}}
+    span = lambda r: f"i = {r['first']}..{r['last']}"  # noqa: E731
+    mt = read_rows(os.path.join(args.report, "modes.csv"))
+    if mt is not None:
+        c.compare_rows("modes.csv", ("first", "last"), mine["modes.csv"], mt, span)
+    if os.path.exists(os.path.join(args.report, "modes.json")):
+        with open(os.path.join(args.report, "modes.json")) as f:
+            table = json.load(f)
+        cell = lambda x: str(x).lower() if isinstance(x, bool) else "" if x is None else str(x) if isinstance(x, (int, str)) else x  # noqa: E731
+        c.compare_rows("modes.json", ("first", "last"), mine["modes.csv"], [{k: cell(x) for k, x in r.items()} for r in table.get("modes", [])], span)
+        if full:  # the settings and candidates it lists beside the rows
+            theirs = {k: ",".join(x) if isinstance(x, list) else x for k, x in table.items() if k in mine["modes.json"]}
+            c.compare_rows("modes.json", (), [mine["modes.json"]], [theirs], lambda r: "head")
+    mf = read_rows(os.path.join(args.report, "modes_fits.csv"))
+    if mf is not None or mine["modes_fits.csv"]:
+        c.compare_rows("modes_fits.csv", ("first", "last", "i", "source", "scope"), mine["modes_fits.csv"], mf or [], lambda r: f"i = {r['i']} {r['source']} {r['scope']}")
+    ml = read_rows(os.path.join(args.report, "modes_lp.csv"))
+    if ml is not None or mine["modes_lp.csv"]:
+        ml = ml or []
+        keys = ("first", "last", "source", "figure", "pattern")
+        by_key = {tuple(m[k] for k in keys): m for m in mine["modes_lp.csv"]}
+        for r in ml:  # a phase is an angle in (-pi, pi]: -pi + 1e-16 and pi are the same one
+            m = by_key.get(tuple(r[k] for k in keys))
+            if m is not None and abs(m["phase"] - float(r["phase"])) > math.pi:
+                m["phase"] -= math.copysign(2 * math.pi, m["phase"] - float(r["phase"]))
+        c.compare_rows("modes_lp.csv", keys, mine["modes_lp.csv"], ml, lambda r: f"i = {r['first']}..{r['last']} {r['source']} Fig. {r['figure']} {r['pattern']}")
+    md = read_rows(os.path.join(args.report, "modes_dispersion.csv"))
+    if md is not None or mine["modes_dispersion.csv"]:
+        numbered = lambda rows: [{"row": str(r)} | x for r, x in enumerate(rows, 1)]  # noqa: E731
+        c.compare_rows("modes_dispersion.csv", ("row",), numbered(mine["modes_dispersion.csv"]), numbered(md or []), lambda r: r["name"])
+    written = {t for p in summary.get("produced", []) for t in p.get("tables", []) if re.fullmatch(r"(fig10_T|LP)\d+(_m?\d+)?_i\d+\.csv", t)}
+    for table in sorted(written | set(mine["patterns"])):
+        cols = mine["patterns"].get(table)
+        t = read_rows(os.path.join(args.report, table)) if table in written else None
+        if cols is None or t is None:
+            c.bad.append(f"disagreement: {table} is {'not recomputed here' if cols is None else 'not in the report'}")
+            continue
+        rows = [{"row": str(r + 1)} | {k: x[r] for k, x in cols.items()} for r in range(len(next(iter(cols.values()))))]
+        c.compare_rows(table, ("row",), rows, [{"row": str(r)} | x for r, x in enumerate(t, 1)], lambda r: f"disk {r['row']}")
+
+    # Figs. 16-17: Theta over the pairs of F^(J), J as clv chooses it (before the first
+    # positive mode step): min and mean per separation, and the histograms of Fig. 16.
+    j = f_size(d, [st for st, _ in steps]) if v.shape[2] == d else None
     tm = rep("theta_min.csv")
     if tm is not None and len(tm.get("separation", [])):
         seps = tm["separation"].astype(int)
-        f_j = v[:, :, : seps.max() + 1]
-        mins, means = [], []
+        if j is not None and list(seps) != list(range(1, j)):
+            c.bad.append(f"disagreement: theta_min.csv separations {seps.min()}..{seps.max()}, mine 1..{j - 1} (J = {j})")
+        else:
+            mins, means = [], []
+            for s in seps:
+                theta = thetas(v, s, seps.max() + 1)
+                mins.append(theta.min())
+                means.append(theta.mean())
+            c.compare("theta_min.csv", "min_theta", seps, mins, tm["min_theta"])
+            c.compare("theta_min.csv", "mean_theta", seps, means, tm["mean_theta"])
+    th = rep("theta_histograms.csv")
+    if th is not None and j is not None:
+        width = math.pi / 2 / THETA_BINS
+        bins = np.arange(1, THETA_BINS + 1)
+        c.compare("theta_histograms.csv", "theta_lo", bins, (bins - 1) * width, th["theta_lo"])
+        c.compare("theta_histograms.csv", "theta_hi", bins, bins * width, th["theta_hi"])
+        seps = theta_separations(d, j)
+        if sorted(int(col[len("density_sep_") :]) for col in th if col.startswith("density_sep_")) != seps:
+            c.bad.append(f"disagreement: theta_histograms.csv separations {[col for col in th if col.startswith('density_sep_')]}, mine {seps}")
         for s in seps:
-            a, b = f_j[:, :, s:], f_j[:, :, :-s]
-            sign = np.where(np.einsum("tdk,tdk->tk", a, b) >= 0, 1.0, -1.0)
-            theta = 2 * np.arcsin(np.minimum(np.linalg.norm(a - sign[:, None, :] * b, axis=1) / 2, 1.0))
-            mins.append(theta.min())
-            means.append(theta.mean())
-        c.compare("theta_min.csv", "min_theta", seps, mins, tm["min_theta"])
-        c.compare("theta_min.csv", "mean_theta", seps, means, tm["mean_theta"])
+            col = f"density_sep_{s}"
+            if col not in th:
+                continue
+            counts, total, maybe = theta_histogram(thetas(v, s, j))
+            ambiguous += int(maybe.sum()) // 2
+            # clv's density: count / (total * width); its counts back, to compare where an
+            # angle at a bin edge could have gone either way
+            theirs = th[col] * total * width
+            near = maybe > 0
+            c.compare("theta_histograms.csv", col, bins[~near], counts[~near] / (total * width), th[col][~near])
+            for b in np.flatnonzero(near):
+                if not (counts[b] - 1e-6 <= theirs[b] <= counts[b] + maybe[b] + 1e-6):
+                    c.bad.append(f"disagreement: theta_histograms.csv {col} {b + 1} mine {counts[b]}..{counts[b] + maybe[b]} angles report {theirs[b]!r}")
 
     if not c.checked:
         sys.exit(f"{args.report}: none of the tables this script checks is there")
-    print(json.dumps({"agree": not c.bad, "checked": c.checked, "checked_std": c.checked_std, "columns": c.columns, "frames": len(frames), "sampled": len(sampled), "every": every, "blocks": blocks, "tolerance": TOL, "tolerance_errors": TOL_ERR}))
+    print(json.dumps({"agree": not c.bad, "checked": c.checked, "checked_std": c.checked_std, "columns": c.columns, "frames": len(frames), "sampled": len(sampled), "every": every, "blocks": blocks, "tolerance": TOL, "tolerance_errors": TOL_ERR, "mode_steps": [[st[0] + 1, st[0] + st[1], how] for st, how in steps], "theta_j": j, "theta_at_bin_edges": ambiguous}))
     if c.bad:
         for line in c.bad:
             print(line, file=sys.stderr)

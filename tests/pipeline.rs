@@ -865,8 +865,10 @@ fn hard_disk_vectors_are_covariant_by_finite_differences() {
 
 /// The tables of a hard-disk report agree with scripts/verify_report.py, which recomputes them
 /// from the frames with its own numpy code (spectrum, localization, projections, overlaps,
-/// null space, Theta minima), on the frames of every 3rd step as the report samples them; a
-/// report with one number of localization.csv altered (relative 1e-6) is a disagreement.
+/// null space, Theta minima and histograms, local and finite-time exponents, domination,
+/// convergence, and the Lyapunov modes of a second, larger system that has them), on the
+/// frames of every 3rd step as the report samples them; a report with one number of any of
+/// these tables altered (relative 1e-6) is exactly that one disagreement.
 #[test]
 fn an_independent_recomputation_agrees_with_the_report_tables() {
     if !common::python_has("mcap, cbor2, numpy") {
@@ -878,16 +880,19 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     ok(clv(&["backward", run.to_str().unwrap(), "--out", frames.to_str().unwrap(), "--with-gs", "--quiet"]));
     ok(clv(&["analyze", frames.to_str().unwrap(), "--every", "3", "--out", report.to_str().unwrap(), "--quiet"]));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/verify_report.py");
-    let verify = |report: &Path| Command::new("python3").arg(&script).arg(report).arg(&frames).output().unwrap();
-    let out = ok(verify(&report));
+    let verify = |report: &Path, frames: &Path| Command::new("python3").arg(&script).arg(report).arg(frames).output().unwrap();
+    let out = ok(verify(&report, &frames));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(v["agree"] == true && v["every"] == 3 && v["sampled"].as_u64() == Some(100), "{v}");
-    for table in ["spectrum.csv", "local_exponents.csv", "finite_time_exponents.csv", "domination.csv", "localization.csv", "projections.csv", "overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv", "nullspace_alpha.csv", "nullspace_beta.csv", "theta_min.csv"] {
-        assert!(v["checked"][table].as_f64().is_some_and(|d| d < 1e-12), "{table}: {v}");
-    }
+    let all_checked = |v: &serde_json::Value, tables: &[&str]| {
+        for table in tables {
+            assert!(v["checked"][table].as_f64().is_some_and(|d| d < 1e-12), "{table}: {v}");
+        }
+    };
+    all_checked(&v, &["spectrum.csv", "local_exponents.csv", "finite_time_exponents.csv", "domination.csv", "localization.csv", "projections.csv", "overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv", "nullspace_alpha.csv", "nullspace_beta.csv", "theta_min.csv", "theta_histograms.csv", "convergence_gs.csv", "convergence_clv.csv", "convergence_tests.csv", "modes.csv", "modes.json"]);
     // The errors are checked too: batch means (stderr columns, in "checked" above) and the
     // _std columns, sample deviations over the frames (Welford's sums in clv: a constant's is 0).
-    for (table, columns) in [("spectrum.csv", &["stderr_clv", "stderr_gs_window"][..]), ("localization.csv", &["stderr_gs", "stderr_clv"]), ("projections.csv", &["eta_q_gs_std", "eta_q_clv_std"]), ("overlap_gs_clv.csv", &["abs_g_dot_v_std"]), ("overlap_clv_gs.csv", &["abs_v12_std"]), ("overlap_clv_clv.csv", &["abs_v7_std"]), ("local_exponents.csv", &["time", "lambda_1"]), ("finite_time_exponents.csv", &["windows", "mean", "std", "min", "max"]), ("domination.csv", &["overall", "outside_null", "border_unstable_null", "split_null_stable"])] {
+    for (table, columns) in [("spectrum.csv", &["stderr_clv", "stderr_gs_window", "stderr_gs"][..]), ("localization.csv", &["stderr_gs", "stderr_clv"]), ("projections.csv", &["eta_q_gs_std", "eta_q_clv_std"]), ("overlap_gs_clv.csv", &["abs_g_dot_v_std"]), ("overlap_clv_gs.csv", &["abs_v12_std"]), ("overlap_clv_clv.csv", &["abs_v7_std"]), ("local_exponents.csv", &["time", "lambda_1"]), ("finite_time_exponents.csv", &["windows", "mean", "std", "min", "max"]), ("domination.csv", &["overall", "outside_null", "border_unstable_null", "split_null_stable"]), ("convergence_clv.csv", &["t", "lambda_1"]), ("convergence_tests.csv", &["tested", "h_ks_z", "h_ks_chance", "r1"]), ("theta_histograms.csv", &["theta_lo", "density_sep_1", "density_sep_8"])] {
         for column in columns {
             assert!(v["columns"][table].as_array().unwrap().iter().any(|c| c == column), "{table} {column}: {v}");
         }
@@ -896,32 +901,97 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
         assert!(v["checked_std"][table].as_f64().is_some_and(|d| d < 1e-12), "{table}: {v}");
     }
 
-    // A copy of the report to alter.
-    let altered = base.join("altered");
-    std::fs::create_dir_all(&altered).unwrap();
-    for entry in std::fs::read_dir(&report).unwrap() {
-        let path = entry.unwrap().path();
-        std::fs::copy(&path, altered.join(path.file_name().unwrap())).unwrap();
-    }
+    // The N = 8 system has no mode steps. N = 40 in the paper's box has a T(1,0) pair and an
+    // LP(1,0) quadruplet next to it (and their mirrors): the mode table, the sine fits, the
+    // reconstructed L and P vectors, the dispersion table and the per-disk pattern tables.
+    let (modes_run, modes_frames, modes_report) = (base.join("modes-run"), base.join("modes-frames.mcap"), base.join("modes-report"));
+    ok(clv(&["forward", "--n", "40", "--aspect", "2/11", "--steps", "600", "--relax-steps", "100", "--clv-steps", "60", "--seed", "1", "--quiet", "--out", modes_run.to_str().unwrap()]));
+    ok(clv(&["backward", modes_run.to_str().unwrap(), "--out", modes_frames.to_str().unwrap(), "--with-gs", "--quiet"]));
+    ok(clv(&["analyze", modes_frames.to_str().unwrap(), "--every", "3", "--out", modes_report.to_str().unwrap(), "--quiet"]));
+    let m: serde_json::Value = serde_json::from_slice(&ok(verify(&modes_report, &modes_frames)).stdout).unwrap();
+    assert!(m["agree"] == true && m["mode_steps"].as_array().is_some_and(|s| s.len() >= 4), "{m}");
+    let pattern = |prefix: &str| m["checked"].as_object().unwrap().keys().find(|t| t.starts_with(prefix)).cloned().unwrap_or_else(|| panic!("no {prefix}* table: {m}"));
+    let (fig10, lp) = (pattern("fig10_T"), pattern("LP"));
+    all_checked(&m, &["modes.csv", "modes.json", "modes_fits.csv", "modes_lp.csv", "modes_dispersion.csv", &fig10, &lp, "theta_min.csv", "theta_histograms.csv"]);
+
     // One number of one table off by a relative 1e-6 (in a copy of the report, the other
-    // tables as written): exactly that one disagreement, and exit 1.
-    let one_altered = |file: &str, column: &str, i: usize| {
-        let table = read(&report.join(file));
-        let mut lines: Vec<String> = table.lines().map(str::to_string).collect();
-        let at = lines[0].split(',').position(|c| c == column).unwrap();
-        let mut fields: Vec<String> = lines[i].split(',').map(str::to_string).collect();
-        assert_eq!(fields[0], i.to_string());
-        fields[at] = format!("{:e}", fields[at].parse::<f64>().unwrap() * (1.0 + 1e-6));
-        lines[i] = fields.join(",");
-        std::fs::write(altered.join(file), lines.join("\n") + "\n").unwrap();
-        let out = verify(&altered);
-        std::fs::copy(report.join(file), altered.join(file)).unwrap();
-        let err = common::stderr(&out);
-        assert!(out.status.code() == Some(1) && err.contains(&format!("disagreement: {file} {column} {i} ")), "{err}");
+    // tables as written): exactly that one disagreement, and exit 1. Rows are counted from 1
+    // after the header (in a table of indices i = 1, 2, ..., row i is index i).
+    let fields = |line: &str| -> Vec<String> {
+        // split at the commas outside quotes ("T(1,0)"), keeping the quotes
+        let (mut out, mut cell, mut quoted) = (Vec::new(), String::new(), false);
+        for ch in line.chars() {
+            match ch {
+                ',' if !quoted => out.push(std::mem::take(&mut cell)),
+                _ => {
+                    quoted ^= ch == '"';
+                    cell.push(ch);
+                }
+            }
+        }
+        out.push(cell);
+        out
+    };
+    let copy = |report: &Path| {
+        let altered = report.with_extension("altered");
+        std::fs::create_dir_all(&altered).unwrap();
+        for entry in std::fs::read_dir(report).unwrap() {
+            let path = entry.unwrap().path();
+            std::fs::copy(&path, altered.join(path.file_name().unwrap())).unwrap();
+        }
+        altered
+    };
+    let (altered, modes_altered) = (copy(&report), copy(&modes_report));
+    let is_the_one = |out: &std::process::Output, what: &str| {
+        let err = common::stderr(out);
+        assert!(out.status.code() == Some(1) && err.contains(&format!("disagreement: {what} ")), "{what}: {err}");
         assert_eq!(err.lines().filter(|l| l.starts_with("disagreement")).count(), 1, "{err}");
     };
-    one_altered("localization.csv", "W_clv", 2);
-    one_altered("spectrum.csv", "stderr_clv", 3);
+    let one_altered = |(report, altered, frames): (&Path, &Path, &Path), file: &str, column: &str, i: usize| {
+        let table = read(&report.join(file));
+        let mut lines: Vec<String> = table.lines().map(str::to_string).collect();
+        let at = fields(&lines[0]).iter().position(|c| c == column).unwrap();
+        let mut cells = fields(&lines[i]);
+        if lines[0].starts_with("i,") {
+            assert_eq!(cells[0], i.to_string());
+        }
+        let x: f64 = cells[at].parse().unwrap();
+        assert!(x != 0.0 && x.is_finite(), "{file} {column} {i}: {x} does not change by a relative 1e-6");
+        cells[at] = format!("{:e}", x * (1.0 + 1e-6));
+        lines[i] = cells.join(",");
+        std::fs::write(altered.join(file), lines.join("\n") + "\n").unwrap();
+        let out = verify(altered, frames);
+        std::fs::copy(report.join(file), altered.join(file)).unwrap();
+        is_the_one(&out, &format!("{file} {column} {i}"));
+    };
+    // The row of a column's largest value (a histogram's densities are mostly 0).
+    let largest = |report: &Path, file: &str, column: &str| {
+        let table = read(&report.join(file));
+        let at = fields(table.lines().next().unwrap()).iter().position(|c| c == column).unwrap();
+        let values: Vec<f64> = table.lines().skip(1).map(|l| fields(l)[at].parse().unwrap()).collect();
+        1 + (0..values.len()).max_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap()
+    };
+    let small = (report.as_path(), altered.as_path(), frames.as_path());
+    one_altered(small, "localization.csv", "W_clv", 2);
+    one_altered(small, "spectrum.csv", "stderr_clv", 3);
+    one_altered(small, "spectrum.csv", "stderr_gs", 3);
+    one_altered(small, "theta_histograms.csv", "density_sep_2", largest(&report, "theta_histograms.csv", "density_sep_2"));
+    one_altered(small, "convergence_clv.csv", "lambda_1", 2);
+    one_altered(small, "convergence_gs.csv", "lambda_5", 3);
+    one_altered(small, "convergence_tests.csv", "h_ks_chance", 2);
+    let with_modes = (modes_report.as_path(), modes_altered.as_path(), modes_frames.as_path());
+    one_altered(with_modes, "modes.csv", "fraction_gs", 1);
+    one_altered(with_modes, "modes_fits.csv", "resid_dpt", 2);
+    one_altered(with_modes, "modes_lp.csv", "overlap", 3);
+    one_altered(with_modes, "modes_dispersion.csv", "stderr", 1);
+    one_altered(with_modes, &fig10, "dqy_clv", 3);
+    one_altered(with_modes, &lp, "fig12_P_dp_over_p_gs", 4);
+    // modes.json: the same number as modes.csv's, in its rows.
+    let mut json: serde_json::Value = serde_json::from_str(&read(&modes_report.join("modes.json"))).unwrap();
+    let x = json["modes"][0]["lambda"].as_f64().unwrap();
+    json["modes"][0]["lambda"] = serde_json::json!(x * (1.0 + 1e-6));
+    std::fs::write(modes_altered.join("modes.json"), serde_json::to_vec_pretty(&json).unwrap()).unwrap();
+    is_the_one(&verify(&modes_altered, &modes_frames), "modes.json lambda 1");
 }
 
 /// Frames of the k < D leading vectors: the report says once what needs all D and is left
