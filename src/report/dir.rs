@@ -417,10 +417,10 @@ pub fn report_in(out: &Path) -> ReportDir {
     ReportDir::Report { run, finished }
 }
 
-/// Save a figure as SVG and PNG ([`write_report_file`]).
-pub fn save_figure(fig: &crate::report::plot::Figure, out: &Path, stem: &str) -> Result<()> {
-    write_report_file(&out.join(format!("{stem}.svg")), fig.to_svg().as_bytes())?;
-    write_report_file(&out.join(format!("{stem}.png")), &fig.to_png())
+/// Save a figure or panels of figures as SVG and PNG ([`write_report_file`]).
+pub fn save_figure(fig: &impl crate::report::plot::Image, out: &Path, stem: &str) -> Result<()> {
+    write_report_file(&out.join(format!("{stem}.svg")), fig.svg().as_bytes())?;
+    write_report_file(&out.join(format!("{stem}.png")), &fig.png())
 }
 
 #[cfg(test)]

@@ -3,7 +3,9 @@
 //! The project may not pull in plotting or image crates, yet every analysis
 //! needs a figure. This module covers exactly what the reports use: x-y line
 //! and point series, step histograms, arrow fields and reference lines, with a
-//! framed axis box, "nice" ticks, labels, title and legend.
+//! framed axis box, "nice" ticks, labels, title and legend; a series' colour and
+//! open or filled markers where a figure asks for them; and [`Panels`], several
+//! figures in one image.
 //!
 //! Design: [`Figure`] first computes a layout and a backend-neutral list of
 //! primitives in pixel coordinates (`scene`); `svg` turns that list into SVG
@@ -210,6 +212,9 @@ struct Series {
     label: String,
     color: Rgb,
     kind: Kind,
+    /// Point markers set open (rings) or filled by [`Figure::open_markers`]; None: by the
+    /// series' place ([`pen`]).
+    open: Option<bool>,
 }
 
 /// A 2-D figure: build it with the chained setters, add data, then render
@@ -326,8 +331,57 @@ impl Figure {
             label: label.to_string(),
             color,
             kind,
+            open: None,
         });
         self
+    }
+
+    /// The series added last takes colour `k` of the palette (0 blue, 1 vermillion, 2 bluish
+    /// green, 3 reddish purple, 4 orange, 5 sky blue, 6 black, 7 olive; taken modulo 8)
+    /// instead of the colour of its place: for one quantity in one colour across figures.
+    pub fn color(&mut self, k: usize) -> &mut Self {
+        if let Some(s) = self.series.last_mut() {
+            s.color = PALETTE[k % PALETTE.len()];
+        }
+        self
+    }
+
+    /// The point markers of the series added last are open rings (`true`) or filled dots
+    /// (`false`), whatever its place (by default the first three series draw dots and later
+    /// ones rings, [`pen`]): for a distinction the reader is told of, such as the paper's
+    /// open symbols for one method and filled ones for the other. Sizes: see
+    /// [`Figure::pens`].
+    pub fn open_markers(&mut self, open: bool) -> &mut Self {
+        if let Some(s) = self.series.last_mut() {
+            s.open = Some(open);
+        }
+        self
+    }
+
+    /// How each series is drawn: [`pen`] by its place, with the markers that
+    /// [`Figure::open_markers`] sets. Markers are sized by the series' place among those of
+    /// their kind (series without markers counted as `pen` counts them: dots for the first
+    /// three, rings after), as `pen` sizes them: filled dots shrink from radius 3 to 2 to
+    /// 1.5 px (and stay there), rings grow from 4.5 px by 1.5 px each, so that coinciding
+    /// rings never share a pixel and lie around every dot. Where no series sets its markers
+    /// this is `pen`'s own rule.
+    fn pens(&self) -> Vec<Pen> {
+        let n = self.series.len();
+        let (mut dots, mut rings) = (0usize, 0usize);
+        let mut pens = Vec::with_capacity(n);
+        for (k, s) in self.series.iter().enumerate() {
+            let mut p = pen(k, n);
+            p.ring = s.open.unwrap_or(p.ring);
+            p.dot_r = if p.ring {
+                rings += 1;
+                DOT_R + 1.5 * rings as f64
+            } else {
+                dots += 1;
+                DOT_R - [0.0, 1.0, 1.5][(dots - 1).min(2)]
+            };
+            pens.push(p);
+        }
+        pens
     }
 
     /// Add an x-y series (pairs beyond the shorter slice are ignored).
@@ -465,8 +519,8 @@ impl Figure {
         let [l, t, r, b] = lay.frame();
         if lw + 20.0 <= r - l && lh + 20.0 <= b - t {
             let mut data = Vec::new();
-            for (k, s) in self.series.iter().enumerate() {
-                series_prims(&lay, s, pen(k, self.series.len()), &mut data);
+            for (s, pen) in self.series.iter().zip(self.pens()) {
+                series_prims(&lay, s, pen, &mut data);
             }
             let (x0, x1, y0, y1) = (l + 10.0, r - 10.0 - lw, t + 10.0, b - 10.0 - lh);
             let corners = [(x1, y0), (x0, y0), (x1, y1), (x0, y1)];
@@ -512,14 +566,13 @@ impl Figure {
 
     /// Frame and ticks for the data ranges `x` and `y`.
     fn frame_geometry(&self, x: (f64, f64), y: (f64, f64), right: f64, bottom: f64) -> Layout {
-        let scale = if self.w.min(self.h) < 400 { 1 } else { 2 };
+        let scale = text_scale(self.w, self.h);
         let ch = f64::from(8 * scale); // text line height in pixels
         let (w, h) = (f64::from(self.w), f64::from(self.h));
         // Room for the title and the x label (height) and the y label (width).
         let room = |s: &String, v: f64| if s.is_empty() { 0.0 } else { v };
         // Lines 1.25 text heights apart, as drawn in [`Figure::scene`].
-        let lines = self.title_lines(scale).len() as f64;
-        let t = room(&self.title, ((1.25 + 1.25 * lines) * ch).round()).max(16.0);
+        let t = room(&self.title, title_height(self.title_lines(scale).len(), ch)).max(16.0);
         let (xl_h, yl_w) = (
             room(&self.x_label, ch + 8.0),
             room(&self.y_label, ch + 10.0),
@@ -644,8 +697,8 @@ impl Figure {
                 prims.push(Prim::Line((l, py), (r, py), GREY, 1.0, None));
             }
         }
-        for (k, s) in self.series.iter().enumerate() {
-            series_prims(&lay, s, pen(k, self.series.len()), &mut prims);
+        for (s, pen) in self.series.iter().zip(self.pens()) {
+            series_prims(&lay, s, pen, &mut prims);
         }
         prims.push(Prim::Rect([l, t, r, b], None, Some(INK)));
         for (v, s) in &lay.xticks {
@@ -673,15 +726,9 @@ impl Figure {
             label.vertical = true;
             prims.push(Prim::Text(label));
         }
-        let lines = self.title_lines(sc);
-        for (i, line) in lines.iter().enumerate() {
-            // Centre on the plot frame if the line fits there, else on the image.
-            let cx = if text_w(line, sc) < r - l { (l + r) / 2.0 } else { w / 2.0 };
-            let y = (1.25 + 1.25 * i as f64) * ch;
-            let mut label = text(cx, y.round(), line, Anchor::Middle);
-            label.bold = true;
-            prims.push(Prim::Text(label));
-        }
+        // Centre on the plot frame if the line fits there, else on the image.
+        let centre = |line: &str| if text_w(line, sc) < r - l { (l + r) / 2.0 } else { w / 2.0 };
+        prims.extend(title_labels(&self.title_lines(sc), sc, centre));
         self.legend(&lay, &mut prims);
         (lay, prims)
     }
@@ -696,10 +743,11 @@ impl Figure {
         let line_h = f64::from(8 * sc) + 6.0;
         let sample = 14.0 * f64::from(sc);
         prims.push(Prim::Rect([x0, y0, x1, y1], Some(WHITE), Some(GREY)));
+        let pens = self.pens();
         for (row, (k, s)) in self.legend_entries().into_iter().enumerate() {
             let cy = (y0 + 3.0 + line_h * (row as f64 + 0.5)).round();
             let (a, b) = ((x0 + 8.0, cy), (x0 + 8.0 + sample, cy));
-            let pen = pen(k, self.series.len());
+            let pen = pens[k];
             let marker = match s.kind {
                 Kind::Xy(_, m) => m,
                 Kind::Arrows(_) => Marker::Line,
@@ -723,6 +771,121 @@ impl Figure {
                 Anchor::Start,
             )));
         }
+    }
+}
+
+/// Bitmap text scale of an image of `w` x `h` pixels (1 = 5x8 glyphs).
+fn text_scale(w: u32, h: u32) -> u32 {
+    if w.min(h) < 400 { 1 } else { 2 }
+}
+
+/// Height in pixels of a title of `lines` lines of text height `ch`: lines 1.25 text
+/// heights apart, as [`title_labels`] draws them.
+fn title_height(lines: usize, ch: f64) -> f64 {
+    ((1.25 + 1.25 * lines as f64) * ch).round()
+}
+
+/// The bold labels of a title's `lines` at text scale `sc`, each centred at `centre(line)`.
+fn title_labels(lines: &[String], sc: u32, centre: impl Fn(&str) -> f64) -> Vec<Prim> {
+    let ch = f64::from(8 * sc);
+    let label = |(i, line): (usize, &String)| {
+        let y = (1.25 + 1.25 * i as f64) * ch;
+        let mut label = Label::new(centre(line), y.round(), line, sc, Anchor::Middle);
+        label.bold = true;
+        Prim::Text(label)
+    };
+    lines.iter().enumerate().map(label).collect()
+}
+
+/// Several figures in one image, as the paper's multi-panel figures: a grid of `cols`
+/// columns filled row by row (left to right, then top to bottom), each panel a whole
+/// [`Figure`] with its own axes, ranges, title and legend, drawn at its own size at the
+/// top left of a cell as large as the largest panel, under a title of the whole.
+pub struct Panels {
+    title: String,
+    cols: usize,
+    panels: Vec<Figure>,
+}
+
+impl Panels {
+    /// No panels yet, `cols` (at least 1) to a row.
+    pub fn new(title: &str, cols: usize) -> Self {
+        Panels { title: title.to_string(), cols: cols.max(1), panels: Vec::new() }
+    }
+
+    /// Add a panel, after those added before it in reading order.
+    pub fn push(&mut self, fig: Figure) -> &mut Self {
+        self.panels.push(fig);
+        self
+    }
+
+    /// Image size, the title's labels, and each panel's top-left corner.
+    fn layout(&self) -> (u32, u32, Vec<Prim>, Vec<(u32, u32)>) {
+        let cell_w = self.panels.iter().map(|f| f.w).max().unwrap_or(120);
+        let cell_h = self.panels.iter().map(|f| f.h).max().unwrap_or(120);
+        let cols = self.cols.min(self.panels.len()).max(1) as u32;
+        let rows = self.panels.len().div_ceil(cols as usize).max(1) as u32;
+        let w = cols * cell_w;
+        let sc = text_scale(cell_w, cell_h);
+        // The title wraps as a figure's of the whole width.
+        let lines = Figure::new(&self.title).size(w, cell_h).title_lines(sc);
+        let top = if lines.is_empty() { 0.0 } else { title_height(lines.len(), f64::from(8 * sc)) } as u32;
+        let title = title_labels(&lines, sc, |_| f64::from(w) / 2.0);
+        let corners = (0..self.panels.len() as u32).map(|k| ((k % cols) * cell_w, top + (k / cols) * cell_h)).collect();
+        (w, top + rows * cell_h, title, corners)
+    }
+
+    /// Render as an SVG 1.1 document, each panel in a group of its own.
+    pub fn to_svg(&self) -> String {
+        let (w, h, title, corners) = self.layout();
+        let scenes: Vec<(Layout, Vec<Prim>)> = self.panels.iter().map(Figure::scene).collect();
+        let mut parts = vec![svg::Part { at: (0.0, 0.0), frame: [0.0, 0.0, f64::from(w), f64::from(h)], prims: &title }];
+        for ((lay, prims), &(x, y)) in scenes.iter().zip(&corners) {
+            parts.push(svg::Part { at: (f64::from(x), f64::from(y)), frame: lay.frame(), prims });
+        }
+        svg::document(w, h, &parts)
+    }
+
+    /// Render as a PNG file (RGB, 8 bits per channel).
+    pub fn to_png(&self) -> Vec<u8> {
+        let canvas = self.raster();
+        png::encode(canvas.w, canvas.h, &canvas.px)
+    }
+
+    fn raster(&self) -> raster::Canvas {
+        let (w, h, title, corners) = self.layout();
+        let mut canvas = raster::Canvas::new(w, h);
+        for p in &title {
+            canvas.draw(p, [0.0, 0.0, f64::from(w), f64::from(h)]);
+        }
+        for (fig, &(x, y)) in self.panels.iter().zip(&corners) {
+            canvas.blit(&fig.raster(), x, y);
+        }
+        canvas
+    }
+}
+
+/// An image a report writes as SVG and PNG: one [`Figure`] or [`Panels`] of them.
+pub trait Image {
+    fn svg(&self) -> String;
+    fn png(&self) -> Vec<u8>;
+}
+
+impl Image for Figure {
+    fn svg(&self) -> String {
+        self.to_svg()
+    }
+    fn png(&self) -> Vec<u8> {
+        self.to_png()
+    }
+}
+
+impl Image for Panels {
+    fn svg(&self) -> String {
+        self.to_svg()
+    }
+    fn png(&self) -> Vec<u8> {
+        self.to_png()
     }
 }
 

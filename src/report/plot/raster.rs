@@ -36,6 +36,17 @@ impl Canvas {
         Rgb(self.px[i], self.px[i + 1], self.px[i + 2])
     }
 
+    /// Copy `other` onto this canvas with its top-left corner at (`x0`, `y0`), cut at the
+    /// edges (a panel into the image of [`super::Panels`]).
+    pub(super) fn blit(&mut self, other: &Canvas, x0: u32, y0: u32) {
+        let w = other.w.min(self.w.saturating_sub(x0)) as usize;
+        for y in 0..other.h.min(self.h.saturating_sub(y0)) {
+            let src = 3 * (y as usize * other.w as usize);
+            let dst = 3 * ((y0 + y) as usize * self.w as usize + x0 as usize);
+            self.px[dst..dst + 3 * w].copy_from_slice(&other.px[src..src + 3 * w]);
+        }
+    }
+
     /// Drawable box: the clip box, or the whole image.
     fn bounds(&self) -> [i64; 4] {
         let (w, h) = (i64::from(self.w) - 1, i64::from(self.h) - 1);

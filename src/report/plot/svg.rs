@@ -34,20 +34,61 @@ fn dash_attr(dash: &Dash) -> String {
     })
 }
 
+/// The primitives of one figure in a document: drawn shifted by `at` (pixels), their data
+/// clipped to `frame`, the `[left, top, right, bottom]` box in the figure's own pixels.
+pub(super) struct Part<'a> {
+    pub(super) at: (f64, f64),
+    pub(super) frame: [f64; 4],
+    pub(super) prims: &'a [Prim],
+}
+
 /// Render `prims` as an SVG document of size `w` x `h`; `frame` is the
 /// `[left, top, right, bottom]` box that data primitives are clipped to.
 pub(super) fn render(w: u32, h: u32, frame: [f64; 4], prims: &[Prim]) -> String {
-    const CLIP: &str = " clip-path=\"url(#plotarea)\"";
-    let [l, t, r, b] = frame;
+    document(w, h, &[Part { at: (0.0, 0.0), frame, prims }])
+}
+
+/// An SVG document of size `w` x `h` holding `parts`, each with a clip path of its own
+/// (`plotarea` for a lone part at the origin, else `plotarea<k>` inside a translated group).
+pub(super) fn document(w: u32, h: u32, parts: &[Part]) -> String {
+    let clip_def = |id: &str, [l, t, r, b]: [f64; 4]| {
+        format!(
+            "<defs><clipPath id=\"{id}\"><rect x=\"{l:.1}\" y=\"{t:.1}\" \
+             width=\"{:.1}\" height=\"{:.1}\"/></clipPath></defs>\n",
+            r - l,
+            b - t
+        )
+    };
+    const BACKGROUND: &str = "<rect width=\"100%\" height=\"100%\" fill=\"#ffffff\"/>\n";
     let mut s = format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" \
-         width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\">\n\
-         <defs><clipPath id=\"plotarea\"><rect x=\"{l:.1}\" y=\"{t:.1}\" \
-         width=\"{:.1}\" height=\"{:.1}\"/></clipPath></defs>\n\
-         <rect width=\"100%\" height=\"100%\" fill=\"#ffffff\"/>\n",
-        r - l,
-        b - t
+         width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\">\n"
     );
+    match parts {
+        [only] if only.at == (0.0, 0.0) => {
+            s += &clip_def("plotarea", only.frame);
+            s += BACKGROUND;
+            body(&mut s, only.prims, "plotarea");
+        }
+        _ => {
+            s += BACKGROUND;
+            for (k, part) in parts.iter().enumerate() {
+                let id = format!("plotarea{k}");
+                let _ = writeln!(s, "<g transform=\"translate({:.2} {:.2})\">", part.at.0, part.at.1);
+                s += &clip_def(&id, part.frame);
+                body(&mut s, part.prims, &id);
+                s.push_str("</g>\n");
+            }
+        }
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+/// The elements of `prims`, data clipped to the clip path `clip_id`.
+fn body(s: &mut String, prims: &[Prim], clip_id: &str) {
+    let clip_attr = format!(" clip-path=\"url(#{clip_id})\"");
+    let clip = clip_attr.as_str();
     // `write!` into a String cannot fail, so its Result is ignored below.
     for p in prims {
         match p {
@@ -61,7 +102,7 @@ pub(super) fn render(w: u32, h: u32, frame: [f64; 4], prims: &[Prim]) -> String 
                 let _ = writeln!(
                     s,
                     "<path d=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"{width}\"{} \
-                     stroke-linejoin=\"round\"{CLIP}/>",
+                     stroke-linejoin=\"round\"{clip}/>",
                     d.trim_end(),
                     hex(*color),
                     dash_attr(dash)
@@ -91,8 +132,8 @@ pub(super) fn render(w: u32, h: u32, frame: [f64; 4], prims: &[Prim]) -> String 
                     y1 - y0
                 );
             }
-            Prim::Dots(pts, color, r, ring, clip) => {
-                let clip = if *clip { CLIP } else { "" };
+            Prim::Dots(pts, color, r, ring, clipped) => {
+                let clip = if *clipped { clip } else { "" };
                 let paint = if *ring {
                     format!(
                         "fill=\"none\" stroke=\"{}\" stroke-width=\"1\"",
@@ -107,11 +148,9 @@ pub(super) fn render(w: u32, h: u32, frame: [f64; 4], prims: &[Prim]) -> String 
                 }
                 s.push_str("</g>\n");
             }
-            Prim::Text(t) => text(&mut s, t),
+            Prim::Text(t) => text(s, t),
         }
     }
-    s.push_str("</svg>\n");
-    s
 }
 
 fn text(s: &mut String, t: &Label) {

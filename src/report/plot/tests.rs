@@ -756,3 +756,95 @@ fn a_long_title_is_wrapped_inside_the_image() {
     let long = Figure::new(&["word"; 300].join(" ")).size(300, 300).title_lines(1);
     assert!(long.last().unwrap().ends_with("..."), "{long:?}");
 }
+
+/// `color` gives a series the palette entry asked for, whatever its place; `open_markers`
+/// makes its markers rings or dots, whatever its place, in the plot and in the legend, and
+/// coinciding open and filled markers both stay visible.
+#[test]
+fn colours_and_open_or_filled_markers_are_set_per_series() {
+    let xs: Vec<f64> = (0..12).map(f64::from).collect();
+    let ys: Vec<f64> = xs.iter().map(|x| x * x).collect();
+    let mut fig = Figure::new("styles");
+    fig.series("a", &xs, &ys, Marker::Points).color(2);
+    fig.series("b", &xs, &ys, Marker::Line).color(5);
+    fig.series("c", &xs, &ys, Marker::Line);
+    fig.series("d", &xs, &ys, Marker::Points).color(1).open_markers(false);
+    fig.series("open", &xs, &ys, Marker::Points).color(0).open_markers(true);
+    let pens = fig.pens();
+    assert_eq!(fig.series[1].color, PALETTE[5]);
+    assert_eq!((fig.series[3].color, fig.series[4].color), (PALETTE[1], PALETTE[0]));
+    // Dots by their place among the series set or left to draw dots (3, 2, then 1.5 px),
+    // rings from 4.5 px on.
+    assert_eq!(pens.iter().map(|p| (p.ring, p.dot_r)).collect::<Vec<_>>()[..], [(false, 3.0), (false, 2.0), (false, 1.5), (false, 1.5), (true, 4.5)][..]);
+    // Without any set, pens are pen's.
+    let mut plain = Figure::new("plain");
+    for k in 0..6 {
+        plain.series(&k.to_string(), &xs, &ys, Marker::Points);
+    }
+    for (k, p) in plain.pens().iter().enumerate() {
+        let q = pen(k, 6);
+        assert_eq!((p.ring, p.dot_r, p.widen, p.dash), (q.ring, q.dot_r, q.widen, q.dash), "series {k}");
+    }
+    // SVG: the open series' markers (plot and legend) are unfilled circles of one radius,
+    // the filled one's filled.
+    let svg = fig.to_svg();
+    let groups = |col| svg_elements(&svg, "<g", col);
+    let open = groups(PALETTE[0]);
+    assert!(open.len() == 2 && open.iter().all(|g| attr(g, "fill") == Some("none")), "{open:?}");
+    let filled = groups(PALETTE[1]);
+    assert!(filled.len() == 2 && filled.iter().all(|g| attr(g, "fill") == Some("#d55e00")), "{filled:?}");
+    // PNG: at a data point the ring leaves its centre to the dots beneath, and shows around them.
+    let c = fig.raster();
+    let lay = fig.layout();
+    let (px, py) = lay.map((6.0, 36.0));
+    let (x, y) = (px.round() as u32, py.round() as u32);
+    assert_ne!(c.get(x, y), PALETTE[0], "an open marker's centre is not painted");
+    assert!(colours_near(&c, (px, py), 5).contains(&PALETTE[0]), "ring missing");
+    assert!(colours_near(&c, (px, py), 1).contains(&PALETTE[1]), "the dot under the ring is hidden");
+}
+
+/// Panels: every panel is its figure's own image, placed in a grid of the given columns
+/// under the title; the SVG holds one translated group per panel with a clip path of its
+/// own.
+#[test]
+fn panels_place_whole_figures_in_a_grid_under_a_title() {
+    let panel = |k: usize| {
+        let mut fig = Figure::new(&format!("panel {k}")).size(500, 400);
+        let xs: Vec<f64> = (0..20).map(f64::from).collect();
+        let ys: Vec<f64> = xs.iter().map(|x| (x / (k + 2) as f64).sin()).collect();
+        fig.series("", &xs, &ys, Marker::Line).color(k);
+        fig
+    };
+    let mut p = Panels::new("Three panels, two to a row", 2);
+    for k in 0..3 {
+        p.push(panel(k));
+    }
+    let (w, h, title, corners) = p.layout();
+    let top = title_height(1, 16.0) as u32;
+    assert_eq!((w, h), (1000, top + 800));
+    assert_eq!(corners, [(0, top), (500, top), (0, top + 400)]);
+    assert_eq!(title.len(), 1);
+    let c = p.raster();
+    for (k, &(x0, y0)) in corners.iter().enumerate() {
+        let own = panel(k).raster();
+        let same = (0..own.h).all(|y| (0..own.w).all(|x| c.get(x0 + x, y0 + y) == own.get(x, y)));
+        assert!(same, "panel {k} is not its figure's image");
+    }
+    // The empty fourth cell stays white; the title is drawn above the panels.
+    assert!((top..top + 400).all(|y| (500..1000).all(|x| c.get(x, y + 400) == WHITE)));
+    assert!((0..top).any(|y| (0..w).any(|x| c.get(x, y).0 < 80)), "title missing");
+    let (pw, ph, _) = parse_png(&p.to_png()).expect("valid PNG");
+    assert_eq!((pw, ph), (w, h));
+    let svg = p.to_svg();
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    assert_eq!(svg.matches("<g transform=\"translate(").count(), 4, "the title's part and three panels");
+    assert!(svg.contains("<g transform=\"translate(500.00 ") && svg.contains(&format!("translate(0.00 {}.00)", top + 400)));
+    for k in 1..4 {
+        assert!(svg.contains(&format!("<clipPath id=\"plotarea{k}\">")) && svg.contains(&format!("url(#plotarea{k})")), "panel {k}'s clip path");
+    }
+    assert_eq!(svg.matches("<g").count(), svg.matches("</g>").count());
+    // One column stacks them.
+    let mut stacked = Panels::new("", 1);
+    stacked.push(panel(0)).push(panel(1));
+    assert_eq!(stacked.layout().3, [(0, 0), (0, 400)]);
+}
