@@ -797,6 +797,10 @@ fn title_labels(lines: &[String], sc: u32, centre: impl Fn(&str) -> f64) -> Vec<
     lines.iter().enumerate().map(label).collect()
 }
 
+/// The size in pixels of one panel of the reports' [`Panels`]: two to a row are about as
+/// wide as one figure.
+pub const PANEL: (u32, u32) = (600, 420);
+
 /// Several figures in one image, as the paper's multi-panel figures: a grid of `cols`
 /// columns filled row by row (left to right, then top to bottom), each panel a whole
 /// [`Figure`] with its own axes, ranges, title and legend, drawn at its own size at the

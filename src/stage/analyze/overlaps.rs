@@ -21,7 +21,7 @@ use super::kernels::angles::{abs_dots_pairwise, abs_dots_with};
 use super::kernels::modes::Step;
 use super::{save_figure, write_csv, Analysis, Context, Mean, Produced};
 use crate::error::Result;
-use crate::report::plot::{Figure, Marker};
+use crate::report::plot::{Figure, Marker, Panels, PANEL};
 use crate::stage::frame::Frame;
 use std::path::Path;
 
@@ -262,12 +262,19 @@ impl Overlaps {
         let means: Vec<&Mean> = vg.iter().collect();
         let (header, rows) = per_j_table(ctx, &self.fig4_js, &means, "abs_v");
         csv(out, "overlap_clv_gs.csv", &header, rows)?;
-        let mut fig = Figure::new("Covariant vector v^j against all GS vectors: <|v^j · g^i|>").x_label("i").y_label("<|v^j · g^i|>");
-        for (m, j) in vg.iter().zip(&self.fig4_js) {
-            fig.series(&format!("j = {}", j + 1), &shared.idx, &m.mean(), shared.line);
+        let selected = self.fig4_js == self.js;
+        // The paper's four kinds in its arrangement: unstable left, stable right, the
+        // vectors that are no mode above the mode vectors.
+        let order: Vec<usize> = if !selected && vg.len() == 4 { vec![0, 3, 1, 2] } else { (0..vg.len()).collect() };
+        let mut panels = Panels::new("Covariant vector v^j against all GS vectors: <|v^j · g^i|>", 2);
+        for p in order {
+            let j = self.fig4_js[p];
+            let mut fig = Figure::new(&format!("j = {}", j + 1)).size(PANEL.0, PANEL.1).x_label("i").y_label("<|v^j · g^i|>");
+            fig.series("", &shared.idx, &vg[p].mean(), shared.line);
+            panels.push(fig);
         }
-        save_figure(&fig, out, "fig4_clv_gs_overlap")?;
-        let which = if self.fig4_js == self.js {
+        save_figure(&panels, out, "fig4_clv_gs_overlap")?;
+        let which = if selected {
             "the selected covariant vectors".to_string()
         } else {
             format!(
@@ -275,10 +282,15 @@ impl Overlaps {
                 ctx.d - self.fig4_js.last().copied().unwrap_or_default()
             )
         };
+        let arranged = if !selected && vg.len() == 4 {
+            "arranged as the paper's: unstable vectors left, stable right, the vectors that are no mode at the top, the mode vectors below"
+        } else {
+            "left to right, then top to bottom"
+        };
         Ok(Produced {
             title: "Covariant vectors in the GS basis (Fig. 4)".into(),
             caption: format!(
-                "Time average of |v^j · g^i| against i for {which}, j = {}, {}. Since V = G C with upper-triangular C, v^j lies in span{{g^1..g^j}}: the curves vanish for i > j.",
+                "Time average of |v^j · g^i| against i for {which}, j = {}, {}; one panel per j, {arranged}. Since V = G C with upper-triangular C, v^j lies in span{{g^1..g^j}}: the curves vanish for i > j.",
                 list(&self.fig4_js),
                 shared.avg
             ),
@@ -330,18 +342,22 @@ impl Overlaps {
             Some(first) => (first.saturating_sub(4), ctx.d - 1 - first.saturating_sub(4)),
             None => central,
         };
-        let mut fig = Figure::new("Mode vectors: <|v^j · v^i|> in the mode regime, i != j").x_label("i").y_label("<|v^j · v^i|>");
-        for &j in &self.mode_js {
+        // Nearest the null space first, two to a row: the paper's arrangement where T and LP
+        // steps alternate from the null space on (T(1,0) and LP(1,0) in the top row).
+        let mut panels = Panels::new("Mode vectors: <|v^j · v^i|> in the mode regime, i != j", 2);
+        for &j in self.mode_js.iter().rev() {
             if let Some(m) = self.vv_mean(j) {
                 let y = without_self(&m, j);
-                fig.series(&format!("j = {}", j + 1), &shared.idx[a..=b], &y[a..=b], Marker::LinePoints);
+                let mut fig = Figure::new(&format!("j = {}", j + 1)).size(PANEL.0, PANEL.1).x_label("i").y_label("<|v^j · v^i|>");
+                fig.series("", &shared.idx[a..=b], &y[a..=b], Marker::LinePoints);
+                panels.push(fig);
             }
         }
-        save_figure(&fig, out, "fig14_mode_overlap")?;
+        save_figure(&panels, out, "fig14_mode_overlap")?;
         Ok(Produced {
             title: "Scalar products of mode vectors (Fig. 14)".into(),
             caption: format!(
-                "Time average of |v^j · v^i| for j = {} ({}) against i = {}..{} (i != j), {}.{}",
+                "Time average of |v^j · v^i| for j = {} ({}) against i = {}..{} (i != j), {}, one panel per j, two to a row, from the j nearest the null space (the paper's six panels have T(n,0) left and LP(n,0) right, n = 1, 2, 3 downwards, the order the steps alternate in; the mode table says what each step here is).{}",
                 list(&self.mode_js),
                 if !self.mode_steps.is_empty() {
                     "the last index of each positive mode step, found as the mode table finds them, which says what they are"
@@ -548,16 +564,24 @@ mod tests {
             let out = scratch(&format!("overlaps-fig4-{default}"));
             let produced = a.finish(&out, 1).unwrap();
             let header = std::fs::read_to_string(out.join("overlap_clv_gs.csv")).unwrap().lines().next().unwrap().to_string();
-            (produced.into_iter().find(|p| p.title.contains("Fig. 4")).expect("Fig. 4").caption, header)
+            // One panel per j, in reading order.
+            let svg = std::fs::read_to_string(out.join("fig4_clv_gs_overlap.svg")).unwrap();
+            let mut panels: Vec<(usize, usize)> = (1..=d).filter_map(|j| svg.find(&format!(">j = {j}</text>")).map(|at| (at, j))).collect();
+            panels.sort_unstable();
+            let panels: Vec<usize> = panels.into_iter().map(|(_, j)| j).collect();
+            (produced.into_iter().find(|p| p.title.contains("Fig. 4")).expect("Fig. 4").caption, header, panels)
         };
         // 2N-3 = 17 positive exponents, a T step at 16..17: the last before it is 15; the
         // paper's 93 of 393 scales to 4, whose conjugate is 37.
-        let (caption, header) = fig4(true);
+        let (caption, header, panels) = fig4(true);
         assert!(caption.contains("paper's j = 370, 393, 400 and 700") && caption.contains("j = 15, 17, 24, 37,") && caption.contains("step at i = 4)"), "{caption}");
         assert!(header.contains("abs_v15_mean,abs_v15_std,abs_v17_mean,abs_v17_std,abs_v24_mean,abs_v24_std,abs_v37_mean"), "{header}");
-        let (caption, header) = fig4(false);
+        // The paper's arrangement: 370 and 700 at the top, 393 and 400 below.
+        assert_eq!(panels, [15, 37, 17, 24], "{caption}");
+        let (caption, header, panels) = fig4(false);
         assert!(caption.contains("the selected covariant vectors, j = 1, 9, 16,"), "{caption}");
         assert!(header.contains("abs_v1_mean,abs_v1_std,abs_v9_mean,abs_v9_std,abs_v16_mean"), "{header}");
+        assert_eq!(panels, [1, 9, 16]);
     }
 
     /// With no mode steps to end before, a small system's last default j is its smallest
