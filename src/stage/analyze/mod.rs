@@ -96,6 +96,12 @@ pub struct Context {
     pub j_default: bool,
 }
 
+/// Palette colours ([`crate::report::plot::Figure::color`]) of the two kinds of vector
+/// wherever a figure shows both, the paper's blue for Gram-Schmidt and red for covariant
+/// (Figs. 2, 8, 9, 10-12): one colour per kind across the report.
+pub const GS_COLOR: usize = 0;
+pub const CLV_COLOR: usize = 1;
+
 /// How often the analyses that apply to this run read V_n, for the backward stage's
 /// `vectors_every`: at every `--every`-th step by default, but at every frame of the Henon
 /// map, whose picture follows the vectors along the orbit (and where V costs nothing).

@@ -590,16 +590,36 @@ fn fit_curve(fit: &SineFit, k: f64, span: f64) -> (Vec<f64>, Vec<f64>) {
     (x, y)
 }
 
-/// A scatter figure of per-disk values against the position along k with sine-fit curves.
-fn pattern_figure(title: &str, y_label: &str, axes: &WaveAxes, x: &[f64], points: &[(String, Vec<f64>)], fits: &[(String, SineFit)]) -> Figure {
+/// Per-disk values of one source of vectors ("GS" or "CLV") in a pattern figure, in the
+/// source's colour ([`source_color`]); a check, a pattern that vanishes for an ideal mode,
+/// in open markers.
+struct Scatter {
+    label: String,
+    src: String,
+    y: Vec<f64>,
+    check: bool,
+}
+
+/// The palette colour of the vectors of `src`, "GS" or "CLV", as in every figure that
+/// shows both ([`super::GS_COLOR`]).
+fn source_color(src: &str) -> usize {
+    if src == "GS" { super::GS_COLOR } else { super::CLV_COLOR }
+}
+
+/// A scatter figure of per-disk values against the position along k with sine-fit curves
+/// (label, source, fit), each in its source's colour: the values first, then the checks,
+/// then the fits.
+fn pattern_figure(title: &str, y_label: &str, axes: &WaveAxes, x: &[f64], points: &[Scatter], fits: &[(String, String, SineFit)]) -> Figure {
     let mut fig = Figure::new(title).x_label(axes.x_label).y_label(y_label).x_range(0.0, axes.span);
-    for (label, y) in points {
-        fig.series(label, x, y, Marker::Points);
+    for check in [false, true] {
+        for p in points.iter().filter(|p| p.check == check) {
+            fig.series(&p.label, x, &p.y, Marker::Points).color(source_color(&p.src)).open_markers(check);
+        }
     }
-    for (label, fit) in fits {
+    for (label, src, fit) in fits {
         if fit.amplitude.is_finite() {
             let (cx, cy) = fit_curve(fit, axes.k, axes.span);
-            fig.series(label, &cx, &cy, Marker::Line);
+            fig.series(label, &cx, &cy, Marker::Line).color(source_color(src));
         }
     }
     fig.hline(0.0);
@@ -667,9 +687,9 @@ fn transverse_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave
         for &(src, v) in &sources {
             let y = km::project(km::part_of(v, part), axes.across);
             let fit = km::fit_sine(&x, &y, axes.k);
-            fits.push((format!("{src} fit: A = {:.3}, rms residual {:.3}", fit.amplitude, fit.residual), fit));
+            fits.push((format!("{src} fit: A = {:.3}, rms residual {:.3}", fit.amplitude, fit.residual), src.to_string(), fit));
             columns.push(format!("{comp}_{}", src.to_lowercase()), &y);
-            points.push((src.to_string(), y));
+            points.push(Scatter { label: src.to_string(), src: src.to_string(), y, check: false });
         }
         let title = format!("{name}, i = {}: {label} against {} (step {})", i + 1, axes.x_label, frame.step);
         let fstem = format!("{stem}_{comp}");
@@ -687,14 +707,14 @@ fn transverse_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave
         Produced {
             title: format!("Transverse mode {name} (Fig. 10)"),
             caption: format!(
-                "Position (δq_{t}) and momentum (δp_{t}) perturbations{} of vector i = {} of the {name} pair (i = {}..{}) against s = {} at step {}, for the {}, with least-squares fits A cos(k s + φ), k = {:.4}. Fits of both vectors of the pair averaged over the frames are in modes_fits.csv (columns dqt, dpt: across k).",
+                "Position (δq_{t}) and momentum (δp_{t}) perturbations{} of vector i = {} of the {name} pair (i = {}..{}) against s = {} at step {}, for the {}, with least-squares fits A cos(k s + φ) in the same colours, k = {:.4}. Fits of both vectors of the pair averaged over the frames are in modes_fits.csv (columns dqt, dpt: across k).",
                 if t == "t" { " across k" } else { "" },
                 i + 1,
                 step.start + 1,
                 step.start + step.len,
                 axes.x_label,
                 frame.step,
-                if gs.is_some() { "GS vector and the covariant vector (sign matched to the GS vector)" } else { "covariant vector" },
+                if gs.is_some() { "GS vector (blue) and the covariant vector (vermillion, sign matched to the GS vector)" } else { "covariant vector (vermillion)" },
                 axes.k
             ),
             figures: figs,
@@ -757,22 +777,22 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
                 let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
                 across.push(format!("{src} {:.2}", rms(&l_y) / rms(&l_x)));
             }
-            l_points.push((format!("{src} δ{c}_{a}"), l_x));
-            l_points.push((format!("{src} δ{c}_{t} (0 for an ideal L)"), l_y));
-            p_points.push((format!("{src} (δ{c}·p)/p²"), p_f));
-            l_fits.push((format!("{src} fit: A = {:.3}", lfit.amplitude), lfit));
-            p_fits.push((format!("{src} fit: A = {:.3}", pfit.amplitude), pfit));
+            l_points.push(Scatter { label: format!("{src} δ{c}_{a}"), src: src.into(), y: l_x, check: false });
+            l_points.push(Scatter { label: format!("{src} δ{c}_{t} (0 for an ideal L)"), src: src.into(), y: l_y, check: true });
+            p_points.push(Scatter { label: format!("{src} (δ{c}·p)/p²"), src: src.into(), y: p_f, check: false });
+            l_fits.push((format!("{src} fit: A = {:.3}", lfit.amplitude), src.to_string(), lfit));
+            p_fits.push((format!("{src} fit: A = {:.3}", pfit.amplitude), src.to_string(), pfit));
         }
         let what = if part == Part::Position { "position" } else { "momentum" };
         for (which, points, fits, y_label) in [("L", &l_points, &l_fits, format!("δ{c}")), ("P", &p_points, &p_fits, format!("(δ{c}·p)/p²"))] {
             // dividing by p^2 blows up the nearly resting disks: they would flatten the sinusoid
-            let range = robust_range(points.iter().flat_map(|(_, y)| y.iter().copied()));
+            let range = robust_range(points.iter().flat_map(|p| p.y.iter().copied()));
             let title = format!("{name}: pure {which} ({pattern} pattern) from the {what} perturbations, step {}{}", frame.step, range.map(|(_, _, off)| format!(" ({off} points off scale)")).unwrap_or_default());
             let fstem = format!("fig{fig_no}_{stem}_{which}");
             let mut fig = pattern_figure(&title, &y_label, &axes, &x, points, fits);
             if let Some((lo, hi, off)) = range {
                 fig = fig.y_range(lo, hi);
-                let total = points.iter().flat_map(|(_, y)| y.iter()).filter(|y| y.is_finite()).count();
+                let total = points.iter().flat_map(|p| p.y.iter()).filter(|y| y.is_finite()).count();
                 let why = if which == "P" { ", divided by p² of nearly resting disks" } else { "" };
                 off_scale.push(format!("Fig. {fig_no} {which}: {off} of {total} points beyond {lo:.3}..{hi:.3}{why}"));
             }
@@ -785,7 +805,7 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
         Produced {
             title: format!("Longitudinal-momentum mode {name} (Figs. 11, 12)"),
             caption: format!(
-                "Pure L and P vectors reconstructed at step {} inside the four-dimensional {} of {name} (i = {}..{}) by least squares against the Table III patterns, against {}: Fig. 11 from the position perturbations (sine patterns: δq_{a} of L, with δq_{t}, which vanishes for an ideal L pattern, as a check, here rms δq_{t} / rms δq_{a} = {}, and (δq·p)/p² of P, the momenta divided out), Fig. 12 likewise from the momentum perturbations (cosine patterns). Overlaps and sine fits are in modes_lp.csv.{}",
+                "Pure L and P vectors reconstructed at step {} inside the four-dimensional {} of {name} (i = {}..{}) by least squares against the Table III patterns, against {}: Fig. 11 from the position perturbations (sine patterns: δq_{a} of L, with δq_{t}, which vanishes for an ideal L pattern, as a check, here rms δq_{t} / rms δq_{a} = {}, and (δq·p)/p² of P, the momenta divided out), Fig. 12 likewise from the momentum perturbations (cosine patterns). GS values in blue, CLV values in vermillion (as in Fig. 10), each with its sine fit in its colour; the checks of L, δq_{t} and δp_{t}, in open markers. Overlaps and sine fits are in modes_lp.csv.{}",
                 frame.step,
                 if frame.g.is_some() { "GS and covariant subspaces" } else { "covariant subspace" },
                 step.start + 1,
@@ -886,6 +906,12 @@ mod tests {
         let stem = format!("fig10_T2_i{}", 2 * N - 3);
         for f in ["dqy", "dpy"] {
             assert!(is_png(&out.join(format!("{stem}_{f}.png"))));
+            // GS and covariant vectors, each with its fit, in the GS and CLV colours (blue,
+            // vermillion) and no other, as in Figs. 11 and 12
+            let svg = std::fs::read_to_string(out.join(format!("{stem}_{f}.svg"))).unwrap();
+            let data: Vec<&str> = svg.lines().filter(|l| l.starts_with("<g ") || l.starts_with("<path")).collect();
+            let count = |c: &str| data.iter().filter(|l| l.contains(c)).count();
+            assert!(count("#0072b2") == 3 && count("#d55e00") == 3 && data.len() == 6, "{data:?}");
         }
         let plotted = fits.iter().find(|r| r["scope"] == "step 100" && r["source"] == "CLV").unwrap();
         assert!((plotted["amp_dqt"].parse::<f64>().unwrap() - expected[0][1]).abs() < 1e-12);
@@ -956,6 +982,12 @@ mod tests {
         for fig in ["fig11", "fig12"] {
             for m in ["L", "P"] {
                 assert!(is_png(&out.join(format!("{fig}_LP1_i{}_{m}.png", 2 * N - 6))));
+                // Values and fits in the CLV colour of Fig. 10 (vermillion) and no other; the
+                // check of L (its component across k) in open markers.
+                let svg = std::fs::read_to_string(out.join(format!("{fig}_LP1_i{}_{m}.svg", 2 * N - 6))).unwrap();
+                let data: Vec<&str> = svg.lines().filter(|l| l.starts_with("<g ") || l.starts_with("<path")).collect();
+                assert!(data.iter().all(|l| l.contains("#d55e00")), "{fig} {m}: {data:?}");
+                assert_eq!(data.iter().any(|l| l.starts_with("<g fill=\"none\" stroke=\"#d55e00\"")), m == "L", "{fig} {m}: {data:?}");
             }
         }
         assert!(produced.iter().any(|p| p.title.contains("LP(1,0)")));

@@ -2,7 +2,7 @@
 //! CLV spectrum (time average of the local exponents of the frames), against i/4N, and the
 //! mode region with each positive exponent beside its conjugate partner.
 
-use super::{save_figure, write_csv, Analysis, Context, Produced};
+use super::{save_figure, write_csv, Analysis, Context, Produced, CLV_COLOR, GS_COLOR};
 use crate::config::SystemConfig;
 use crate::error::Result;
 use crate::report::plot::{Figure, Marker};
@@ -94,8 +94,8 @@ impl Analysis for Spectrum {
         // A line between a handful of exponents (the Henon map's two) would look like data.
         let marker = if ctx.k <= 8 { Marker::Points } else { Marker::Line };
         let mut fig = Figure::new("Lyapunov spectrum: GS forward, CLV backward").x_label(reduced).y_label("λ_i");
-        fig.series(if same_steps { "GS (forward), same steps" } else { "GS (forward), whole run" }, &x, gs, marker);
-        fig.series("CLV (backward)", &x, &clv, marker);
+        fig.series(if same_steps { "GS (forward), same steps" } else { "GS (forward), whole run" }, &x, gs, marker).color(GS_COLOR);
+        fig.series("CLV (backward)", &x, &clv, marker).color(CLV_COLOR);
         fig.hline(0.0);
         save_figure(&fig, out, "fig2_spectrum")?;
         // The spectrum.json of builds before h_KS was reported has the exponents but no error.
@@ -157,16 +157,17 @@ impl Analysis for Spectrum {
             let first = ctx.central_range().map_or(0, |(first, _)| first);
             let idx: Vec<f64> = (first..=last).map(|i| (i + 1) as f64).collect();
             let pick = |v: &[f64], conj: bool| -> Vec<f64> { (first..=last).map(|i| if conj { -v[ctx.d - 1 - i] } else { v[i] }).collect() };
+            // The paper's symbols: open for GS, filled for CLV; the lines join the λ_i.
             let mut fig = Figure::new("Mode region: λ_i and -λ_(4N+1-i)").x_label("i").y_label("λ");
-            fig.series("GS λ_i", &idx, &pick(gs, false), Marker::LinePoints);
-            fig.series("GS -λ_(4N+1-i)", &idx, &pick(gs, true), Marker::Points);
-            fig.series("CLV λ_i", &idx, &pick(&clv, false), Marker::LinePoints);
-            fig.series("CLV -λ_(4N+1-i)", &idx, &pick(&clv, true), Marker::Points);
+            fig.series("CLV λ_i", &idx, &pick(&clv, false), Marker::LinePoints).color(CLV_COLOR).open_markers(false);
+            fig.series("CLV -λ_(4N+1-i)", &idx, &pick(&clv, true), Marker::Points).color(CLV_COLOR).open_markers(false);
+            fig.series("GS λ_i", &idx, &pick(gs, false), Marker::LinePoints).color(GS_COLOR).open_markers(true);
+            fig.series("GS -λ_(4N+1-i)", &idx, &pick(gs, true), Marker::Points).color(GS_COLOR).open_markers(true);
             save_figure(&fig, out, "fig8_mode_region")?;
             produced.push(Produced {
                 title: "Mode region of the spectrum (Fig. 8)".into(),
                 caption: format!(
-                    "The positive exponents λ_{}..λ_{} next to the null space, with the negated conjugate exponents at the same index (paper Fig. 8); the GS exponents are those of {}. Steps of equal or nearly equal exponents are where Lyapunov modes may sit (in a small system the four exponents of an LP mode can differ by many standard errors); the mode table says which steps were found, what they are and how far each one's exponents spread. {}",
+                    "The positive exponents λ_{}..λ_{} next to the null space, with the negated conjugate exponents at the same index (paper Fig. 8): as there, open symbols for the GS exponents, filled ones for the CLV exponents (in the report's GS and CLV colours, blue and vermillion), lines joining the λ_i, the conjugates -λ_(4N+1-i) unjoined; the GS exponents are those of {}. Steps of equal or nearly equal exponents are where Lyapunov modes may sit (in a small system the four exponents of an LP mode can differ by many standard errors); the mode table says which steps were found, what they are and how far each one's exponents spread. {}",
                     first + 1,
                     last + 1,
                     if same_steps { "the frames' steps, as the CLV ones" } else { "the whole run" },
@@ -344,6 +345,12 @@ mod tests {
                 assert_eq!(row["lambda_gs"], crate::stage::analyze::csv_number(spectrum(n, 2).exponents[i]));
             }
             assert_eq!(produced[0].caption.contains("both over the same 60 frames' steps"), !missing, "{}", produced[0].caption);
+            // Fig. 8 in the paper's symbols: open for GS (blue), filled for CLV (vermillion).
+            let svg = std::fs::read_to_string(out.join("fig8_mode_region.svg")).unwrap();
+            let groups: Vec<&str> = svg.lines().filter(|l| l.starts_with("<g ")).collect();
+            let (gs, clv): (Vec<&str>, Vec<&str>) = (groups.iter().filter(|g| g.contains("#0072b2")).copied().collect(), groups.iter().filter(|g| g.contains("#d55e00")).copied().collect());
+            assert!(gs.len() == 4 && gs.iter().all(|g| g.starts_with("<g fill=\"none\" stroke=\"#0072b2\"")), "{gs:?}");
+            assert!(clv.len() == 4 && clv.iter().all(|g| g.starts_with("<g fill=\"#d55e00\"")), "{clv:?}");
         }
     }
 }
