@@ -12,9 +12,9 @@
 //! panels and insets. Averages run over the consumed frames (those of every m-th step, `--every`).
 
 use super::kernels::projections::{cos_theta, eta_q_p};
-use super::{save_figure, write_csv, Analysis, Context, Mean, Produced};
+use super::{save_figure, write_csv, Analysis, Context, Mean, Produced, CLV_COLOR, GS_COLOR};
 use crate::error::Result;
-use crate::report::plot::{Figure, Marker};
+use crate::report::plot::{Figure, Marker, Panels, PANEL};
 use crate::stage::frame::Frame;
 use std::path::Path;
 
@@ -119,8 +119,8 @@ impl Analysis for Projections {
         let second = central.map(|(a, b)| format!("; the second plot enlarges the central part, i = {}..{}", a + 1, b + 1)).unwrap_or_default();
         let tables = vec!["projections.csv".to_string()];
 
-        // One figure and its central enlargement.
-        let plot = |stem: &str, title: &str, ylabel: &str, curves: &[(&str, &[f64])], zero: bool| -> Result<Vec<String>> {
+        // One figure and its central enlargement (Figs. 6, 7).
+        let plot = |stem: &str, title: &str, ylabel: &str, curves: &[(&str, &[f64])]| -> Result<Vec<String>> {
             let mut stems = Vec::new();
             let mut parts = vec![(stem.to_string(), title.to_string(), 0, k - 1, Marker::Line)];
             if let Some((a, b)) = central {
@@ -131,9 +131,6 @@ impl Analysis for Projections {
                 for (label, y) in curves {
                     fig.series(label, &idx[a..=b], &y[a..=b], marker);
                 }
-                if zero {
-                    fig.hline(0.0);
-                }
                 save_figure(&fig, out, &s)?;
                 stems.push(s);
             }
@@ -142,7 +139,7 @@ impl Analysis for Projections {
 
         let mut produced = Vec::new();
         if self.gs.is_some() {
-            let figures = plot("fig6_eta_gs", "Gram-Schmidt vectors: η_q and η_p", "η", &[("η_q (GS)", &q_gs), ("η_p (GS)", &p_gs)], false)?;
+            let figures = plot("fig6_eta_gs", "Gram-Schmidt vectors: η_q and η_p", "η", &[("η_q (GS)", &q_gs), ("η_p (GS)", &p_gs)])?;
             let sym = if full { format!(" Conjugate symmetry: max_i |η_q(i) - η_p(4N+1-i)| = {:.3e}.", conjugate_asymmetry(&q_gs, &p_gs)) } else { String::new() };
             produced.push(Produced {
                 title: "Position and momentum content of the GS vectors (Fig. 6)".into(),
@@ -153,7 +150,7 @@ impl Analysis for Projections {
                 tables: tables.clone(),
             });
         }
-        let figures = plot("fig7_eta_clv", "Covariant vectors: η_q and η_p", "η", &[("η_q (CLV)", &q_cv), ("η_p (CLV)", &p_cv)], false)?;
+        let figures = plot("fig7_eta_clv", "Covariant vectors: η_q and η_p", "η", &[("η_q (CLV)", &q_cv), ("η_p (CLV)", &p_cv)])?;
         let sym = if full { format!(" Conjugate symmetry: max_i |η_q(i) - η_q(4N+1-i)| = {:.3e}.", conjugate_asymmetry(&q_cv, &q_cv)) } else { String::new() };
         produced.push(Produced {
             title: "Position and momentum content of the covariant vectors (Fig. 7)".into(),
@@ -163,17 +160,27 @@ impl Analysis for Projections {
             figures,
             tables: tables.clone(),
         });
-        let mut curves: Vec<(&str, &[f64])> = Vec::new();
+        let mut curves: Vec<(&str, &[f64], usize)> = Vec::new();
         if self.gs.is_some() {
-            curves.push(("GS vectors", &c_gs));
+            curves.push(("GS vectors", &c_gs, GS_COLOR));
         }
-        curves.push(("covariant vectors", &c_cv));
-        let figures = plot("fig9_cos_theta", "<cos Θ> between δq and δp", "<cos Θ>", &curves, true)?;
+        curves.push(("covariant vectors", &c_cv, CLV_COLOR));
+        let figures = fig9(&idx, &curves, central.zip(ctx.null_space()), out)?;
+        let insets = match (central, ctx.null_space()) {
+            (Some((a, b)), Some(null)) => format!(
+                "; the second plot magnifies the mode-carrying region on either side of the null space, as the paper's insets, each panel on its own scale: i = {}..{} and {}..{} (the null space, where cos Θ is -1 or undefined, is in the first)",
+                a + 1,
+                null.start,
+                null.end + 1,
+                b + 1
+            ),
+            _ => String::new(),
+        };
         produced.push(Produced {
             title: "Angle between position and momentum perturbations (Fig. 9)".into(),
             caption: format!(
-                "Time average of the signed cos Θ = δq · δp / (|δq| |δp|) of each vector against i{}, {avg}{second}. For GS vectors it approaches +1 (-1) for the smallest positive (negative) exponents; for covariant vectors it does not.{}",
-                if self.gs.is_some() { ", GS and covariant vectors" } else { ", covariant vectors" },
+                "Time average of the signed cos Θ = δq · δp / (|δq| |δp|) of each vector against i{}, {avg}{insets}. For GS vectors it approaches +1 (-1) for the smallest positive (negative) exponents; for covariant vectors it does not.{}",
+                if self.gs.is_some() { ", GS (blue) and covariant vectors (vermillion)" } else { ", covariant vectors" },
                 if full {
                     format!(
                         " In the null space, the covariant vectors i = {}..{} are E_(k+3) - s E_k after a backward time s (see Fig. 2), with δq = -s δp: their cos Θ = -1 is that finite-window shear, not dynamics; \
@@ -190,6 +197,34 @@ impl Analysis for Projections {
         });
         Ok(produced)
     }
+}
+
+/// Fig. 9: <cos Θ> against i over the whole spectrum, and where the spectrum has its
+/// central part and null space (`zoom`: the central range and the null space, 0-based), the
+/// paper's insets: the mode-carrying region on either side of the null space, i = a..2N-3
+/// and 2N+4..b, one panel each on its own y scale (cos Θ is near +1 on one side and -1 on the
+/// other: one scale for both would show neither).
+fn fig9(idx: &[f64], curves: &[(&str, &[f64], usize)], zoom: Option<((usize, usize), std::ops::Range<usize>)>, out: &Path) -> Result<Vec<String>> {
+    let mut fig = Figure::new("<cos Θ> between δq and δp").x_label("i").y_label("<cos Θ>");
+    for &(label, y, color) in curves {
+        fig.series(label, idx, y, Marker::Line).color(color);
+    }
+    fig.hline(0.0);
+    save_figure(&fig, out, "fig9_cos_theta")?;
+    let mut stems = vec!["fig9_cos_theta".to_string()];
+    if let Some(((a, b), null)) = zoom {
+        let mut panels = Panels::new("<cos Θ>: the mode-carrying region, magnified", 2);
+        for (side, lo, hi) in [("unstable", a, null.start - 1), ("stable", null.end, b)] {
+            let mut fig = Figure::new(&format!("{side} side, i = {}..{}", lo + 1, hi + 1)).size(PANEL.0, PANEL.1).x_label("i").y_label("<cos Θ>");
+            for &(label, y, color) in curves {
+                fig.series(label, &idx[lo..=hi], &y[lo..=hi], Marker::LinePoints).color(color);
+            }
+            panels.push(fig);
+        }
+        save_figure(&panels, out, "fig9_cos_theta_center")?;
+        stems.push("fig9_cos_theta_center".into());
+    }
+    Ok(stems)
 }
 
 #[cfg(test)]
@@ -250,7 +285,12 @@ mod tests {
         let produced = a.finish(&out, 2).unwrap();
         let stems: Vec<&String> = produced.iter().flat_map(|p| &p.figures).collect();
         assert_eq!(stems.len(), 6, "{stems:?}");
-        assert!(produced.iter().all(|p| p.caption.contains("the second plot enlarges the central part, i = ")));
+        assert!(produced[..2].iter().all(|p| p.caption.contains("the second plot enlarges the central part, i = ")));
+        // Fig. 9's insets: the mode-carrying region on either side of the null space (N = 3:
+        // i = 4..9), one panel each.
+        assert!(produced[2].caption.contains("as the paper's insets, each panel on its own scale: i = 1..3 and 10..12"), "{}", produced[2].caption);
+        let svg = std::fs::read_to_string(out.join("fig9_cos_theta_center.svg")).unwrap();
+        assert!(svg.contains(">unstable side, i = 1..3</text>") && svg.contains(">stable side, i = 10..12</text>"), "{svg}");
         let t = read_csv(&out.join("projections.csv"));
         let (q, p, c) = (column(&t, "eta_q_clv"), column(&t, "eta_p_clv"), column(&t, "cos_theta_clv"));
         let want_q = [1.0, 0.5, 0.8, 0.8, 0.75, 1.0];
