@@ -233,14 +233,21 @@ impl Overlaps {
             &["i", "i_over_D", "abs_g_dot_v_mean", "abs_g_dot_v_std"],
             (0..ctx.k).map(|i| vec![(i + 1) as f64, ctx.reduced(i), mean[i], std[i]]),
         )?;
-        let mut fig = Figure::new("GS and covariant vectors of the same exponent: <|g^i · v^i|>").x_label("i").y_label("<|g^i · v^i|>");
-        fig.series("<|g^i · v^i|>", idx, &mean, shared.line);
-        save_figure(&fig, out, "fig3_gs_clv_overlap")?;
+        // The indices whose covariant vectors do not converge, marked where the caption says
+        // why (with the central part).
+        let shear = central.and(ctx.null_shear());
+        let plot = |title: &str, (a, b): (usize, usize), line: Marker, stem: &str| {
+            let mut fig = Figure::new(title).x_label("i").y_label("<|g^i · v^i|>");
+            fig.series("<|g^i · v^i|>", &idx[a..=b], &mean[a..=b], line);
+            if let Some(s) = &shear {
+                fig.series(&format!("not converged (i = {}..{}, see caption)", s.start + 1, s.end), &idx[s.clone()], &mean[s.clone()], Marker::Points).color(6).open_markers(true);
+            }
+            save_figure(&fig, out, stem)
+        };
+        plot("GS and covariant vectors of the same exponent: <|g^i · v^i|>", (0, ctx.k - 1), shared.line, "fig3_gs_clv_overlap")?;
         let mut figures = vec!["fig3_gs_clv_overlap".to_string()];
-        if let Some((a, b)) = central {
-            let mut fig = Figure::new("<|g^i · v^i|>: central part of the spectrum").x_label("i").y_label("<|g^i · v^i|>");
-            fig.series("<|g^i · v^i|>", &idx[a..=b], &mean[a..=b], Marker::LinePoints);
-            save_figure(&fig, out, "fig3_gs_clv_overlap_center")?;
+        if let Some(central) = central {
+            plot("<|g^i · v^i|>: central part of the spectrum", central, Marker::LinePoints, "fig3_gs_clv_overlap_center")?;
             figures.push("fig3_gs_clv_overlap_center".into());
         }
         Ok(Produced {
@@ -381,7 +388,7 @@ impl Overlaps {
 fn fig3_null_space(n: usize, mean: &[f64]) -> String {
     let kept = (2 * n - 2..2 * n).all(|i| (mean[i] - 1.0).abs() < 1e-9);
     format!(
-        " It is 1 at i = 1 and i = 2N-2 = {}, where v^i = g^i for any start (the paper).{} At i = {}..{} it is {}: those covariant vectors are E_(k+3) - s E_k after a backward time s (see Fig. 2), turned towards the position shifts E_k as s grows, while those GS vectors are the momentum shifts E_(k+3), so that it vanishes like 1/s in a long window.",
+        " It is 1 at i = 1 and i = 2N-2 = {}, where v^i = g^i for any start (the paper).{} At i = {}..{} (black open rings: not converged) it is {}: those covariant vectors are E_(k+3) - s E_k after a backward time s (see Fig. 2), turned towards the position shifts E_k as s grows, while those GS vectors are the momentum shifts E_(k+3), so that it vanishes like 1/s in a long window: a dip of the finite window, not of the dynamics.",
         2 * n - 2,
         if kept {
             format!(
@@ -475,6 +482,16 @@ mod tests {
         let t3 = read_csv(&out.join("overlap_gs_clv.csv"));
         assert!(column(&t3, "abs_g_dot_v_mean").iter().all(|&x| x == 1.0));
         assert!(column(&t3, "abs_g_dot_v_std").iter().all(|&x| x == 0.0));
+        // Fig. 3 marks the three indices that do not converge, 2N+1..2N+3 = 9..11, in both
+        // plots, and says so.
+        let fig3 = produced.iter().find(|p| p.title.contains("Fig. 3")).unwrap();
+        assert!(fig3.caption.contains("At i = 9..11 (black open rings: not converged)"), "{}", fig3.caption);
+        for stem in ["fig3_gs_clv_overlap", "fig3_gs_clv_overlap_center"] {
+            let svg = std::fs::read_to_string(out.join(format!("{stem}.svg"))).unwrap();
+            let marks = svg.split("<g fill=\"none\" stroke=\"#000000\" stroke-width=\"1\" clip-path").nth(1).and_then(|g| g.split("</g>").next()).unwrap_or_else(|| panic!("{stem}: no marks"));
+            assert_eq!(marks.matches("<circle").count(), 3, "{stem}: {marks}");
+            assert!(svg.contains("not converged (i = 9..11, see caption)"), "{stem}");
+        }
         let t4 = read_csv(&out.join("overlap_clv_gs.csv"));
         for j in [1usize, 5] {
             let c = column(&t4, &format!("abs_v{j}_mean"));

@@ -70,8 +70,7 @@ impl Analysis for Spectrum {
         let x: Vec<f64> = (0..ctx.k).map(|i| ctx.reduced(i)).collect();
         let neutral = ctx.run.config.system.neutral();
         // The finite window's exponent of the three trailing null-space CLVs (see the caption).
-        // The last three of the null space, 2N+1..2N+3 (1-based).
-        let trailing = ctx.null_space().map(|null| null.start + 3..null.end);
+        let trailing = ctx.null_shear();
         let shear = match (&trailing, self.steps) {
             (Some(_), Some((first, last))) => {
                 // Frame m carries the exponent over [t_m, t_(m+1)], at backward times
