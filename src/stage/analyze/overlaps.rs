@@ -178,28 +178,47 @@ impl Analysis for Overlaps {
         let ctx = &self.ctx;
         let shared = Shared {
             idx: (1..=ctx.k).map(|i| i as f64).collect(),
-            // a handful of indices (a map's two) are points, not a continuum
-            line: if ctx.k <= 8 { Marker::LinePoints } else { Marker::Line },
+            // a handful of indices (Lorenz's three) are points, not a continuum: a line between
+            // them would look like data (as in Fig. 2)
+            line: if ctx.k <= 8 { Marker::Points } else { Marker::Line },
             avg: ctx.averaged_over(frames),
             central: ctx.central_range(),
         };
+        // Two vectors (the Henon map): every curve would have two points, and all would give
+        // one angle; its numbers instead of the figures.
+        let two = ctx.d == 2 && ctx.k == 2;
         let mut produced = Vec::new();
         if let Some(gv) = &self.gv {
-            produced.push(self.fig3(gv, &shared, out)?);
+            write_csv(
+                &out.join("overlap_gs_clv.csv"),
+                &["i", "i_over_D", "abs_g_dot_v_mean", "abs_g_dot_v_std"],
+                (0..ctx.k).map(|i| vec![(i + 1) as f64, ctx.reduced(i), gv.mean()[i], gv.std()[i]]),
+            )?;
+            if !two {
+                produced.push(self.fig3(gv, &shared, out)?);
+            }
         }
         if let (Some(vg), false) = (&self.vg, self.fig4_js.is_empty()) {
-            produced.push(self.fig4(vg, &shared, out)?);
+            let means: Vec<&Mean> = vg.iter().collect();
+            let (header, rows) = per_j_table(ctx, &self.fig4_js, &means, "abs_v");
+            csv(out, "overlap_clv_gs.csv", &header, rows)?;
+            if !two {
+                produced.push(self.fig4(vg, &shared, out)?);
+            }
         }
         if !self.vv_js.is_empty() {
             let means: Vec<&Mean> = self.vv.iter().collect();
             let (header, rows) = per_j_table(ctx, &self.vv_js, &means, "abs_v");
             csv(out, "overlap_clv_clv.csv", &header, rows)?;
-            if !self.js.is_empty() {
+            if !self.js.is_empty() && !two {
                 produced.push(self.fig13(&shared, out)?);
             }
             if let (Some(central), false) = (shared.central, self.mode_js.is_empty()) {
                 produced.push(self.fig14(central, &shared, out)?);
             }
+        }
+        if two {
+            produced.push(self.one_angle(&shared));
         }
         Ok(produced)
     }
@@ -223,16 +242,39 @@ impl Overlaps {
         self.vv_js.iter().position(|&x| x == j).map(|p| self.vv[p].mean())
     }
 
-    /// Fig. 3, <|g^i . v^i|> against i (and its central part), with overlap_gs_clv.csv.
+    /// Figs. 3, 4 and 13 of two vectors (D = 2, the Henon map), in words: their curves would
+    /// have two points each and all give the angle θ between v^1 and v^2, since v^1 = ±g^1
+    /// and g^2 is normal to it: |v^1 · v^2| = |v^2 · g^1| = |cos θ|, |g^2 · v^2| = |sin θ|.
+    fn one_angle(&self, shared: &Shared) -> Produced {
+        let cos = self.vv_mean(0).map(|m| m[1]).or_else(|| self.vv_mean(1).map(|m| m[0]));
+        let sin = self.gv.as_ref().map(|gv| gv.mean()[1]);
+        let mut numbers = Vec::new();
+        if let Some(c) = cos {
+            numbers.push(format!("<|v^1 · v^2|> = <|cos θ|> = {c:.4} (Fig. 13; Fig. 4's <|v^2 · g^1|> is the same, as v^1 = ±g^1)"));
+        }
+        if let Some(s) = sin {
+            numbers.push(format!("<|g^2 · v^2|> = <|sin θ|> = {s:.4} (Fig. 3 at i = 2, and Fig. 4's <|v^2 · g^2|>; Fig. 3 is 1 at i = 1)"));
+        }
+        let tables = [(self.gv.is_some(), "overlap_gs_clv.csv"), (self.vg.is_some() && !self.fig4_js.is_empty(), "overlap_clv_gs.csv"), (!self.vv_js.is_empty(), "overlap_clv_clv.csv")];
+        Produced {
+            title: "Angle between the two covariant vectors (Figs. 3, 4 and 13 for D = 2)".into(),
+            caption: format!(
+                "With D = 2 the curves of Figs. 3, 4 and 13 would have two points each, and all give one number, the angle θ between the unstable covariant vector v^1 and the stable one v^2 (g^1 = ±v^1, g^2 normal to it), so they are left out: {}, {}.{}",
+                numbers.join("; "),
+                shared.avg,
+                if self.ctx.system == "henon" { " Fig. 1 draws both vectors at a point of the attractor." } else { "" }
+            ),
+            figures: Vec::new(),
+            tables: tables.into_iter().filter(|(has, _)| *has).map(|(_, t)| t.to_string()).collect(),
+        }
+    }
+
+    /// Fig. 3, <|g^i . v^i|> against i (and its central part); its table is written by
+    /// [`Analysis::finish`].
     fn fig3(&self, gv: &Mean, shared: &Shared, out: &Path) -> Result<Produced> {
         let ctx = &self.ctx;
         let (idx, central) = (&shared.idx, shared.central);
-        let (mean, std) = (gv.mean(), gv.std());
-        write_csv(
-            &out.join("overlap_gs_clv.csv"),
-            &["i", "i_over_D", "abs_g_dot_v_mean", "abs_g_dot_v_std"],
-            (0..ctx.k).map(|i| vec![(i + 1) as f64, ctx.reduced(i), mean[i], std[i]]),
-        )?;
+        let mean = gv.mean();
         // The indices whose covariant vectors do not converge, marked where the caption says
         // why (with the central part).
         let shear = central.and(ctx.null_shear());
@@ -263,12 +305,10 @@ impl Overlaps {
         })
     }
 
-    /// Fig. 4, <|v^j . g^i|> against i for the j of `fig4_js`, with overlap_clv_gs.csv.
+    /// Fig. 4, <|v^j . g^i|> against i for the j of `fig4_js` (its table, overlap_clv_gs.csv,
+    /// is written by [`Analysis::finish`]).
     fn fig4(&self, vg: &[Mean], shared: &Shared, out: &Path) -> Result<Produced> {
         let ctx = &self.ctx;
-        let means: Vec<&Mean> = vg.iter().collect();
-        let (header, rows) = per_j_table(ctx, &self.fig4_js, &means, "abs_v");
-        csv(out, "overlap_clv_gs.csv", &header, rows)?;
         let selected = self.fig4_js == self.js;
         // The paper's four kinds in its arrangement: unstable left, stable right, the
         // vectors that are no mode above the mode vectors.
@@ -551,6 +591,13 @@ mod tests {
         let g = column(&t3, "abs_g_dot_v_mean");
         assert_eq!(g[0], 1.0);
         assert!((g[1] - mean(f64::sin)).abs() < 1e-15);
+        // D = 2: no two-point figures, one entry that gives the angle's numbers with all three
+        // tables.
+        assert_eq!(produced.len(), 1, "{produced:?}");
+        let p = &produced[0];
+        assert!(p.figures.is_empty() && p.tables == ["overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv"], "{p:?}");
+        assert!(p.caption.contains(&format!("<|cos θ|> = {:.4}", mean(f64::cos))) && p.caption.contains(&format!("<|sin θ|> = {:.4}", mean(f64::sin))), "{}", p.caption);
+        assert!(!std::fs::read_dir(&*out).unwrap().any(|e| e.unwrap().file_name().to_string_lossy().ends_with(".png")));
     }
 
     #[test]
