@@ -122,7 +122,10 @@ candidate; best = the most votes (the lowest candidate of equals); fraction_gs, 
 = the mean over frames of best's fraction of the GS / CLV group (NaN without); beyond_chance
 = excess of fraction_gs (else fraction_clv); kind, n_x, n_y (first wave vector), k, name
 only where that is >= 0.3 ("-", empty, NaN, "unclassified" otherwise); agreement = best's
-votes / frames; consistent = classified with its degeneracy; lambda, spread = mean and
+votes / frames; resolved = the share of sampled frames whose own resolution of the steps
+(each frame resolving them alone) has the step, with modes.json's resolved_alike (frames
+whose own steps are the first frame's) and other_steps (steps only other frames find, with
+their frame counts); consistent = classified with its degeneracy; lambda, spread = mean and
 max - min of e over the step; detection = widened, vectors, else degenerate if every
 neighbour pair is within 3 combined errors, else separated; side "+" for a step ending at
 or before 2N-3. modes_fits.csv, scope mean: for the 2-steps classified T of one wave vector,
@@ -732,11 +735,20 @@ def mode_tables(sampled, first, spectrum, lx, ly, d):
     k_min = families[0][1]
     window = max(d // 16, 8, max(mode_dim("T", f) + mode_dim("LP", f) for f in families if f[1] == k_min))
     shown = ModeFrame(first, families, lx, ly)
-    steps = resolve_steps(detect_steps(e, s, window, lengths), shown, e, families, lengths)
+    detected = detect_steps(e, s, window, lengths)
+    steps = resolve_steps(detected, shown, e, families, lengths)
     ncand = 4 * len(families)
+    # Every sampled frame resolves the steps again on its own: how many give the first
+    # frame's steps (modes.json's resolved_alike), how many find each step (resolved,
+    # other_steps).
+    alike, found = 0, {}
     acc = {st: {"votes": np.zeros(ncand, int), "gs": [], "clv": [], "fits": []} for st, _ in steps}
     for f in sampled:
         mf = shown if f is first else ModeFrame(f, families, lx, ly)
+        own = [st for st, _ in resolve_steps(detected, mf, e, families, lengths)]
+        alike += own == [st for st, _ in steps]
+        for st in own:
+            found[st] = found.get(st, 0) + 1
         for st, _ in steps:
             a = acc[st]
             m = mf.classify(*st)
@@ -773,10 +785,13 @@ def mode_tables(sampled, first, spectrum, lx, ly, d):
             "best": "-" if best is None else mode_name(kind, fam), "beyond_chance": beyond,
             "fraction_gs": np.nan if pick(gs) is None else pick(gs), "fraction_clv": np.nan if pick(clv) is None else pick(clv),
             "agreement": 0.0 if best is None else votes[best] / max(frames_used, 1),
+            "resolved": found.get(st, 0) / max(frames_used, 1),
             "consistent": str(bool(clear and matches_degeneracy(st[1], best, families))).lower(), "frames": str(frames_used),
         })
     head = {"frames": frames_used, "window": window, "max_n": MAX_N, "min_fraction": MIN_FRACTION, "step_tolerance": STEP_TOL, "separation": SEPARATION,
-            "candidates": ",".join(mode_name("T", f).replace("T", "") for f in families), "source": "GS vectors" if first["g"] is not None else "covariant vectors (the frames carry no GS vectors)"}
+            "candidates": ",".join(mode_name("T", f).replace("T", "") for f in families), "source": "GS vectors" if first["g"] is not None else "covariant vectors (the frames carry no GS vectors)",
+            "resolved_alike": alike,
+            "other_steps": ";".join(f"{st[0] + 1}..{st[0] + st[1]}:{n}" for st, n in sorted(found.items()) if st not in {x for x, _ in steps})}
     out = {"modes.csv": rows, "modes.json": head, "modes_fits.csv": [], "modes_lp.csv": [], "patterns": {}}
     # modes_fits.csv, scope "mean": the two-fold steps classified T of one wave vector.
     for (st, _), c, a in zip(steps, chosen, (acc[st] for st, _ in steps)):
@@ -1154,7 +1169,8 @@ def main():
         cell = lambda x: str(x).lower() if isinstance(x, bool) else "" if x is None else str(x) if isinstance(x, (int, str)) else x  # noqa: E731
         c.compare_rows("modes.json", ("first", "last"), mine["modes.csv"], [{k: cell(x) for k, x in r.items()} for r in table.get("modes", [])], span)
         if full:  # the settings and candidates it lists beside the rows
-            theirs = {k: ",".join(x) if isinstance(x, list) else x for k, x in table.items() if k in mine["modes.json"]}
+            theirs = {k: ",".join(x) if isinstance(x, list) else x for k, x in table.items() if k in mine["modes.json"] and k != "other_steps"}
+            theirs["other_steps"] = ";".join(f"{o['first']}..{o['last']}:{o['frames']}" for o in table.get("other_steps", []))
             c.compare_rows("modes.json", (), [mine["modes.json"]], [theirs], lambda r: "head")
     mf = read_rows(os.path.join(args.report, "modes_fits.csv"))
     if mf is not None or mine["modes_fits.csv"]:

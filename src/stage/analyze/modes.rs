@@ -24,6 +24,12 @@
 //!    those of equal |k| together. In the paper's box these are (n_x, 0), n_x = 1..=4. The
 //!    table reports the majority class, its mean fraction for GS and CLV groups, and the
 //!    share of frames that agree.
+//!
+//!    The steps themselves are fixed at the first frame, yet the rules that look at vectors
+//!    can come out otherwise at another frame (N = 40, 1500 steps: 6 of 50 frames would add
+//!    a pair at i = 70..71). So the steps are resolved again at every sampled frame, and the
+//!    table says how many frames give the same steps and which other steps some frames give:
+//!    the reader sees whether the first frame was typical.
 //! 3. T modes of one wave vector (Fig. 10): the perturbations across k (dq_y and dp_y for
 //!    (n_x, 0)) of one vector of the pair against the position along k (q_x) at one frame,
 //!    GS and CLV, with the least-squares fit A cos(k x + phi); amplitudes and rms residuals
@@ -80,6 +86,44 @@ pub struct Modes {
     steps: Vec<StepAcc>,
     /// The frame of the pattern figures (the first one consumed).
     shown: Option<Frame>,
+    /// The steps resolved at each frame on its own, counted over the frames.
+    resolved: Resolutions,
+}
+
+/// How the steps come out when each frame resolves them on its own
+/// ([`super::mode_steps::resolve`]), against those fixed at the first frame.
+#[derive(Default)]
+struct Resolutions {
+    /// Frames whose own resolution gives exactly the fixed steps.
+    same: u64,
+    /// Frames resolved (all of them, unless the stream cannot have mode steps).
+    frames: u64,
+    /// Each step (start, len) any frame resolved, with the number of frames that did.
+    steps: std::collections::BTreeMap<(usize, usize), u64>,
+}
+
+impl Resolutions {
+    fn add(&mut self, own: &[(Step, Found)], fixed: &[(Step, Found)]) {
+        let key = |(s, _): &(Step, Found)| (s.start, s.len);
+        let own: Vec<(usize, usize)> = own.iter().map(key).collect();
+        self.frames += 1;
+        if own == fixed.iter().map(key).collect::<Vec<_>>() {
+            self.same += 1;
+        }
+        for step in own {
+            *self.steps.entry(step).or_default() += 1;
+        }
+    }
+
+    /// Frames that resolve the step (start, len) on their own.
+    fn of(&self, step: &Step) -> u64 {
+        self.steps.get(&(step.start, step.len)).copied().unwrap_or(0)
+    }
+
+    /// The steps some frames resolve that the first did not, as (start, len, frames).
+    fn others<'a>(&'a self, fixed: &'a [StepAcc]) -> impl Iterator<Item = (usize, usize, u64)> + 'a {
+        self.steps.iter().filter(|((start, len), _)| !fixed.iter().any(|a| a.step.start == *start && a.step.len == *len)).map(|(&(start, len), &n)| (start, len, n))
+    }
 }
 
 /// See [`super::Missing`].
@@ -91,7 +135,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     if !ctx.is_disks() {
         return None;
     }
-    Some(Box::new(Modes { ctx: ctx.clone(), candidates: candidates(ctx), steps: Vec::new(), shown: None }))
+    Some(Box::new(Modes { ctx: ctx.clone(), candidates: candidates(ctx), steps: Vec::new(), shown: None, resolved: Resolutions::default() }))
 }
 
 /// The row of the mode table (modes.csv, modes.json).
@@ -137,6 +181,9 @@ pub struct ModeRow {
     pub fraction_clv: Option<f64>,
     /// Share of frames whose own best candidate is the majority one.
     pub agreement: f64,
+    /// Share of frames that find this step when they resolve the steps on their own (the
+    /// table's steps are those of the first frame).
+    pub resolved: f64,
     /// The class agrees with the degeneracy (T: 2 per wave vector; L, P, LP: 4).
     pub consistent: bool,
     pub frames: u64,
@@ -175,6 +222,9 @@ impl Analysis for Modes {
                     fits: (step.len == 2).then(|| Mean::new(2 * step.len * families * FIT_VALUES)),
                 })
                 .collect();
+        }
+        if let (Ok(fixed), Ok(own)) = (&self.ctx.modes, super::mode_steps::resolve(&self.ctx, frame)) {
+            self.resolved.add(&own, fixed);
         }
         let cands = &self.candidates;
         let steps = &mut self.steps;
@@ -283,6 +333,7 @@ impl Modes {
             fraction_gs: pick(&acc.gs, &gs),
             fraction_clv: pick(&acc.clv, &clv),
             agreement: best.map_or(0.0, |c| acc.votes[c] as f64 / frames.max(1) as f64),
+            resolved: self.resolved.of(&acc.step) as f64 / self.resolved.frames.max(1) as f64,
             consistent: kind.zip(family).is_some_and(|(k, f)| matches_degeneracy(&acc.step, k, f)),
             frames,
         };
@@ -293,7 +344,7 @@ impl Modes {
     /// candidates and `why` there are no steps.
     fn write_table(&self, out: &Path, rows: &[ModeRow], source: &str, frames: u64, why: Option<&str>) -> Result<()> {
         let cands = &self.candidates;
-        let header = ["side", "first", "last", "degeneracy", "detection", "lambda", "spread", "kind", "n_x", "n_y", "k", "name", "best", "beyond_chance", "fraction_gs", "fraction_clv", "agreement", "consistent", "frames"];
+        let header = ["side", "first", "last", "degeneracy", "detection", "lambda", "spread", "kind", "n_x", "n_y", "k", "name", "best", "beyond_chance", "fraction_gs", "fraction_clv", "agreement", "resolved", "consistent", "frames"];
         let text: Vec<Vec<String>> = rows.iter().map(ModeRow::cells).collect();
         write_text_csv(&out.join("modes.csv"), &header, &text)?;
         let json = serde_json::json!({
@@ -307,6 +358,8 @@ impl Modes {
             "candidates": cands.families.iter().map(|f| f.name(ModeKind::T).replace('T', "")).collect::<Vec<_>>(),
             "note": why,
             "modes": rows,
+            "resolved_alike": self.resolved.same,
+            "other_steps": self.resolved.others(&self.steps).map(|(start, len, n)| serde_json::json!({"first": start + 1, "last": start + len, "frames": n})).collect::<Vec<_>>(),
         });
         super::write_report_file(&out.join("modes.json"), &serde_json::to_vec_pretty(&json).unwrap_or_default())
     }
@@ -383,13 +436,28 @@ impl Modes {
                 step_window(d, cands)
             ),
             (None, false) => format!(
-                "Degenerate steps of the forward GS spectrum within {} indices of the null space (neighbours equal within {STEP_TOL} combined standard errors, or, next to the null space, set apart by gaps {:.0} times their spread; a shorter step classified L/P/LP is widened to the block of its LP mode's size that the LP basis explains best; next to the mode region, a block of a mode's size set apart from its neighbours is a step where its vectors are that mode at the first frame: the table's detection column says which rule found each), classified in each of {frames} frames by projecting the position perturbations of their {source} onto the orthonormalised Table III bases T, L, P, LP of {}; majority class, mean fraction of the group in its span. Found: {}.",
+                "Degenerate steps of the forward GS spectrum within {} indices of the null space (neighbours equal within {STEP_TOL} combined standard errors, or, next to the null space, set apart by gaps {:.0} times their spread; a shorter step classified L/P/LP is widened to the block of its LP mode's size that the LP basis explains best; next to the mode region, a block of a mode's size set apart from its neighbours is a step where its vectors are that mode at the first frame: the table's detection column says which rule found each), classified in each of {frames} frames by projecting the position perturbations of their {source} onto the orthonormalised Table III bases T, L, P, LP of {}; majority class, mean fraction of the group in its span. Found: {}. {}",
                 step_window(d, cands),
                 1.0 / km::SEPARATION,
                 candidates_text(cands),
-                found.join("; ")
+                found.join("; "),
+                self.resolution_text()
             ),
         }
+    }
+}
+
+impl Modes {
+    /// How typical the first frame's steps are, for the caption: how many frames resolve the
+    /// same steps on their own, and which other steps some frames find.
+    fn resolution_text(&self) -> String {
+        let r = &self.resolved;
+        let others: Vec<String> = r.others(&self.steps).map(|(start, len, n)| format!("i = {}..{} in {n}", start + 1, start + len)).collect();
+        let others = if others.is_empty() { "no frame finds another step".to_string() } else { format!("other steps found by some frames: {}", others.join(", ")) };
+        format!(
+            "The steps are those resolved at the first sampled frame; resolved at each frame on its own, {} of {} frames give the same steps ({others}; the resolved column).",
+            r.same, r.frames
+        )
     }
 }
 
@@ -434,6 +502,7 @@ impl ModeRow {
             fmt(r.fraction_gs.unwrap_or(f64::NAN)),
             fmt(r.fraction_clv.unwrap_or(f64::NAN)),
             fmt(r.agreement),
+            fmt(r.resolved),
             r.consistent.to_string(),
             r.frames.to_string(),
         ]
@@ -445,7 +514,7 @@ impl ModeRow {
         let r = self;
         let weak = if r.name != r.best { format!(" of the best candidate {}, {:.2} beyond chance, below {MIN_FRACTION}", r.best, r.beyond_chance) } else { String::new() };
         format!(
-            "{} at i = {}..{} ({}-fold{}, λ = {:.4}{}, fraction {:.2}{weak}, {:.0}% of frames agree)",
+            "{} at i = {}..{} ({}-fold{}, λ = {:.4}{}, fraction {:.2}{weak}, {:.0}% of frames agree, {:.0}% find the step on their own)",
             r.name,
             r.first,
             r.last,
@@ -454,7 +523,8 @@ impl ModeRow {
             r.lambda,
             if r.detection == "degenerate" { String::new() } else { format!(" with its exponents spread over {:.4}", r.spread) },
             r.fraction_gs.or(r.fraction_clv).unwrap_or(f64::NAN),
-            100.0 * r.agreement
+            100.0 * r.agreement,
+            100.0 * r.resolved
         )
     }
 }
@@ -1170,10 +1240,24 @@ mod tests {
         let header = std::fs::read_to_string(oout.join("overlap_clv_clv.csv")).unwrap();
         assert!(header.lines().next().unwrap().contains(&format!("abs_v{}_mean", at + 4)), "Fig. 14 takes the LP block's last index: {header:.200}");
         // The same exponents with random vectors: no block is added.
-        let f = frame(3, phase, random.clone(), Some(random));
-        let (out, _) = run(&ctx, std::slice::from_ref(&f), "lp-by-vectors-random");
+        let plain = frame(4, phase, random.clone(), Some(random));
+        let (out, _) = run(&ctx, std::slice::from_ref(&plain), "lp-by-vectors-random");
         let rows = read_csv(&out.join("modes.csv"));
         assert!(rows.iter().all(|r| r["detection"] != "vectors") && rows.len() == 2, "{rows:?}");
+        // Two frames that resolve the steps differently: the table has the first frame's
+        // steps and says how many frames find each, and which steps only the others find.
+        let (out, produced) = run(&ctx, &[f.clone(), plain.clone()], "lp-by-vectors-first");
+        let resolved: Vec<(String, f64)> = read_csv(&out.join("modes.csv")).iter().map(|r| (r["first"].clone(), r["resolved"].parse().unwrap())).collect();
+        assert!(resolved.contains(&(a.clone(), 0.5)) && resolved.contains(&(ma.clone(), 0.5)) && resolved.contains(&((at + 5).to_string(), 1.0)), "{resolved:?}");
+        let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("modes.json")).unwrap()).unwrap();
+        assert!(json["resolved_alike"] == 1 && json["other_steps"].as_array().is_some_and(|o| o.is_empty()), "{json}");
+        assert!(produced[0].caption.contains("1 of 2 frames give the same steps (no frame finds another step"), "{}", produced[0].caption);
+        let (out, produced) = run(&ctx, &[plain, f], "lp-by-vectors-second");
+        assert_eq!(read_csv(&out.join("modes.csv")).len(), 2);
+        let json: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("modes.json")).unwrap()).unwrap();
+        let others: Vec<(u64, u64, u64)> = json["other_steps"].as_array().unwrap().iter().map(|o| (o["first"].as_u64().unwrap(), o["last"].as_u64().unwrap(), o["frames"].as_u64().unwrap())).collect();
+        assert_eq!(others, [(at as u64 + 1, at as u64 + 4, 1), ((d - at - 3) as u64, (d - at) as u64, 1)], "{json}");
+        assert!(produced[0].caption.contains(&format!("other steps found by some frames: i = {a}..{b} in 1, i = {ma}..{mb} in 1")), "{}", produced[0].caption);
     }
 
     /// Two modes whose exponents lie closer together than to their neighbours (N = 120 in
