@@ -26,6 +26,9 @@ and compared with the report's CSV files:
                        split_unstable_null (split_null_stable) = the fraction of windows where some
                        exponent of 1..2N-3 lies below some of 2N-2..2N+3 (some of 2N-2..2N+3 below
                        some of 2N+4..D); a column not recomputed here is a disagreement;
+  domination_pairs.csv for every pair i = 1..k-1 (the rows) and delta (delta_<delta>): the
+                       share of the same windows where exponent i + 1 exceeds exponent i (NaN
+                       where none fits);
   localization.csv     W_gs, W_clv: W_i = exp(<S_i>) / N with S = -sum_n mu_n ln mu_n, mu_n the
                        share of |v|^2 on disk n (its dq_x, dq_y, dp_x, dp_y); stderr_gs,
                        stderr_clv = W times the batch-means error of <S> over the sampled frames;
@@ -41,6 +44,29 @@ and compared with the report's CSV files:
                        null-space vectors at the earliest sampled frame, with the natural basis
                        e_1 = (p, 0)/|p|, e_2, e_3 = x, y translations of the positions,
                        e_4 = (0, p)/|p|, e_5, e_6 = x, y translations of the momenta;
+  nullspace_tables.json  the same two matrices (beta, and alpha with GS vectors), n, the
+                       indices 2N-2..2N+3, and the step and time of that frame (its note, a
+                       fixed text, is not compared);
+  nullspace_series.csv for each sampled frame (by step): time; angle_clv (angle_gs) = the largest
+                       principal angle between the span of the six null-space CLVs (GS vectors)
+                       and span{e_1..e_6}, angle_gs_clv = that between the two six-vector spans
+                       (NaN without GS vectors); norm_beta_i, norm_alpha_i = the row norms of
+                       beta and alpha (sqrt(sum_k (v^i . e_k)^2)). Principal angles: here
+                       atan2 of the singular values of Q_b - Q_a Q_a^T Q_b and Q_a^T Q_b
+                       (sines and cosines), Q from an SVD (clv: QR, asin below pi/4). The three
+                       angles are round-off (clv ~1e-13, here the same size but other digits: a
+                       factor 3 apart seen), so within 1e-10 they say only that both sides find
+                       the spans to coincide; the six null CLVs are nearly dependent (the last
+                       three turn onto the first three like 1/s), which amplifies round-off by
+                       about the window's length in time, and a far longer window than the
+                       test's could bring angle_clv near 1e-10, where two round-offs may differ
+                       by more than the tolerance;
+  transversality.csv   for each sampled frame (by step): psi_unstable_stable = the smallest
+                       principal angle between E^u = v^1..v^(2N-3) and E^s = v^(2N+4)..v^D, and
+                       phi_a_b = that between the mode step v^a..v^b and its conjugate vectors
+                       v^(D+1-b)..v^(D+1-a), for every positive step of the mode rules below
+                       (resolved at the newest sampled frame, as clv settles them at the first
+                       frame it reads); a column of one side only is a disagreement;
   theta_min.csv        for every separation s = 1..J-1: min and mean over the sampled frames and
                        the pairs (v^j, v^(j+s)), j + s <= J, of Theta = arccos |v^i . v^j|,
                        computed as 2 arcsin(|v^i -+ v^j| / 2). J of F^(J) = v^1..v^J is the
@@ -78,7 +104,16 @@ and compared with the report's CSV files:
                        averaged over the tested exponents, r1_limit = -1/B + 2/sqrt(B);
   spectrum.csv         also lambda_gs, stderr_gs: the forward run's spectrum, compared with the
                        frame file's spectrum.json it is copied from (not recomputable: the
-                       frames hold only the window).
+                       frames hold only the window); i_over_D = i / D; zero_by_symmetry = 1
+                       for the null space i = 2N-2..2N+3, else 0; lambda_clv_null_shear, for
+                       i = 2N+1..2N+3 (NaN elsewhere): the mean over every frame of the local
+                       exponent the shear model gives those CLVs, ln(sqrt(1 + s'^2) /
+                       sqrt(1 + s^2)) / tau for frame m with s = (total - m) tau, s' = s - tau,
+                       total = run.json's relax_steps + steps, where the backward pass starts
+                       (e_(k+3) becomes e_(k+3) - s e_k after the backward time s): the frames'
+                       steps and run.json are in the frame file, and this model of the exponent
+                       is what the column predicts, not a measurement (in the test's run it
+                       agrees with lambda_clv there to 3e-16, 4e-14 relative).
 
 The Lyapunov modes (modes.csv, modes.json, modes_fits.csv, modes_lp.csv, modes_dispersion.csv,
 and the per-disk tables fig10_T<n>_i<i>.csv, LP<n>_i<i>.csv of Figs. 10-12) follow clv's own
@@ -147,13 +182,12 @@ vector, source, scope, ...; the dispersion's by their order); a row or column on
 only is a disagreement. A decision (a threshold or an argmax) within round-off of flipping
 would show as a disagreement in the rows; none has been seen.
 
-Not checked: transversality.csv (Fig. 15's principal angles Psi, Phi per frame),
-nullspace_series.csv and nullspace_tables.json, domination_pairs.csv, the columns i_over_D,
-zero_by_symmetry and lambda_clv_null_shear of spectrum.csv, modes.json's note, and the
+Not checked: the notes of modes.json and nullspace_tables.json (fixed texts), and the
 captions (index.html, summary.json).
 
 Sampling: the spectrum, the local and finite-time exponents, domination and convergence use
-every frame of the file; the vector statistics (modes and Theta too) use the frames
+every frame of the file; the vector statistics (modes, the null space, Psi, Phi and Theta
+too) use the frames
 of the steps that are multiples of m = summary.json's options.every that carry vectors (as
 the report says in its head). Frames are put in step order whatever the file's order. Tables
 (and _std / stderr columns) the report does not have are skipped.
@@ -417,6 +451,43 @@ def natural_basis(phase, n):
     e[0 : 2 * n : 2, 1] = e[1 : 2 * n : 2, 2] = 1 / np.sqrt(n)
     e[2 * n :: 2, 4] = e[2 * n + 1 :: 2, 5] = 1 / np.sqrt(n)
     return e
+
+
+def span_basis(x):
+    """An orthonormal basis of the column span of x (D, k), full column rank assumed: the
+    left singular vectors of its thin SVD (clv takes a QR)."""
+    return np.linalg.svd(x, full_matrices=False)[0]
+
+
+def principal_angle_range(a, b):
+    """(smallest, largest) principal angle between span(a) and span(b), columns (D, ka), (D, kb).
+
+    With orthonormal bases Q_a of the smaller span and Q_b: the singular values of Q_a^T Q_b
+    are the cosines of the min(ka, kb) angles, those of Q_a - Q_b Q_b^T Q_a their sines; the
+    largest cosine and the smallest sine belong to the smallest angle, the smallest cosine and
+    the largest sine to the largest. Each angle is atan2(sine, cosine), accurate at 0 and at
+    pi/2 alike (clv takes asin of the sine below pi/4, else acos of the cosine)."""
+    qa, qb = span_basis(a), span_basis(b)
+    if qa.shape[1] > qb.shape[1]:
+        qa, qb = qb, qa
+    cos = np.linalg.svd(qa.T @ qb, compute_uv=False)
+    sin = np.linalg.svd(qa - qb @ (qb.T @ qa), compute_uv=False)
+    return math.atan2(sin.min(), cos.max()), math.atan2(sin.max(), cos.min())
+
+
+def null_shear_mean(steps, total, tau):
+    """The mean over the frames of `steps` of the local exponent the shear model gives the last
+    three null-space CLVs (spectrum.csv's lambda_clv_null_shear).
+
+    The backward pass starts at the run's end, step `total`; at the backward time s the CLV
+    is along e_(k+3) - s e_k (a free flight in the null space moves the positions by t times
+    the momentum direction: D phi^t e_(k+3) = e_(k+3) + t e_k, and e_k, e_(k+3) are
+    orthonormal), of norm sqrt(1 + s^2) against e_(k+3). Frame m's vector, at s = (total - m)
+    tau, is carried over [t_m, t_(m+1)] to s' = s - tau: its local exponent is
+    ln(sqrt(1 + s'^2) / sqrt(1 + s^2)) / tau. Each frame's is computed and averaged, as
+    lambda_clv averages the frames' local exponents, whatever steps the file holds."""
+    s = (total - np.asarray(steps, float)) * tau
+    return float(np.mean((np.log1p((s - tau) ** 2) - np.log1p(s**2)) / (2 * tau)))
 
 
 
@@ -1020,6 +1091,15 @@ def main():
         i = sp["i"].astype(int)
         c.compare("spectrum.csv", "lambda_clv", i, local.mean(axis=0)[i - 1], sp["lambda_clv"])
         c.compare("spectrum.csv", "stderr_clv", i, batch_stderr(local, blocks)[i - 1], sp["stderr_clv"], TOL_ERR)
+        # The reduced index i/D (the paper's i/4N), the null space i = 2N-2..2N+3 (six
+        # exponents vanish by symmetry: time and space translations, energy and momentum),
+        # and the shear model's exponent of its last three CLVs over the frames' steps.
+        null = (i >= 2 * n - 2) & (i <= 2 * n + 3)
+        c.compare("spectrum.csv", "i_over_D", i, i / d, sp["i_over_D"])
+        c.compare("spectrum.csv", "zero_by_symmetry", i, null.astype(float), sp["zero_by_symmetry"])
+        total = int(config["relax_steps"]) + int(config["steps"])
+        shear = null_shear_mean([f["step"] for f in frames], total, float(config["tau"]))
+        c.compare("spectrum.csv", "lambda_clv_null_shear", i, np.where(i >= 2 * n + 1, shear, np.nan) * np.where(null, 1.0, np.nan), sp["lambda_clv_null_shear"])
         if all(f["gs_local"] is not None for f in frames):
             gs_local = np.array([f["gs_local"] for f in frames])
             c.compare("spectrum.csv", "lambda_gs_window", i, gs_local.mean(axis=0)[i - 1], sp["lambda_gs_window"])
@@ -1091,6 +1171,22 @@ def main():
             elif col != "delta":
                 c.bad.append(f"disagreement: domination.csv column {col} is not recomputed here")
 
+    dp = rep("domination_pairs.csv")
+    if dp is not None and len(dp.get("i", [])):
+        pairs = dp["i"].astype(int)
+        if list(pairs) != list(range(1, local.shape[1])):
+            c.bad.append(f"disagreement: domination_pairs.csv pairs i = {pairs.min()}..{pairs.max()} ({len(pairs)} rows), mine 1..{local.shape[1] - 1}")
+        else:
+            for col in dp:
+                if not col.startswith("delta_"):
+                    if col != "i":
+                        c.bad.append(f"disagreement: domination_pairs.csv column {col} is not recomputed here")
+                    continue
+                x = windows(local, int(col[len("delta_") :]))
+                # the share of the windows in which exponent i + 1 exceeds exponent i
+                swaps = (x[:, 1:] > x[:, :-1]).sum(axis=0) / len(x) if len(x) else np.full(len(pairs), np.nan)
+                c.compare("domination_pairs.csv", col, pairs, swaps[pairs - 1], dp[col])
+
     # Vector statistics: the frames of the steps that are multiples of m.
     sampled = [f for f in frames if f["step"] % every == 0 and f["v"] is not None]
     if not sampled:
@@ -1149,6 +1245,64 @@ def main():
             c.compare(table, f"e{k + 1}", i, mine[:, k], t[f"e{k + 1}"])
         c.compare(table, "row_norm", i, np.linalg.norm(mine, axis=1), t["row_norm"])
 
+    # The same matrices in nullspace_tables.json, with the frame they are taken at.
+    null = np.arange(2 * n - 3, 2 * n + 3)  # 0-based 2N-3..2N+2: the paper's 2N-2..2N+3
+    path = os.path.join(args.report, "nullspace_tables.json")
+    if os.path.exists(path) and v.shape[2] >= 2 * n + 3:
+        with open(path) as f:
+            table = json.load(f)
+        at = sampled[0]
+        head = {"n": str(n), "indices": ",".join(str(k + 1) for k in null), "step": str(at["step"]), "time": at["time"]}
+        cell = lambda x: ",".join(map(str, x)) if isinstance(x, list) else str(x) if isinstance(x, int) else x  # noqa: E731
+        # note: a fixed text, not a number of the frames; alpha, beta: the rows below
+        c.compare_rows("nullspace_tables.json", (), [head], [{k: cell(x) for k, x in table.items() if k not in ("note", "alpha", "beta")}], lambda r: "head")
+        mine, theirs = [], []
+        for name, x in (("beta", v), ("alpha", g)):
+            if table.get(name) is None and x is None:
+                continue
+            if x is not None:
+                proj = x[0][:, null].T @ e
+                mine += [{"matrix": name, "i": str(k + 1)} | {f"e{c_ + 1}": proj[r, c_] for c_ in range(6)} for r, k in enumerate(null)]
+            theirs += [{"matrix": name, "i": str(k + 1)} | {f"e{c_ + 1}": str(y) for c_, y in enumerate(row)} for k, row in zip(null, table.get(name) or [])]
+        c.compare_rows("nullspace_tables.json", ("matrix", "i"), mine, theirs, lambda r: f"{r['matrix']} i = {r['i']}")
+
+    def by_step(table, report_steps):
+        """The positions in `sampled` of a table's rows by their steps (None, and a
+        disagreement, unless the rows are the sampled frames, each once)."""
+        position = {f["step"]: r for r, f in enumerate(sampled)}
+        steps_ = [int(s) for s in report_steps]
+        if sorted(steps_) != sorted(position):
+            c.bad.append(f"disagreement: {table} has the {len(steps_)} rows of steps {min(steps_, default=None)}..{max(steps_, default=None)}, mine the {len(position)} sampled frames of steps {sampled[0]['step']}..{sampled[-1]['step']}")
+            return None
+        return [position[s] for s in steps_]
+
+    # Null space in every sampled frame: the largest principal angle between the span of the
+    # six null-space vectors and span{e_1..e_6} (CLV, GS) and between the two spans, and the
+    # row norms of beta and alpha.
+    ns = rep("nullspace_series.csv")
+    if ns is not None and len(ns.get("step", [])) and v.shape[2] >= 2 * n + 3:
+        rows = by_step("nullspace_series.csv", ns["step"])
+        if rows is not None:
+            step = ns["step"].astype(np.int64)
+            mine = {"time": [], "angle_clv": [], "angle_gs": [], "angle_gs_clv": []} | {f"norm_{m}_{k + 1}": [] for m in ("beta", "alpha") for k in null}
+            for r in rows:
+                f = sampled[r]
+                basis = natural_basis(f["phase"], n)
+                mine["time"].append(f["time"])
+                mine["angle_clv"].append(principal_angle_range(f["v"][:, null], basis)[1])
+                gs_null = None if f["g"] is None else f["g"][:, null]
+                mine["angle_gs"].append(np.nan if gs_null is None else principal_angle_range(gs_null, basis)[1])
+                mine["angle_gs_clv"].append(np.nan if gs_null is None else principal_angle_range(gs_null, f["v"][:, null])[1])
+                for m, x in (("beta", f["v"]), ("alpha", f["g"])):
+                    norms = np.full(6, np.nan) if x is None else np.linalg.norm(x[:, null].T @ basis, axis=1)
+                    for k, norm in zip(null, norms):
+                        mine[f"norm_{m}_{k + 1}"].append(norm)
+            for col in ns:
+                if col in mine:
+                    c.compare("nullspace_series.csv", col, step, mine[col], ns[col])
+                elif col != "step":
+                    c.bad.append(f"disagreement: nullspace_series.csv column {col} is not recomputed here")
+
     # Lyapunov modes: the steps resolved at the newest sampled frame (the first clv reads:
     # the backward pass runs backward in time), classified in every sampled frame.
     steps, ambiguous = [], 0
@@ -1198,6 +1352,30 @@ def main():
             continue
         rows = [{"row": str(r + 1)} | {k: x[r] for k, x in cols.items()} for r in range(len(next(iter(cols.values()))))]
         c.compare_rows(table, ("row",), rows, [{"row": str(r)} | x for r, x in enumerate(t, 1)], lambda r: f"disk {r['row']}")
+
+    # Fig. 15 in every sampled frame: Psi, the smallest principal angle between
+    # E^u = v^1..v^m and E^s = v^(D-m+1)..v^D (m = 2N - 3), and Phi, the smallest between
+    # each positive mode step (resolved above) and its conjugate vectors D+1-i.
+    tr = read_rows(os.path.join(args.report, "transversality.csv"))
+    if tr is not None and v.shape[2] == d:
+        cols = list(tr[0]) if tr else []
+        phis = [st for st, _ in steps if st[0] + st[1] <= d // 2 - 3]
+        names = ["psi_unstable_stable"] + [f"phi_{a + 1}_{a + ln}" for a, ln in phis]
+        for col in cols:
+            if col != "step" and col not in names:
+                c.bad.append(f"disagreement: transversality.csv column {col} is not recomputed here")
+        for col in names:
+            if col not in cols:
+                c.bad.append(f"disagreement: transversality.csv lacks a column mine has ({col})")
+        rows = by_step("transversality.csv", [r["step"] for r in tr]) if tr else None
+        if rows is not None:
+            step = np.array([int(r["step"]) for r in tr])
+            m = d // 2 - 3
+            blocks_ = [(0, m)] + phis  # (start, length), 0-based; the conjugate of i is D-1-i
+            mine = np.array([[principal_angle_range(sampled[r]["v"][:, a : a + ln], sampled[r]["v"][:, d - a - ln : d - a])[0] for a, ln in blocks_] for r in rows])
+            for col, x in zip(names, mine.T):
+                if col in cols:
+                    c.compare("transversality.csv", col, step, x, np.array([float(r[col]) for r in tr]))
 
     # Figs. 16-17: Theta over the pairs of F^(J), J as clv chooses it (before the first
     # positive mode step): min and mean per separation, and the histograms of Fig. 16.

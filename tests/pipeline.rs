@@ -889,10 +889,10 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
             assert!(v["checked"][table].as_f64().is_some_and(|d| d < 1e-12), "{table}: {v}");
         }
     };
-    all_checked(&v, &["spectrum.csv", "local_exponents.csv", "finite_time_exponents.csv", "domination.csv", "localization.csv", "projections.csv", "overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv", "nullspace_alpha.csv", "nullspace_beta.csv", "theta_min.csv", "theta_histograms.csv", "convergence_gs.csv", "convergence_clv.csv", "convergence_tests.csv", "modes.csv", "modes.json"]);
+    all_checked(&v, &["spectrum.csv", "local_exponents.csv", "finite_time_exponents.csv", "domination.csv", "localization.csv", "projections.csv", "overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv", "nullspace_alpha.csv", "nullspace_beta.csv", "theta_min.csv", "theta_histograms.csv", "convergence_gs.csv", "convergence_clv.csv", "convergence_tests.csv", "modes.csv", "modes.json", "transversality.csv", "nullspace_series.csv", "nullspace_tables.json", "domination_pairs.csv"]);
     // The errors are checked too: batch means (stderr columns, in "checked" above) and the
     // _std columns, sample deviations over the frames (Welford's sums in clv: a constant's is 0).
-    for (table, columns) in [("spectrum.csv", &["stderr_clv", "stderr_gs_window", "stderr_gs"][..]), ("localization.csv", &["stderr_gs", "stderr_clv"]), ("projections.csv", &["eta_q_gs_std", "eta_q_clv_std"]), ("overlap_gs_clv.csv", &["abs_g_dot_v_std"]), ("overlap_clv_gs.csv", &["abs_v12_std"]), ("overlap_clv_clv.csv", &["abs_v7_std"]), ("local_exponents.csv", &["time", "lambda_1"]), ("finite_time_exponents.csv", &["windows", "mean", "std", "min", "max"]), ("domination.csv", &["overall", "outside_null", "border_unstable_null", "split_null_stable"]), ("convergence_clv.csv", &["t", "lambda_1"]), ("convergence_tests.csv", &["tested", "h_ks_z", "h_ks_chance", "r1"]), ("theta_histograms.csv", &["theta_lo", "density_sep_1", "density_sep_8"])] {
+    for (table, columns) in [("spectrum.csv", &["stderr_clv", "stderr_gs_window", "stderr_gs"][..]), ("localization.csv", &["stderr_gs", "stderr_clv"]), ("projections.csv", &["eta_q_gs_std", "eta_q_clv_std"]), ("overlap_gs_clv.csv", &["abs_g_dot_v_std"]), ("overlap_clv_gs.csv", &["abs_v12_std"]), ("overlap_clv_clv.csv", &["abs_v7_std"]), ("local_exponents.csv", &["time", "lambda_1"]), ("finite_time_exponents.csv", &["windows", "mean", "std", "min", "max"]), ("domination.csv", &["overall", "outside_null", "border_unstable_null", "split_null_stable"]), ("convergence_clv.csv", &["t", "lambda_1"]), ("convergence_tests.csv", &["tested", "h_ks_z", "h_ks_chance", "r1"]), ("theta_histograms.csv", &["theta_lo", "density_sep_1", "density_sep_8"]), ("spectrum.csv", &["i_over_D", "zero_by_symmetry", "lambda_clv_null_shear"]), ("transversality.csv", &["psi_unstable_stable"]), ("nullspace_series.csv", &["time", "angle_clv", "angle_gs", "angle_gs_clv", "norm_beta_17", "norm_alpha_14"]), ("nullspace_tables.json", &["step", "indices", "e1", "e6"]), ("domination_pairs.csv", &["delta_1", "delta_50"])] {
         for column in columns {
             assert!(v["columns"][table].as_array().unwrap().iter().any(|c| c == column), "{table} {column}: {v}");
         }
@@ -912,11 +912,15 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     assert!(m["agree"] == true && m["mode_steps"].as_array().is_some_and(|s| s.len() >= 4), "{m}");
     let pattern = |prefix: &str| m["checked"].as_object().unwrap().keys().find(|t| t.starts_with(prefix)).cloned().unwrap_or_else(|| panic!("no {prefix}* table: {m}"));
     let (fig10, lp) = (pattern("fig10_T"), pattern("LP"));
-    all_checked(&m, &["modes.csv", "modes.json", "modes_fits.csv", "modes_lp.csv", "modes_dispersion.csv", &fig10, &lp, "theta_min.csv", "theta_histograms.csv"]);
+    all_checked(&m, &["modes.csv", "modes.json", "modes_fits.csv", "modes_lp.csv", "modes_dispersion.csv", &fig10, &lp, "theta_min.csv", "theta_histograms.csv", "transversality.csv"]);
+    // Fig. 15's Phi of each positive mode step beside Psi.
+    let phis: Vec<String> = m["columns"]["transversality.csv"].as_array().unwrap().iter().filter_map(|c| c.as_str()).filter(|c| c.starts_with("phi_")).map(String::from).collect();
+    assert!(phis.len() >= 2, "{m}");
 
     // One number of one table off by a relative 1e-6 (in a copy of the report, the other
     // tables as written): exactly that one disagreement, and exit 1. Rows are counted from 1
-    // after the header (in a table of indices i = 1, 2, ..., row i is index i).
+    // after the header (in a table of indices i = 1, 2, ..., row i is index i); the message
+    // names a table of frames by the row's step.
     let fields = |line: &str| -> Vec<String> {
         // split at the commas outside quotes ("T(1,0)"), keeping the quotes
         let (mut out, mut cell, mut quoted) = (Vec::new(), String::new(), false);
@@ -955,6 +959,7 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
         if lines[0].starts_with("i,") {
             assert_eq!(cells[0], i.to_string());
         }
+        let row = if lines[0].starts_with("step,") { cells[0].clone() } else { i.to_string() };
         let x: f64 = cells[at].parse().unwrap();
         assert!(x != 0.0 && x.is_finite(), "{file} {column} {i}: {x} does not change by a relative 1e-6");
         cells[at] = format!("{:e}", x * (1.0 + 1e-6));
@@ -962,7 +967,7 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
         std::fs::write(altered.join(file), lines.join("\n") + "\n").unwrap();
         let out = verify(altered, frames);
         std::fs::copy(report.join(file), altered.join(file)).unwrap();
-        is_the_one(&out, &format!("{file} {column} {i}"));
+        is_the_one(&out, &format!("{file} {column} {row}"));
     };
     // The row of a column's largest value (a histogram's densities are mostly 0).
     let largest = |report: &Path, file: &str, column: &str| {
@@ -979,6 +984,21 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     one_altered(small, "convergence_clv.csv", "lambda_1", 2);
     one_altered(small, "convergence_gs.csv", "lambda_5", 3);
     one_altered(small, "convergence_tests.csv", "h_ks_chance", 2);
+    one_altered(small, "spectrum.csv", "i_over_D", 5);
+    one_altered(small, "spectrum.csv", "zero_by_symmetry", 14);
+    one_altered(small, "spectrum.csv", "lambda_clv_null_shear", 17);
+    one_altered(small, "domination_pairs.csv", "delta_5", largest(&report, "domination_pairs.csv", "delta_5"));
+    one_altered(small, "transversality.csv", "psi_unstable_stable", 4);
+    one_altered(small, "nullspace_series.csv", "norm_beta_17", 2);
+    // nullspace_tables.json: beta's largest entry of its first row (the others are round-off,
+    // which a relative 1e-6 does not move beyond the tolerance).
+    let mut json: serde_json::Value = serde_json::from_str(&read(&report.join("nullspace_tables.json"))).unwrap();
+    let row = json["beta"][0].as_array().unwrap().clone();
+    let k = (0..6).max_by(|&a, &b| row[a].as_f64().unwrap().abs().total_cmp(&row[b].as_f64().unwrap().abs())).unwrap();
+    json["beta"][0][k] = serde_json::json!(row[k].as_f64().unwrap() * (1.0 + 1e-6));
+    std::fs::write(altered.join("nullspace_tables.json"), serde_json::to_vec_pretty(&json).unwrap()).unwrap();
+    is_the_one(&verify(&altered, &frames), &format!("nullspace_tables.json e{} 1", k + 1));
+    std::fs::copy(report.join("nullspace_tables.json"), altered.join("nullspace_tables.json")).unwrap();
     let with_modes = (modes_report.as_path(), modes_altered.as_path(), modes_frames.as_path());
     one_altered(with_modes, "modes.csv", "fraction_gs", 1);
     one_altered(with_modes, "modes_fits.csv", "resid_dpt", 2);
@@ -986,6 +1006,7 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     one_altered(with_modes, "modes_dispersion.csv", "stderr", 1);
     one_altered(with_modes, &fig10, "dqy_clv", 3);
     one_altered(with_modes, &lp, "fig12_P_dp_over_p_gs", 4);
+    one_altered(with_modes, "transversality.csv", &phis[0], 3);
     // modes.json: the same number as modes.csv's, in its rows.
     let mut json: serde_json::Value = serde_json::from_str(&read(&modes_report.join("modes.json"))).unwrap();
     let x = json["modes"][0]["lambda"].as_f64().unwrap();
