@@ -214,7 +214,11 @@ singular values: ~1e-14 seen), the t-distribution chance (two methods for it agr
 round-off, ~1e-16). A _std agrees when |mine - report| <=
 1e-9 |report| or <= 1e-12 (the spread of a constant, |v^i . v^i| = 1, is round-off). Until
 2026-11-27 clv summed x and x^2 over the frames, and its _std of a constant came out ~1e-8
-= sqrt(1e-16) instead of 0; this check found it.
+= sqrt(1e-16) instead of 0; this check found it. Also until 2026-11-27, clv's
+lambda_clv_null_shear was the model's time average over the whole span of the frames' steps,
+which is the mean over the frames only where they are consecutive: for a file of every third
+step it was -6.11915e-3 against the -6.12782e-3 of the frames it holds (and of their
+lambda_clv); this check found that too.
 The JSON on stdout: {"agree": ..., "checked": {table: largest |mine - report| over its mean
 and stderr columns}, "checked_std": {table: the same over its _std columns}, "columns":
 {table: [columns compared]}, "frames": n, "sampled": n, "every": m, "blocks": B,

@@ -900,6 +900,14 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     for table in ["projections.csv", "overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv"] {
         assert!(v["checked_std"][table].as_f64().is_some_and(|d| d < 1e-12), "{table}: {v}");
     }
+    // A file of every third step (--save-every 3): lambda_clv averages the frames it holds,
+    // and so must the shear model's prediction of the last three null-space exponents (clv
+    // gave the average over the whole span of steps, 1.4e-3 relative off, until 2026-11-27).
+    let (sparse, sparse_report) = (base.join("frames-every-3.mcap"), base.join("report-every-3"));
+    ok(clv(&["backward", run.to_str().unwrap(), "--out", sparse.to_str().unwrap(), "--with-gs", "--save-every", "3", "--quiet"]));
+    ok(clv(&["analyze", sparse.to_str().unwrap(), "--every", "3", "--out", sparse_report.to_str().unwrap(), "--quiet"]));
+    let s: serde_json::Value = serde_json::from_slice(&ok(verify(&sparse_report, &sparse)).stdout).unwrap();
+    assert!(s["agree"] == true && s["frames"] == 100 && s["columns"]["spectrum.csv"].as_array().unwrap().iter().any(|c| c == "lambda_clv_null_shear"), "{s}");
 
     // The N = 8 system has no mode steps. N = 40 in the paper's box has a T(1,0) pair and an
     // LP(1,0) quadruplet next to it (and their mirrors): the mode table, the sine fits, the

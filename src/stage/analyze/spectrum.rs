@@ -19,6 +19,12 @@ pub struct Spectrum {
     without_gs: u64,
     /// Oldest and newest step consumed.
     steps: Option<(u64, u64)>,
+    /// Sum over the frames of the local exponent the shear model gives the three trailing
+    /// null-space CLVs ([`frame_null_shear`]): lambda_clv_null_shear is its mean, as
+    /// lambda_clv is the mean of the frames' local exponents.
+    shear_sum: f64,
+    /// Frames consumed.
+    consumed: u64,
 }
 
 /// The CLV exponent a finite window gives the three trailing null-space vectors: backward
@@ -30,6 +36,16 @@ pub fn null_shear_exponent(s1: f64, s2: f64) -> f64 {
     -((1.0 + s2 * s2).ln() - (1.0 + s1 * s1).ln()) / (2.0 * (s2 - s1))
 }
 
+/// The shear model's local exponent of the frame of `step`, over [t_step, t_(step+1)], at
+/// the backward times (total - step - 1) tau .. (total - step) tau from the run's end
+/// (step `total`, where the backward pass starts). The mean over consecutive frames is
+/// [`null_shear_exponent`] over their whole span; over the frames of a file of every m-th
+/// step it is not.
+fn frame_null_shear(step: u64, total: u64, tau: f64) -> f64 {
+    let s = (total as f64 - step as f64) * tau;
+    null_shear_exponent(s - tau, s)
+}
+
 /// See [`super::Missing`].
 pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> {
     (missing == super::Missing::AllVectors && ctx.is_disks()).then_some("Fig. 8, the mode region with its conjugate pairs")
@@ -37,7 +53,7 @@ pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> 
 
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     let acc = Accumulator::new(ctx.k, ctx.block_len(false));
-    Some(Box::new(Spectrum { ctx: ctx.clone(), acc_gs: acc.clone(), acc, without_gs: 0, steps: None }))
+    Some(Box::new(Spectrum { ctx: ctx.clone(), acc_gs: acc.clone(), acc, without_gs: 0, steps: None, shear_sum: 0.0, consumed: 0 }))
 }
 
 impl Analysis for Spectrum {
@@ -55,6 +71,9 @@ impl Analysis for Spectrum {
             self.acc_gs.add_logs(frame.gs_local.iter().copied());
         }
         self.steps = Some(self.steps.map_or((frame.step, frame.step), |(a, b)| (a.min(frame.step), b.max(frame.step))));
+        let config = &self.ctx.run.config;
+        self.shear_sum += frame_null_shear(frame.step, config.relax_steps + config.steps, self.ctx.tau);
+        self.consumed += 1;
         Ok(())
     }
 
@@ -74,14 +93,16 @@ impl Analysis for Spectrum {
         let shear = match (&trailing, self.steps) {
             (Some(_), Some((first, last))) => {
                 // Frame m carries the exponent over [t_m, t_(m+1)], at backward times
-                // (total - m - 1) tau .. (total - m) tau from the window's end.
+                // (total - m - 1) tau .. (total - m) tau from the run's end: the frames span
+                // s1..s2, every step of it where they are consecutive.
                 let total = ctx.run.config.relax_steps + ctx.run.config.steps;
-                Some(((total - last - 1) as f64 * ctx.tau, (total - first) as f64 * ctx.tau))
+                let s = |m: u64| (total as f64 - m as f64) * ctx.tau;
+                Some((s(last) - ctx.tau, s(first), self.shear_sum / self.consumed as f64, self.consumed == last - first + 1))
             }
             _ => None,
         };
         let predicted = |i: usize| match shear {
-            Some((s1, s2)) if trailing.as_ref().is_some_and(|t| t.contains(&i)) => null_shear_exponent(s1, s2),
+            Some((_, _, mean, _)) if trailing.as_ref().is_some_and(|t| t.contains(&i)) => mean,
             _ => f64::NAN,
         };
         write_csv(
@@ -137,12 +158,16 @@ impl Analysis for Spectrum {
             figures: vec!["fig2_spectrum".into()],
             tables: vec!["spectrum.csv".into()],
         }];
-        if let Some((s1, s2)) = shear {
+        if let Some((s1, s2, mean, consecutive)) = shear {
             let measured: Vec<String> = trailing.clone().unwrap_or_default().map(|i| format!("{:.4e}", clv[i])).collect();
+            let average = if consecutive {
+                format!("over s = {s1:.1}..{s2:.1} they average -ln((1 + s2²)/(1 + s1²)) / (2 (s2 - s1)) = {mean:.4e}")
+            } else {
+                format!("over the {frames} frames' steps, within s = {s1:.1}..{s2:.1}, the mean of each step's -ln((1 + s²)/(1 + (s - τ)²)) / (2τ) is {mean:.4e}")
+            };
             produced[0].caption += &format!(
                 " The last three null-space CLV exponents (i = 2N+1..2N+3) are not zero in a finite window: backward iteration turns e_(k+3) into e_(k+3) - s e_k, \
-                 a growth like the backward time s, not exponential, so over s = {s1:.1}..{s2:.1} they average -ln((1 + s2²)/(1 + s1²)) / (2 (s2 - s1)) = {:.4e}; measured {}.",
-                null_shear_exponent(s1, s2),
+                 a growth like the backward time s, not exponential, so {average}; measured {}.",
                 measured.join(", ")
             );
             produced[0].caption += " In spectrum.csv, zero_by_symmetry marks the null space, where the CLV errors measure this drift, not noise, and lambda_clv_null_shear gives the predicted values.";
@@ -301,14 +326,52 @@ mod tests {
         a.finish(&out, 2).unwrap();
         let rows = crate::stage::analyze::testing::read_csv(&out.join("spectrum.csv"));
         assert_eq!(rows.len(), ctx.k);
-        let (s1, s2) = (9.0 * ctx.tau, 20.0 * ctx.tau); // (total - last - 1) tau, (total - first) tau
+        // the mean of the two frames' steps, at backward times 19..20 tau and 9..10 tau
+        let tau = ctx.tau;
+        let want = (null_shear_exponent(19.0 * tau, 20.0 * tau) + null_shear_exponent(9.0 * tau, 10.0 * tau)) / 2.0;
         for (i, row) in rows.iter().enumerate() {
             let shear: f64 = row["lambda_clv_null_shear"].parse().unwrap();
             if i >= 2 * n {
-                assert!((shear - null_shear_exponent(s1, s2)).abs() < 1e-15, "lambda_{}: {shear}", i + 1);
+                assert!((shear - want).abs() < 1e-15, "lambda_{}: {shear}", i + 1);
             } else {
                 assert!(shear.is_nan(), "lambda_{}: {shear}", i + 1);
             }
+        }
+    }
+
+    /// A frame file of every third step (`clv backward --save-every 3`): lambda_clv averages
+    /// the local exponents of the frames it holds, each over one step, so the prediction is
+    /// the mean of the model's exponent over those frames, which the frames' own exponents
+    /// (the model's here) give; the time average over the whole span of steps is another
+    /// number (by 1e-3 relative in the pipeline test's run).
+    #[test]
+    fn the_null_shear_of_a_file_of_every_third_step_is_the_mean_over_its_frames() {
+        let n = 4;
+        let d = 4 * n;
+        let ctx = context("disks", n, d, 4.0, 4.0, None, false);
+        let total = ctx.run.config.relax_steps + ctx.run.config.steps;
+        let trailing = ctx.null_shear().unwrap();
+        let tau = ctx.tau;
+        let mut a = new(&ctx).unwrap();
+        let steps: Vec<u64> = (0..40).map(|j| total - 60 - 3 * j).collect(); // newest first
+        let mut want = 0.0;
+        for &step in &steps {
+            let mut f = frame(step, vec![0.0; d], vec![0.0; d * d], None);
+            let model = null_shear_exponent((total - step - 1) as f64 * tau, (total - step) as f64 * tau);
+            for i in trailing.clone() {
+                f.local[i] = model;
+            }
+            want += model / steps.len() as f64;
+            a.consume(&f).unwrap();
+        }
+        let out = out_dir("spectrum-null-shear-every-third");
+        a.finish(&out, steps.len() as u64).unwrap();
+        let rows = crate::stage::analyze::testing::read_csv(&out.join("spectrum.csv"));
+        let span = null_shear_exponent((total - steps[0] - 1) as f64 * tau, (total - steps[39]) as f64 * tau);
+        assert!((span - want).abs() > 1e-6 * want.abs(), "the span's average {span} is not the frames' {want}");
+        for i in trailing {
+            let (shear, clv): (f64, f64) = (rows[i]["lambda_clv_null_shear"].parse().unwrap(), rows[i]["lambda_clv"].parse().unwrap());
+            assert!((shear - want).abs() < 1e-15 && (shear - clv).abs() < 1e-15, "lambda_{}: predicted {shear}, measured {clv}, mean over the frames {want}", i + 1);
         }
     }
 
