@@ -930,7 +930,8 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     // after the header (in a table of indices i = 1, 2, ..., row i is index i); the message
     // names a table of frames by the row's step.
     let fields = |line: &str| -> Vec<String> {
-        // split at the commas outside quotes ("T(1,0)"), keeping the quotes
+        // split at the commas outside quotes ("T(1,0)"), keeping the quotes so that the
+        // altered line is written back as it was (report::dir::csv_cells drops them)
         let (mut out, mut cell, mut quoted) = (Vec::new(), String::new(), false);
         for ch in line.chars() {
             match ch {
@@ -946,11 +947,7 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     };
     let copy = |report: &Path| {
         let altered = report.with_extension("altered");
-        std::fs::create_dir_all(&altered).unwrap();
-        for entry in std::fs::read_dir(report).unwrap() {
-            let path = entry.unwrap().path();
-            std::fs::copy(&path, altered.join(path.file_name().unwrap())).unwrap();
-        }
+        common::copy_dir(report, &altered);
         altered
     };
     let (altered, modes_altered) = (copy(&report), copy(&modes_report));

@@ -454,8 +454,9 @@ impl Modes {
         let r = &self.resolved;
         let others: Vec<String> = r.others(&self.steps).map(|(start, len, n)| format!("i = {}..{} in {n}", start + 1, start + len)).collect();
         let others = if others.is_empty() { "no frame finds another step".to_string() } else { format!("other steps found by some frames: {}", others.join(", ")) };
+        let at = self.shown.as_ref().map_or(String::new(), |f| format!(" (step {}, the newest: the backward stream delivers it first)", f.step));
         format!(
-            "The steps are those resolved at the first sampled frame; resolved at each frame on its own, {} of {} frames give the same steps ({others}; the resolved column).",
+            "The steps are those resolved at the first sampled frame read{at}; resolved at each frame on its own, {} of {} frames give the same steps ({others}; the resolved column).",
             r.same, r.frames
         )
     }
@@ -514,7 +515,7 @@ impl ModeRow {
         let r = self;
         let weak = if r.name != r.best { format!(" of the best candidate {}, {:.2} beyond chance, below {MIN_FRACTION}", r.best, r.beyond_chance) } else { String::new() };
         format!(
-            "{} at i = {}..{} ({}-fold{}, λ = {:.4}{}, fraction {:.2}{weak}, {:.0}% of frames agree, {:.0}% find the step on their own)",
+            "{} at i = {}..{} ({}-fold{}, λ = {:.4}{}, fraction {:.2}{weak}, {:.0}% of frames agree, {} of {} find the step on their own)",
             r.name,
             r.first,
             r.last,
@@ -524,7 +525,8 @@ impl ModeRow {
             if r.detection == "degenerate" { String::new() } else { format!(" with its exponents spread over {:.4}", r.spread) },
             r.fraction_gs.or(r.fraction_clv).unwrap_or(f64::NAN),
             100.0 * r.agreement,
-            100.0 * r.resolved
+            (r.resolved * r.frames as f64).round(),
+            r.frames
         )
     }
 }

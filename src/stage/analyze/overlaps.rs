@@ -298,7 +298,10 @@ impl Overlaps {
                 "Time average of |g^i · v^i| for the GS and covariant vectors of the same exponent λ_i against i, {}{}.{}",
                 shared.avg,
                 central.map(|(a, b)| format!("; the second plot enlarges the central (mode and null-space) part, i = {}..{}", a + 1, b + 1)).unwrap_or_default(),
-                if central.is_some() { fig3_null_space(ctx.n, &mean) } else { String::new() }
+                match (central, ctx.null_shear()) {
+                    (Some(_), Some(shear)) => fig3_null_space(ctx.n, shear, &mean),
+                    _ => String::new(),
+                }
             ),
             figures,
             tables: vec!["overlap_gs_clv.csv".into()],
@@ -321,16 +324,24 @@ impl Overlaps {
             panels.push(fig);
         }
         save_figure(&panels, out, "fig4_clv_gs_overlap")?;
+        // The vectors next to the null space are mode vectors where the report found mode
+        // steps there (the paper's are); a small system may have none.
+        let in_mode = |j: usize| ctx.modes.as_ref().is_ok_and(|m| m.iter().any(|(s, _)| (s.start..s.start + s.len).contains(&j)));
+        let next = if ctx.n >= 2 && in_mode(2 * ctx.n - 4) && in_mode(2 * ctx.n + 3) { "mode vector" } else { "vector (no mode step there in this report)" };
         let which = if selected {
             "the selected covariant vectors".to_string()
         } else {
             format!(
-                "the covariant vectors of the paper's j = 370, 393, 400 and 700: the last unstable vector before the mode region, the unstable and the stable mode vector next to the null space (2N-3, 2N+4), and a stable vector that is no mode, the conjugate 4N+1-j of the paper's 93 scaled (its curve may step at i = {})",
+                "the covariant vectors of the paper's j = 370, 393, 400 and 700: the last unstable vector before the mode region, the unstable and the stable {next} next to the null space (2N-3, 2N+4), and a stable vector that is no mode, the conjugate 4N+1-j of the paper's 93 scaled (its curve may step at i = {})",
                 ctx.d - self.fig4_js.last().copied().unwrap_or_default()
             )
         };
         let arranged = if !selected && vg.len() == 4 {
-            "arranged as the paper's: unstable vectors left, stable right, the vectors that are no mode at the top, the mode vectors below"
+            if next == "mode vector" {
+                "arranged as the paper's: unstable vectors left, stable right, the vectors that are no mode at the top, the mode vectors below"
+            } else {
+                "arranged as the paper's: unstable vectors left, stable right, the vectors next to the null space below"
+            }
         } else {
             "left to right, then top to bottom"
         };
@@ -425,7 +436,7 @@ impl Overlaps {
 /// Fig. 3's caption on the null space of N disks, from <|g^i . v^i|> (`mean`): which of its
 /// values of 1 hold for any start of the backward pass and which come from C = identity, and
 /// the values at i = 2N+1..2N+3.
-fn fig3_null_space(n: usize, mean: &[f64]) -> String {
+fn fig3_null_space(n: usize, shear: std::ops::Range<usize>, mean: &[f64]) -> String {
     let kept = (2 * n - 2..2 * n).all(|i| (mean[i] - 1.0).abs() < 1e-9);
     format!(
         " It is 1 at i = 1 and i = 2N-2 = {}, where v^i = g^i for any start (the paper).{} At i = {}..{} (black open rings: not converged) it is {}: those covariant vectors are E_(k+3) - s E_k after a backward time s (see Fig. 2), turned towards the position shifts E_k as s grows, while those GS vectors are the momentum shifts E_(k+3), so that it vanishes like 1/s in a long window: a dip of the finite window, not of the dynamics.",
@@ -439,9 +450,9 @@ fn fig3_null_space(n: usize, mean: &[f64]) -> String {
         } else {
             String::new()
         },
-        2 * n + 1,
-        2 * n + 3,
-        (2 * n..2 * n + 3).map(|i| format!("{:.2e}", mean[i])).collect::<Vec<_>>().join(", ")
+        shear.start + 1,
+        shear.end,
+        shear.clone().map(|i| format!("{:.2e}", mean[i])).collect::<Vec<_>>().join(", ")
     )
 }
 
@@ -639,6 +650,7 @@ mod tests {
         // paper's 93 of 393 scales to 4, whose conjugate is 37.
         let (caption, header, panels) = fig4(true);
         assert!(caption.contains("paper's j = 370, 393, 400 and 700") && caption.contains("j = 15, 17, 24, 37,") && caption.contains("step at i = 4)"), "{caption}");
+        assert!(caption.contains("the stable mode vector next to the null space") && caption.contains("the mode vectors below"), "{caption}");
         assert!(header.contains("abs_v15_mean,abs_v15_std,abs_v17_mean,abs_v17_std,abs_v24_mean,abs_v24_std,abs_v37_mean"), "{header}");
         // The paper's arrangement: 370 and 700 at the top, 393 and 400 below.
         assert_eq!(panels, [15, 37, 17, 24], "{caption}");
@@ -658,7 +670,11 @@ mod tests {
         let mut a = new(&ctx).unwrap();
         a.consume(&frame(0, d, identity(d), Some(identity(d)))).unwrap();
         let out = scratch("overlaps-fig4-small");
-        a.finish(&out, 1).unwrap();
+        let produced = a.finish(&out, 1).unwrap();
+        // Without the forward spectrum there are no mode steps: the vectors next to the null
+        // space are not called mode vectors.
+        let caption = &produced.iter().find(|p| p.title.contains("Fig. 4")).expect("Fig. 4").caption;
+        assert!(caption.contains("the stable vector (no mode step there in this report) next to the null space") && !caption.contains("mode vectors below"), "{caption}");
         let header = std::fs::read_to_string(out.join("overlap_clv_gs.csv")).unwrap().lines().next().unwrap().to_string();
         assert_eq!(header, "i,i_over_D,abs_v5_mean,abs_v5_std,abs_v12_mean,abs_v12_std,abs_v16_mean,abs_v16_std");
     }

@@ -181,15 +181,14 @@ impl Analysis for Projections {
             caption: format!(
                 "Time average of the signed cos Θ = δq · δp / (|δq| |δp|) of each vector against i{}, {avg}{insets}. For GS vectors it approaches +1 (-1) for the smallest positive (negative) exponents; for covariant vectors it does not.{}",
                 if self.gs.is_some() { ", GS (blue) and covariant vectors (vermillion)" } else { ", covariant vectors" },
-                if full {
-                    format!(
+                match ctx.null_shear().filter(|_| full) {
+                    Some(shear) => format!(
                         " In the null space, the covariant vectors i = {}..{} are E_(k+3) - s E_k after a backward time s (see Fig. 2), with δq = -s δp: their cos Θ = -1 is that finite-window shear, not dynamics; \
                          the null-space GS vectors are pure position or pure momentum directions, for which cos Θ is undefined (no point, nan in the table).",
-                        2 * ctx.n + 1,
-                        2 * ctx.n + 3
-                    )
-                } else {
-                    String::new()
+                        shear.start + 1,
+                        shear.end
+                    ),
+                    None => String::new(),
                 }
             ),
             figures,
