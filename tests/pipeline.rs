@@ -982,19 +982,23 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
         1 + (0..values.len()).max_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap()
     };
     let small = (report.as_path(), altered.as_path(), frames.as_path());
-    one_altered(small, "localization.csv", "W_clv", 2);
-    one_altered(small, "spectrum.csv", "stderr_clv", 3);
-    one_altered(small, "spectrum.csv", "stderr_gs", 3);
-    one_altered(small, "theta_histograms.csv", "density_sep_2", largest(&report, "theta_histograms.csv", "density_sep_2"));
-    one_altered(small, "convergence_clv.csv", "lambda_1", 2);
-    one_altered(small, "convergence_gs.csv", "lambda_5", 3);
-    one_altered(small, "convergence_tests.csv", "h_ks_chance", 2);
-    one_altered(small, "spectrum.csv", "i_over_D", 5);
-    one_altered(small, "spectrum.csv", "zero_by_symmetry", 14);
-    one_altered(small, "spectrum.csv", "lambda_clv_null_shear", 17);
-    one_altered(small, "domination_pairs.csv", "delta_5", largest(&report, "domination_pairs.csv", "delta_5"));
-    one_altered(small, "transversality.csv", "psi_unstable_stable", 4);
-    one_altered(small, "nullspace_series.csv", "norm_beta_17", 2);
+    for (file, column, row) in [
+        ("localization.csv", "W_clv", 2),
+        ("spectrum.csv", "stderr_clv", 3),
+        ("spectrum.csv", "stderr_gs", 3),
+        ("theta_histograms.csv", "density_sep_2", largest(&report, "theta_histograms.csv", "density_sep_2")),
+        ("convergence_clv.csv", "lambda_1", 2),
+        ("convergence_gs.csv", "lambda_5", 3),
+        ("convergence_tests.csv", "h_ks_chance", 2),
+        ("spectrum.csv", "i_over_D", 5),
+        ("spectrum.csv", "zero_by_symmetry", 14),
+        ("spectrum.csv", "lambda_clv_null_shear", 17),
+        ("domination_pairs.csv", "delta_5", largest(&report, "domination_pairs.csv", "delta_5")),
+        ("transversality.csv", "psi_unstable_stable", 4),
+        ("nullspace_series.csv", "norm_beta_17", 2),
+    ] {
+        one_altered(small, file, column, row);
+    }
     // nullspace_tables.json: beta's largest entry of its first row (the others are round-off,
     // which a relative 1e-6 does not move beyond the tolerance).
     let mut json: serde_json::Value = serde_json::from_str(&read(&report.join("nullspace_tables.json"))).unwrap();
@@ -1006,6 +1010,7 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     std::fs::copy(report.join("nullspace_tables.json"), altered.join("nullspace_tables.json")).unwrap();
     let with_modes = (modes_report.as_path(), modes_altered.as_path(), modes_frames.as_path());
     one_altered(with_modes, "modes.csv", "fraction_gs", 1);
+    one_altered(with_modes, "modes.csv", "resolved", 2);
     one_altered(with_modes, "modes_fits.csv", "resid_dpt", 2);
     one_altered(with_modes, "modes_lp.csv", "overlap", 3);
     one_altered(with_modes, "modes_dispersion.csv", "stderr", 1);
