@@ -312,10 +312,11 @@ impl Context {
         (self.is_disks() && self.n >= 2 && null.end <= self.k).then_some(null)
     }
 
-    /// The 0-based indices of the last three null-space vectors, 2N+1..2N+3, where all of
-    /// the null space is among the k vectors: their covariant vectors do not converge, since
-    /// backward iteration turns e_(k+3) into e_(k+3) - s e_k after the backward time s (their
-    /// exponents drift like ln s / s, Fig. 2; spectrum.csv's lambda_clv_null_shear).
+    /// The 0-based range 2N..2N+3 of the last three null-space vectors (the paper's
+    /// i = 2N+1..2N+3), where all of the null space is among the k vectors: their covariant
+    /// vectors do not converge, since backward iteration turns e_(k+3) into e_(k+3) - s e_k
+    /// after the backward time s (their exponents drift like ln s / s, Fig. 2; spectrum.csv's
+    /// lambda_clv_null_shear).
     pub fn null_shear(&self) -> Option<std::ops::Range<usize>> {
         self.null_space().map(|null| null.start + 3..null.end)
     }
