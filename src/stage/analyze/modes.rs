@@ -445,9 +445,7 @@ impl Modes {
             ),
         }
     }
-}
 
-impl Modes {
     /// How typical the first frame's steps are, for the caption: how many frames resolve the
     /// same steps on their own, and which other steps some frames find.
     fn resolution_text(&self) -> String {
