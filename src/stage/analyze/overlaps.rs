@@ -282,7 +282,7 @@ impl Overlaps {
             let mut fig = Figure::new(title).x_label("i").y_label("<|g^i · v^i|>");
             fig.series("<|g^i · v^i|>", &idx[a..=b], &mean[a..=b], line);
             if let Some(s) = &shear {
-                fig.series(&format!("not converged (i = {}..{}, see caption)", s.start + 1, s.end), &idx[s.clone()], &mean[s.clone()], Marker::Points).color(6).open_markers(true);
+                fig.series(&format!("not converged (i = {}..{}, see caption)", s.start + 1, s.end), &idx[s.clone()], &mean[s.clone()], Marker::Points).color(6 /* black */).open_markers(true);
             }
             save_figure(&fig, out, stem)
         };
@@ -327,7 +327,8 @@ impl Overlaps {
         // The vectors next to the null space are mode vectors where the report found mode
         // steps there (the paper's are); a small system may have none.
         let in_mode = |j: usize| ctx.modes.as_ref().is_ok_and(|m| m.iter().any(|(s, _)| (s.start..s.start + s.len).contains(&j)));
-        let next = if ctx.n >= 2 && in_mode(2 * ctx.n - 4) && in_mode(2 * ctx.n + 3) { "mode vector" } else { "vector (no mode step there in this report)" };
+        let modes_next = ctx.n >= 2 && in_mode(2 * ctx.n - 4) && in_mode(2 * ctx.n + 3);
+        let next = if modes_next { "mode vector" } else { "vector (no mode step there in this report)" };
         let which = if selected {
             "the selected covariant vectors".to_string()
         } else {
@@ -337,7 +338,7 @@ impl Overlaps {
             )
         };
         let arranged = if !selected && vg.len() == 4 {
-            if next == "mode vector" {
+            if modes_next {
                 "arranged as the paper's: unstable vectors left, stable right, the vectors that are no mode at the top, the mode vectors below"
             } else {
                 "arranged as the paper's: unstable vectors left, stable right, the vectors next to the null space below"

@@ -23,8 +23,6 @@ pub struct Spectrum {
     /// null-space CLVs ([`frame_null_shear`]): lambda_clv_null_shear is its mean, as
     /// lambda_clv is the mean of the frames' local exponents.
     shear_sum: f64,
-    /// Frames consumed.
-    consumed: u64,
 }
 
 /// The CLV exponent a finite window gives the three trailing null-space vectors: backward
@@ -53,7 +51,7 @@ pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> 
 
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     let acc = Accumulator::new(ctx.k, ctx.block_len(false));
-    Some(Box::new(Spectrum { ctx: ctx.clone(), acc_gs: acc.clone(), acc, without_gs: 0, steps: None, shear_sum: 0.0, consumed: 0 }))
+    Some(Box::new(Spectrum { ctx: ctx.clone(), acc_gs: acc.clone(), acc, without_gs: 0, steps: None, shear_sum: 0.0 }))
 }
 
 impl Analysis for Spectrum {
@@ -73,7 +71,6 @@ impl Analysis for Spectrum {
         self.steps = Some(self.steps.map_or((frame.step, frame.step), |(a, b)| (a.min(frame.step), b.max(frame.step))));
         let config = &self.ctx.run.config;
         self.shear_sum += frame_null_shear(frame.step, config.relax_steps + config.steps, self.ctx.tau);
-        self.consumed += 1;
         Ok(())
     }
 
@@ -97,7 +94,7 @@ impl Analysis for Spectrum {
                 // s1..s2, every step of it where they are consecutive.
                 let total = ctx.run.config.relax_steps + ctx.run.config.steps;
                 let s = |m: u64| (total as f64 - m as f64) * ctx.tau;
-                Some((s(last) - ctx.tau, s(first), self.shear_sum / self.consumed as f64, self.consumed == last - first + 1))
+                Some((s(last) - ctx.tau, s(first), self.shear_sum / frames as f64, frames == last - first + 1))
             }
             _ => None,
         };
