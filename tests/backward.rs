@@ -527,6 +527,7 @@ fn two_threads_give_the_frames_of_one() {
     let on_two = one.parent().unwrap().join("on-two.mcap");
     ok(clv(&["backward", one.to_str().unwrap(), "--quiet", "--with-gs", "--threads", "2", "--out", on_two.to_str().unwrap()]));
     assert!(frames(&on_two) == f1, "the one-thread run replayed on two threads");
+    std::fs::remove_file(&on_two).unwrap();
     // A sweep cut short on one thread and resumed on two.
     let cut_sweep = one.parent().unwrap().join("cut-sweep.mcap");
     let c = cut_sweep.to_str().unwrap();
@@ -534,6 +535,7 @@ fn two_threads_give_the_frames_of_one() {
     assert_eq!(crashed.status.code(), Some(clv::store::fault::CRASH_STATUS), "{}", common::stderr(&crashed));
     ok(clv(&["backward", one.to_str().unwrap(), "--quiet", "--with-gs", "--out", c, "--resume", "--threads", "2"]));
     assert!(frames(&cut_sweep) == f1, "a sweep resumed on two threads");
+    std::fs::remove_file(&cut_sweep).unwrap();
     let cut = scratch("threads-cut").join("run");
     // Segments of two checkpoints, so that the crash leaves finished ones to continue from.
     let args = [&["forward", "--quiet", "--out", cut.to_str().unwrap(), "--threads", "1", "--segment-checkpoints", "2"], &flags[..]].concat();

@@ -132,6 +132,9 @@ fn a_crash_between_any_two_durable_steps_is_recovered() {
                 ok(clv(&[&["backward", d, "--quiet", "--out", o][..], &resume_flag(&dir)].concat()));
             }
             assert!(frames(&f) == want_frames, "backward crashed at {at}: the resumed frames differ");
+            // Compared, each file goes: the 64 of them would hold most of a gigabyte.
+            let _ = std::fs::remove_file(&f);
+            let _ = std::fs::remove_dir_all(run.parent().unwrap());
 
             // A sweep stopped after its eighth segment (150 frames after the backward
             // transient of 250 steps), then its resumption crashed too.
@@ -144,6 +147,7 @@ fn a_crash_between_any_two_durable_steps_is_recovered() {
                 ok(clv(&["backward", d, "--quiet", "--out", o, "--resume"]));
             }
             assert!(frames(&f) == want_frames, "resumed backward crashed at {at}: the frames differ");
+            let _ = std::fs::remove_file(&f);
         }
     }
     // Only an extension moves results: tests/store.rs crashes it there.
@@ -789,6 +793,7 @@ fn damaged_frame_files_and_cut_streams_are_reported() {
         // clv inspect finds the same damage.
         let seen = clv(&["inspect", path.to_str().unwrap()]);
         assert!(!seen.status.success() && !stderr(&seen).contains("panicked"), "inspect missed damage {i} at byte {at}");
+        std::fs::remove_file(&path).unwrap();
     }
     // ... and summarises the intact file.
     let seen = ok(clv(&["inspect", file.to_str().unwrap(), "--json"]));

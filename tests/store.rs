@@ -27,7 +27,7 @@ const RUN: [&str; 16] = [
 fn reference_run() -> &'static (PathBuf, Contents, f64) {
     static REF: std::sync::OnceLock<(PathBuf, Contents, f64)> = std::sync::OnceLock::new();
     REF.get_or_init(|| {
-        let dir = scratch("reference").join("run");
+        let dir = common::shared_scratch("store", "reference").join("run");
         let started = std::time::Instant::now();
         let out = clv(&[&RUN[..], &["--out", dir.to_str().unwrap()]].concat());
         let ms = started.elapsed().as_secs_f64() * 1e3;

@@ -41,11 +41,54 @@ pub fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
+/// A fresh, empty directory for one test, under cargo's target/tmp. It is removed when the
+/// test's thread ends, unless the test failed (its files stay for a look) or
+/// CLV_KEEP_TEST_DATA is set: left behind, the suite's runs fill gigabytes, and a disk filled
+/// by them fails every test after.
 pub fn scratch(group: &str, name: &str) -> PathBuf {
+    let dir = shared_scratch(group, name);
+    MARK_FAILURES.call_once(|| {
+        let report = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            let _ = SCRATCH.try_with(|s| s.failed.set(true));
+            report(info)
+        }));
+    });
+    SCRATCH.with(|s| s.dirs.borrow_mut().push(dir.clone()));
+    dir
+}
+
+/// A fresh, empty directory for what several tests of one binary share (made once, in a
+/// `OnceLock`): kept, since the test that happens to make it may end before the others.
+pub fn shared_scratch(group: &str, name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(group).join(name);
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
+}
+
+static MARK_FAILURES: std::sync::Once = std::sync::Once::new();
+
+/// The scratch directories one test (one thread of the test harness) made.
+#[derive(Default)]
+struct Scratch {
+    dirs: std::cell::RefCell<Vec<PathBuf>>,
+    failed: std::cell::Cell<bool>,
+}
+
+thread_local! {
+    static SCRATCH: Scratch = Scratch::default();
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if self.failed.get() || std::env::var_os("CLV_KEEP_TEST_DATA").is_some() {
+            return;
+        }
+        for dir in self.dirs.borrow().iter() {
+            let _ = std::fs::remove_dir_all(dir);
+        }
+    }
 }
 
 pub fn copy_dir(from: &Path, to: &Path) {
