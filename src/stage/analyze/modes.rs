@@ -1067,24 +1067,13 @@ mod tests {
 
     /// Finite-N LP exponents are not exactly degenerate: only the middle pair of the planted
     /// quadruplet passes the statistical test; the pair classifies as LP and is widened to the
-    /// planted block, for the mode table and for the transversality analysis.
+    /// planted block (transversality.rs tests that its analysis takes the widened block).
     #[test]
     fn split_lp_quadruplet_is_widened() {
         let d = 4 * N;
-        let mut rng = Rng::new(4);
-        let mut spec = spectrum(N, 4);
-        let at = 2 * N - 7; // 0-based first index of the planted block
-        for (i, x) in [(at, 0.13), (at + 3, 0.07), (d - 1 - at, -0.13), (d - 1 - at - 3, -0.07)] {
-            spec.exponents[i] = x;
-        }
+        let Planted { ctx, spectrum: spec, frame: f, at, .. } = split_lp_quadruplet();
         let detected = km::mode_steps(&spec.exponents, &spec.stderr, STEP_TOL, step_window(d, &Candidates::new(LX, LY, MAX_N)), &[4, 2]);
         assert_eq!(detected.iter().map(|s| (s.start, s.len)).collect::<Vec<_>>(), [(at + 1, 2), (d - at - 3, 2)]);
-        let ctx = context("disks", N, d, LX, LY, Some(spec), true);
-        let phase = phase(N, LX, LY, &mut rng);
-        let cols = mode_vectors(ModeKind::LP, 2, &phase, -0.4, &[0, 1, 2, 3]);
-        let mut g = random_set(d, &mut rng);
-        plant(&mut g, d, at, &cols);
-        let f = frame(3, phase, g.clone(), Some(g));
         let (out, _) = run(&ctx, std::slice::from_ref(&f), "widened");
         let rows = read_csv(&out.join("modes.csv"));
         let lp = rows.iter().find(|r| r["side"] == "+").unwrap();
@@ -1095,12 +1084,6 @@ mod tests {
         // the conjugate pair is widened to the mirror block (conjugate pairing)
         let minus = rows.iter().find(|r| r["side"] == "-").unwrap();
         assert_eq!((minus["first"].as_str(), minus["last"].as_str(), minus["detection"].as_str()), ((d - at - 3).to_string().as_str(), (d - at).to_string().as_str(), "widened"));
-        let mut t = super::super::transversality::new(&ctx).unwrap();
-        t.consume(&f).unwrap();
-        let tout = out_dir("widened-transversality");
-        t.finish(&tout, 1).unwrap();
-        let header = std::fs::read_to_string(tout.join("transversality.csv")).unwrap();
-        assert!(header.starts_with(&format!("step,psi_unstable_stable,phi_{}_{}\n", at + 1, at + 4)), "{header}");
     }
 
     /// A quadruplet split by many standard errors but set apart from its neighbours (as in
@@ -1199,25 +1182,14 @@ mod tests {
     /// A small system's LP mode (N = 40 in the paper's box): its four exponents spread like
     /// the smooth spectrum's, so neither exponent test sees a step, but the block stands
     /// apart between gaps several times wider, next to the T pair. Its vectors find it, with
-    /// its mirror, for the mode table, the transversality analysis (F^(J) ends before it)
-    /// and Fig. 14; random vectors in the same place find nothing.
+    /// its mirror (transversality.rs and overlaps.rs test that their F^(J) and Fig. 14 take
+    /// it); random vectors in the same place find nothing.
     #[test]
     fn an_lp_block_split_like_the_smooth_spectrum_is_found_by_its_vectors() {
         let d = 4 * N;
-        let mut rng = Rng::new(9);
-        let mut spec = spectrum(N, 2);
-        let at = 2 * N - 9; // 0-based first index of the block, just above the T pair
-        plant_block(&mut spec, at, &[0.6, 0.55, 0.5, 0.45]);
+        let Planted { ctx, spectrum: spec, frame: f, random: plain, at } = lp_block_found_by_its_vectors();
         let detected = km::mode_steps(&spec.exponents, &spec.stderr, STEP_TOL, step_window(d, &Candidates::new(LX, LY, MAX_N)), &[4, 2]);
         assert_eq!(detected.iter().map(|s| (s.start, s.len)).collect::<Vec<_>>(), [(at + 4, 2), (d - at - 6, 2)], "the exponents alone see the T pair only");
-        let ctx = context("disks", N, d, LX, LY, Some(spec), true);
-        let phase = phase(N, LX, LY, &mut rng);
-        let cols = mode_vectors(ModeKind::LP, 1, &phase, 0.5, &[0, 1, 2, 3]);
-        let random = random_set(d, &mut rng);
-        let mut g = random.clone();
-        plant(&mut g, d, at, &cols);
-        plant(&mut g, d, d - at - 4, &cols);
-        let f = frame(3, phase.clone(), g.clone(), Some(g));
         let (out, _) = run(&ctx, std::slice::from_ref(&f), "lp-by-vectors");
         let rows = read_csv(&out.join("modes.csv"));
         let found: Vec<(&str, &str, &str, &str)> = rows.iter().map(|r| (r["first"].as_str(), r["last"].as_str(), r["detection"].as_str(), r["name"].as_str())).collect();
@@ -1226,21 +1198,7 @@ mod tests {
         assert!(found.contains(&(a.as_str(), b.as_str(), "vectors", "LP(1,0)")), "{found:?}");
         assert!(found.contains(&(ma.as_str(), mb.as_str(), "vectors", "LP(1,0)")), "{found:?}");
         assert_eq!(found.len(), 4, "{found:?}");
-        let mut t = super::super::transversality::new(&ctx).unwrap();
-        t.consume(&f).unwrap();
-        let tout = out_dir("lp-by-vectors-transversality");
-        let produced = t.finish(&tout, 1).unwrap();
-        assert!(produced.iter().any(|p| p.caption.contains(&format!("F^({at}) = v^1..v^{at}"))), "{:?}", produced.iter().map(|p| &p.caption).collect::<Vec<_>>());
-        let mut o = super::super::overlaps::new(&ctx).unwrap();
-        o.consume(&f).unwrap();
-        let oout = out_dir("lp-by-vectors-overlaps");
-        let produced = o.finish(&oout, 1).unwrap();
-        let fig14 = produced.iter().find(|p| p.title.contains("Fig. 14")).expect("Fig. 14");
-        assert!(fig14.caption.contains("found as the mode table finds them"), "{}", fig14.caption);
-        let header = std::fs::read_to_string(oout.join("overlap_clv_clv.csv")).unwrap();
-        assert!(header.lines().next().unwrap().contains(&format!("abs_v{}_mean", at + 4)), "Fig. 14 takes the LP block's last index: {header:.200}");
         // The same exponents with random vectors: no block is added.
-        let plain = frame(4, phase, random.clone(), Some(random));
         let (out, _) = run(&ctx, std::slice::from_ref(&plain), "lp-by-vectors-random");
         let rows = read_csv(&out.join("modes.csv"));
         assert!(rows.iter().all(|r| r["detection"] != "vectors") && rows.len() == 2, "{rows:?}");

@@ -512,6 +512,21 @@ mod tests {
         (0..d * d).map(|x| if x % (d + 1) == 0 { 1.0 } else { 0.0 }).collect()
     }
 
+    /// Fig. 14 takes the mode steps the mode table finds, also a block found by its vectors
+    /// only: its panel is the block's last index.
+    #[test]
+    fn fig14_takes_an_lp_block_found_by_its_vectors() {
+        let testing::Planted { ctx, frame, at, .. } = testing::lp_block_found_by_its_vectors();
+        let mut o = new(&ctx).unwrap();
+        o.consume(&frame).unwrap();
+        let out = scratch("lp-by-vectors-overlaps");
+        let produced = o.finish(&out, 1).unwrap();
+        let fig14 = produced.iter().find(|p| p.title.contains("Fig. 14")).expect("Fig. 14");
+        assert!(fig14.caption.contains("found as the mode table finds them"), "{}", fig14.caption);
+        let header = std::fs::read_to_string(out.join("overlap_clv_clv.csv")).unwrap();
+        assert!(header.lines().next().unwrap().contains(&format!("abs_v{}_mean", at + 4)), "Fig. 14 takes the LP block's last index: {header:.200}");
+    }
+
     #[test]
     fn equal_sets_overlap_one_and_gs_basis_is_triangular() {
         // d = 16 (N = 4 disks), G = identity, V = G with alternating signs: |g^i . v^i| = 1,

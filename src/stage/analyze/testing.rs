@@ -164,3 +164,60 @@ pub fn column(table: &(Vec<String>, Vec<Vec<f64>>), name: &str) -> Vec<f64> {
     let c = table.0.iter().position(|h| h == name).unwrap_or_else(|| panic!("no column {name} in {:?}", table.0));
     table.1.iter().map(|r| r[c]).collect()
 }
+
+/// A planted mode scenario: its context (with the GS spectrum), a frame whose GS and
+/// covariant vectors carry the mode, and the 0-based first index `at` of the block. The
+/// mode table finds the block (tested in modes.rs); the analyses that take their steps from
+/// it (transversality, overlaps) test against the same scenarios.
+pub struct Planted {
+    pub ctx: Context,
+    pub spectrum: SpectrumSummary,
+    pub frame: Frame,
+    /// The same phase point with random vectors in place of the planted ones.
+    pub random: Frame,
+    pub at: usize,
+}
+
+/// The box of the planted scenarios: N = 30 disks in 14 x 3, narrow like the paper's.
+pub const PLANTED_BOX: (usize, f64, f64) = (30, 14.0, 3.0);
+
+fn planted(seed: u64, spectrum: SpectrumSummary, at: usize, n_x: i32, c: f64, mirror: bool) -> Planted {
+    let (n, lx, ly) = PLANTED_BOX;
+    let d = 4 * n;
+    let mut rng = Rng::new(seed);
+    let ctx = context("disks", n, d, lx, ly, Some(spectrum.clone()), true);
+    let phase = phase(n, lx, ly, &mut rng);
+    let cols = mode_vectors(lx, ly, super::kernels::modes::ModeKind::LP, n_x, &phase, c, &[0, 1, 2, 3]);
+    let random = random_set(d, &mut rng);
+    let mut g = random.clone();
+    plant(&mut g, d, at, &cols);
+    if mirror {
+        plant(&mut g, d, d - at - 4, &cols);
+    }
+    Planted { ctx, spectrum, frame: frame(3, phase.clone(), g.clone(), Some(g)), random: frame(4, phase, random.clone(), Some(random)), at }
+}
+
+/// An LP(2,0) quadruplet whose outer exponents differ by many standard errors (as a finite
+/// system's do): the exponents alone see its middle pair only, which the mode table widens
+/// to the block and its conjugate.
+pub fn split_lp_quadruplet() -> Planted {
+    let n = PLANTED_BOX.0;
+    let d = 4 * n;
+    let mut spec = spectrum(n, 4);
+    let at = 2 * n - 7;
+    for (i, x) in [(at, 0.13), (at + 3, 0.07), (d - 1 - at, -0.13), (d - 1 - at - 3, -0.07)] {
+        spec.exponents[i] = x;
+    }
+    planted(4, spec, at, 2, -0.4, false)
+}
+
+/// A small system's LP(1,0) block (N = 40 in the paper's box): its four exponents spread like
+/// the smooth spectrum's, so no exponent test sees it, but it stands apart between wider
+/// gaps, next to the T pair; its vectors (and its mirror's) are that mode.
+pub fn lp_block_found_by_its_vectors() -> Planted {
+    let n = PLANTED_BOX.0;
+    let mut spec = spectrum(n, 2);
+    let at = 2 * n - 9;
+    plant_block(&mut spec, at, &[0.6, 0.55, 0.5, 0.45]);
+    planted(9, spec, at, 1, 0.5, true)
+}

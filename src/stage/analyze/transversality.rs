@@ -369,6 +369,31 @@ mod tests {
     use super::super::testing::*;
     use super::*;
 
+    /// The conjugate-mode angles are those of the blocks the mode table settles on: an LP
+    /// pair the exponents see, widened to its quadruplet, gives the quadruplet's phi.
+    #[test]
+    fn a_widened_lp_step_is_taken_whole() {
+        let Planted { ctx, frame, at, .. } = split_lp_quadruplet();
+        let mut t = new(&ctx).unwrap();
+        t.consume(&frame).unwrap();
+        let out = out_dir("widened-transversality");
+        t.finish(&out, 1).unwrap();
+        let header = std::fs::read_to_string(out.join("transversality.csv")).unwrap();
+        assert!(header.starts_with(&format!("step,psi_unstable_stable,phi_{}_{}\n", at + 1, at + 4)), "{header}");
+    }
+
+    /// F^(J) of Figs. 16-17 ends before the first mode step, also one found by its vectors
+    /// only.
+    #[test]
+    fn f_j_ends_before_an_lp_block_found_by_its_vectors() {
+        let Planted { ctx, frame, at, .. } = lp_block_found_by_its_vectors();
+        let mut t = new(&ctx).unwrap();
+        t.consume(&frame).unwrap();
+        let out = out_dir("lp-by-vectors-transversality");
+        let produced = t.finish(&out, 1).unwrap();
+        assert!(produced.iter().any(|p| p.caption.contains(&format!("F^({at}) = v^1..v^{at}"))), "{:?}", produced.iter().map(|p| &p.caption).collect::<Vec<_>>());
+    }
+
     #[test]
     fn first_bin_says_whether_the_density_falls_toward_zero() {
         let falls = first_bin(&[0.137, 0.270, 0.292, 0.358, 0.4, 0.5], &[14, 27, 29, 36, 40, 50], 0.0175);
