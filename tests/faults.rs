@@ -40,6 +40,14 @@ fn sigkill_at_many_points_then_resume_is_bit_identical() {
     ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--out", bwd_ref.to_str().unwrap()]));
     let backward_ms = started.elapsed().as_millis() as u64;
     let want_frames = frames(&bwd_ref);
+    // A sweep killed before it recorded itself leaves the finished sweep's record: --resume
+    // is refused with the way on, and writes nothing.
+    let other = dir.parent().unwrap().join("frames-other.mcap");
+    let refused = clv(&["backward", dir.to_str().unwrap(), "--quiet", "--out", other.to_str().unwrap(), "--resume"]);
+    assert!(!refused.status.success() && stderr(&refused).contains("has finished") && stderr(&refused).contains("give the command without --resume"), "{}", stderr(&refused));
+    assert!(!other.exists() && !dir.parent().unwrap().join("frames-other.mcap.tmp").exists());
+    // Each trial starts without a record, as the documented recovery (resume_flag) assumes.
+    std::fs::remove_file(dir.join("backward.json")).unwrap();
     let mut rng = Rng::new(99);
     // Kill points spread over the stage's own duration on this machine (5 % .. 90 %), so
     // that they land before its end however fast the machine is.

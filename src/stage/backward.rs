@@ -574,6 +574,14 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
                     .map_or(String::new(), |t| format!("delete {} (the frames it left) and ", t.display()));
                 Error::Other(format!("{e}; the sweep cannot be continued from it: {left}give the command without --resume to start the sweep over (the forward run is not affected)"))
             })?;
+            if p.options != *opts && p.done {
+                return Err(Error::param("resume", format!(
+                    "the sweep recorded in {} ({}) has finished, and no sweep with {} recorded itself (one stops before it does if it is killed at its start): there is nothing to continue; give the command without --resume",
+                    progress_file.display(),
+                    p.options.as_flags(),
+                    opts.as_flags()
+                )));
+            }
             if p.options != *opts {
                 return Err(Error::param("resume", format!(
                     "the interrupted sweep recorded in {} was started with {}, not {}; continue it with `clv backward {} --resume` and no other flags, or run without --resume to start over",
