@@ -574,22 +574,16 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
                     .map_or(String::new(), |t| format!("delete {} (the frames it left) and ", t.display()));
                 Error::Other(format!("{e}; the sweep cannot be continued from it: {left}give the command without --resume to start the sweep over (the forward run is not affected)"))
             })?;
-            if p.options != *opts && p.done {
-                return Err(Error::param("resume", format!(
-                    "the sweep recorded in {} ({}) has finished, and no sweep with {} recorded itself (one stops before it does if it is killed at its start): there is nothing to continue; give the command without --resume",
-                    progress_file.display(),
-                    p.options.as_flags(),
-                    opts.as_flags()
-                )));
-            }
             if p.options != *opts {
-                return Err(Error::param("resume", format!(
-                    "the interrupted sweep recorded in {} was started with {}, not {}; continue it with `clv backward {} --resume` and no other flags, or run without --resume to start over",
-                    progress_file.display(),
-                    p.options.as_flags(),
-                    opts.as_flags(),
-                    dir.path.display()
-                )));
+                let (record, was, given) = (progress_file.display(), p.options.as_flags(), opts.as_flags());
+                return Err(Error::param("resume", if p.done {
+                    format!("the sweep recorded in {record} ({was}) has finished, and no sweep with {given} recorded itself (one killed at its start has not yet): there is nothing to continue; give the command without --resume")
+                } else {
+                    format!(
+                        "the interrupted sweep recorded in {record} was started with {was}, not {given}; continue it with `clv backward {} --resume` and no other flags, or run without --resume to start over",
+                        dir.path.display()
+                    )
+                }));
             }
             Some(p)
         }
