@@ -2,6 +2,7 @@
 """Recompute the tables of a hard-disk report of `clv analyze` from its frames.
 
     python3 scripts/verify_report.py REPORT_DIR FRAMES.mcap   # exit 1 on a disagreement
+    python3 scripts/verify_report.py REPORT_DIR FRAMES.mcap --run RUN_DIR   # lambda_gs from R_n too
 
 REPORT_DIR is the --out of `clv analyze FRAMES.mcap`, FRAMES.mcap a frame file of
 `clv backward --with-gs --out FRAMES.mcap` (without GS vectors the GS columns are skipped).
@@ -103,8 +104,9 @@ and compared with the report's CSV files:
                        h_ks_z is not finite), r1 = the lag-1 autocorrelation of the block means
                        averaged over the tested exponents, r1_limit = -1/B + 2/sqrt(B);
   spectrum.csv         also lambda_gs, stderr_gs: the forward run's spectrum, compared with the
-                       frame file's spectrum.json it is copied from (not recomputable: the
-                       frames hold only the window); i_over_D = i / D; zero_by_symmetry = 1
+                       frame file's spectrum.json it is copied from (not recomputable from the
+                       frames: they hold only the window; with --run RUN_DIR recomputed from
+                       the run's R_n instead, below); i_over_D = i / D; zero_by_symmetry = 1
                        for the null space i = 2N-2..2N+3, else 0; lambda_clv_null_shear, for
                        i = 2N+1..2N+3 (NaN elsewhere): the mean over every frame of the local
                        exponent the shear model gives those CLVs, ln(sqrt(1 + s'^2) /
@@ -182,6 +184,56 @@ vector, source, scope, ...; the dispersion's by their order); a row or column on
 only is a disagreement. A decision (a threshold or an argmax) within round-off of flipping
 would show as a disagreement in the rows; none has been seen.
 
+With --run RUN_DIR (the run directory of `clv forward` the frames were made from), the forward
+GS spectrum is recomputed from the R_n stored in RUN_DIR's segments (read with read_run.py's
+read_segment; only the diagonals are kept):
+  - which steps count: `Forward::step_into` (src/stage/forward.rs:123-127) accumulates ln R_ii
+    when its step counter, the steps done BEFORE this one, is >= relax_steps, then counts the
+    step; the R message is logged as n = the steps done after it (src/stage/forward_run.rs:359-365,
+    schemas/r.json: log_time = n). So the measured steps are n = relax_steps + 1 ..
+    relax_steps + steps (run.json's config): R_(relax_steps), stored at the checkpoint that ends
+    the relaxation, is not one of them, and neither is any step past the run's steps.
+    lambda_i = sum of ln R_ii over them / (steps tau) (Accumulator::exponents, src/statistics.rs:80).
+  - which R_n are stored: R_n at every checkpoint (every checkpoint_every steps), and with
+    `--store-r all` at every step n > the window start relax_steps + steps - clv_steps - transient
+    (src/stage/forward_run.rs:363-365, src/store/run.rs:124); segments ending before the window
+    start are pruned (src/stage/forward_run.rs:313). All measured steps are stored only for a
+    run made with --store-r all and --clv-steps + --transient = --steps (window start =
+    relax_steps); for any other run the script stops and says which steps are missing (the
+    checkpoints' acc_sum are clv's own sums, not used here). R_n stored twice must be the same
+    bits (not seen so far: segments do not overlap).
+  - blocks (stderr_gs): Accumulator::add_logs (src/statistics.rs:54-64) closes a block each time
+    the count of measured steps is a multiple of the block length, counted from the FIRST
+    measured step (the oldest; unlike the frames' batch means below, counted from the newest);
+    the steps of the unfinished last block count in lambda, not in the error. The planned
+    length is block_len(steps, blocks) = max(floor(steps / blocks), 1) (src/statistics.rs:39,
+    src/stage/forward.rs:53), and limit_blocks (src/statistics.rs:70-77, called after every
+    measured step, src/stage/forward.rs:125) merges neighbouring blocks pairwise, doubling the
+    length, whenever 2 B or more of them are complete (B = run.json's blocks), their count even
+    and no step is in an unfinished block: which happens only in a run extended past its plan
+    (`clv forward --resume RUN --steps MORE`; a run that ends where it was planned never gets
+    there). Here the
+    plan is read from the earliest stored checkpoint taken before the first measured step
+    (acc_steps = 0: its acc_block_len is what Forward::new set for the steps the run was created
+    with), else taken as block_len of run.json's steps and blocks; the doubling rule is replayed
+    over the measured steps, and the blocks are then consecutive runs of the final length from
+    the first measured step (a merge keeps them so): n = floor(steps / length) of them. Block
+    mean b of exponent i = its sum of ln R_ii over the block / (length tau)
+    (Accumulator::block_averages, src/statistics.rs:86); stderr_gs = the sample std (n - 1) of
+    the block means / sqrt(n) (src/statistics.rs:93-96, 160-177), NaN with n < 2. Found so:
+    both agree with spectrum.json to round-off (the test's N = 8 run: lambda the same doubles,
+    stderr within 2e-16 relative; a run extended from 200 to 900 steps, 20 blocks: 22 blocks of
+    40 steps, not the 20 of 45 that run.json's steps alone would give, lambda the same doubles,
+    stderr and block means within 3e-15), while the steps shifted by one (n = relax_steps ..
+    relax_steps + steps - 1) miss lambda by 7e-3 in that N = 8 run.
+  Compared (TOL for lambda, TOL_ERR for the errors): spectrum.csv lambda_gs, stderr_gs (instead
+  of the frame file's copy of spectrum.json); run/spectrum.json = RUN_DIR/spectrum.json, and
+  frames/spectrum.json = the frame file's copy that the report (spectrum.csv, convergence_gs.csv,
+  the mode steps) was made from: exponents, stderr, blocks.block_steps (row 1) and the block
+  means blocks.exponents[b] (row i, b from 0, oldest first). RUN_DIR must hold the run the
+  frames were made from: its run.json config (without threads) must be the frame file's, else
+  the script stops. The JSON's "forward_r" says which steps and blocks were used.
+
 Not checked: the notes of modes.json and nullspace_tables.json (fixed texts), and the
 captions (index.html, summary.json).
 
@@ -222,7 +274,9 @@ lambda_clv); this check found that too.
 The JSON on stdout: {"agree": ..., "checked": {table: largest |mine - report| over its mean
 and stderr columns}, "checked_std": {table: the same over its _std columns}, "columns":
 {table: [columns compared]}, "frames": n, "sampled": n, "every": m, "blocks": B,
-"mode_steps": [[first, last, how found]], "theta_j": J, "theta_at_bin_edges": n, ...}.
+"mode_steps": [[first, last, how found]], "theta_j": J, "theta_at_bin_edges": n, ...}, with
+--run also "forward_r": {"steps": [first n, last n], "block_steps": final length,
+"planned_block_steps", "plan_from": "checkpoint" or "run.json", "blocks": their number}.
 A disagreement is one line on stderr: "disagreement: TABLE COLUMN ROW [(what the row is)]
 mine X report Y", ROW the index i, step, separation or bin where the table has one, else the
 row's number in the file (from 1).
@@ -236,6 +290,7 @@ from those descriptions, not translated from clv's Rust.
 """
 import argparse
 import csv
+import glob
 import json
 import math
 import os
@@ -246,6 +301,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from read_frames import metadata, read_frames  # noqa: E402
+from read_run import read_segment  # noqa: E402
 
 TOL = 1e-10
 TOL_ERR = 1e-9
@@ -1057,11 +1113,100 @@ def diagnose(means, neutral):
         "h_ks_chance": student_t_two_sided(sum_z, dof) if math.isfinite(sum_z) else 1.0, "r1": r1, "r1_limit": -1 / nb + 2 / math.sqrt(nb),
     }
 
+
+def final_block_length(planned, steps, blocks):
+    """The block length at the end of a forward run of `steps` measured steps whose blocks
+    were planned `planned` steps long, with clv's doubling rule: after each measured step, a
+    block closes when the count of steps is a multiple of the length; once 2 `blocks` or
+    more are closed, an even number of them, with no step in an unfinished block, neighbours
+    merge pairwise and the length doubles."""
+    length, closed = max(int(planned), 1), 0
+    for s in range(1, steps + 1):
+        if s % length == 0:
+            closed += 1
+            if closed >= 2 * max(blocks, 1) and closed % 2 == 0:
+                closed //= 2
+                length *= 2
+    return length
+
+
+def forward_from_r(run_dir):
+    """The forward GS spectrum of a run directory recomputed from its stored R_n (see --run in
+    the docstring): exponents, stderr, block means (oldest first), the block lengths, the
+    steps used. Stops (sys.exit) if a measured step's R_n is not stored."""
+    with open(os.path.join(run_dir, "run.json")) as f:
+        run = json.load(f)
+    config = run.get("config", run)
+    relax, steps, tau, blocks = int(config["relax_steps"]), int(config["steps"]), float(config["tau"]), int(config["blocks"])
+    first, last = relax + 1, relax + steps  # n of the measured R_n
+    diag, planned = {}, None
+    paths = sorted(glob.glob(os.path.join(run_dir, "seg-*-*.mcap")))
+    if not paths:
+        sys.exit(f"{run_dir}: no segment files (seg-*-*.mcap): not a run directory")
+    for path in paths:
+        for topic, n, m in read_segment(path):
+            if topic == "r" and first <= n <= last:
+                k = int(m["k"])
+                j = np.arange(k)
+                d = np.array(m["r"][j * (j + 1) // 2 + j])  # R_jj in the packed upper triangle
+                if n in diag and diag[n].tobytes() != d.tobytes():
+                    sys.exit(f"{run_dir}: R_{n} is stored twice with different diagonals")
+                diag[n] = d
+            elif topic == "checkpoint" and int(m["acc_steps"]) == 0 and n <= relax:
+                if planned is None or n < planned[0]:
+                    planned = (n, int(m["acc_block_len"]))
+    missing = [n for n in range(first, last + 1) if n not in diag]
+    if missing:
+        store = run.get("store", {})
+        sys.exit(
+            f"{run_dir}: R_n of {len(missing)} of the {steps} measured steps n = {first}..{last} are not stored "
+            f"(the first missing: {missing[:5]}); the run keeps R_n at its checkpoints and, with --store-r all, at the steps "
+            f"after the window start relax_steps + steps - clv_steps - transient (here store_r = {store.get('store_r')}, "
+            f"clv_steps = {store.get('clv_steps')}, transient = {store.get('transient')}): lambda_gs is recomputable only from "
+            f"a run made with --store-r all and --clv-steps + --transient = --steps"
+        )
+    logs = np.log(np.array([diag[n] for n in range(first, last + 1)]))  # (steps, k), oldest first
+    plan = planned[1] if planned is not None else max(steps // max(blocks, 1), 1)
+    length = final_block_length(plan, steps, blocks)
+    count = steps // length
+    means = logs[: count * length].reshape((count, length, logs.shape[1])).sum(axis=1) / (length * tau)
+    stderr = means.std(axis=0, ddof=1) / np.sqrt(count) if count >= 2 else np.full(logs.shape[1], np.nan)
+    return {
+        "exponents": logs.sum(axis=0) / (steps * tau),
+        "stderr": stderr,
+        "block_means": means,
+        "block_steps": length,
+        "planned_block_steps": plan,
+        "plan_from": "checkpoint" if planned is not None else "run.json",
+        "steps": [first, last],
+        "config": config,
+    }
+
+
+def compare_spectrum_json(c, table, mine, spectrum):
+    """mine (forward_from_r) against a spectrum.json: exponents, stderr, the block length and
+    the block means."""
+    k = len(mine["exponents"])
+    i = np.arange(1, k + 1)
+    theirs = lambda x: np.array([np.nan if y is None else y for y in x], float)  # noqa: E731
+    c.compare(table, "exponents", i, mine["exponents"], theirs(spectrum.get("exponents", [np.nan] * k)))
+    c.compare(table, "stderr", i, mine["stderr"], theirs(spectrum.get("stderr", [np.nan] * k)), TOL_ERR)
+    b = spectrum.get("blocks") or {}
+    c.compare(table, "blocks.block_steps", np.array([1]), [mine["block_steps"]], [float(b.get("block_steps", np.nan))])
+    rows = b.get("exponents") or []
+    if len(rows) != len(mine["block_means"]):
+        c.bad.append(f"disagreement: {table} blocks.exponents has {len(rows)} blocks, mine {len(mine['block_means'])}")
+        return
+    for n, (x, y) in enumerate(zip(mine["block_means"], rows)):
+        c.compare(table, f"blocks.exponents[{n}]", i, x, theirs(y))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("report")
     ap.add_argument("frames")
     ap.add_argument("--blocks", type=int, help="the run's blocks setting (default: run.json's, from the frame file's metadata)")
+    ap.add_argument("--run", metavar="RUN_DIR", help="the run directory of the frames: recompute lambda_gs, stderr_gs from its R_n (needs --store-r all and --clv-steps + --transient = --steps)")
     args = ap.parse_args()
     rep = lambda name: read_csv(os.path.join(args.report, name))  # noqa: E731
 
@@ -1108,9 +1253,32 @@ def main():
             gs_local = np.array([f["gs_local"] for f in frames])
             c.compare("spectrum.csv", "lambda_gs_window", i, gs_local.mean(axis=0)[i - 1], sp["lambda_gs_window"])
             c.compare("spectrum.csv", "stderr_gs_window", i, batch_stderr(gs_local, blocks)[i - 1], sp["stderr_gs_window"], TOL_ERR)
-        if forward is not None and "lambda_gs" in sp:  # the forward run's, as its spectrum.json has them
+        if forward is not None and "lambda_gs" in sp and args.run is None:  # the forward run's, as its spectrum.json has them
             c.compare("spectrum.csv", "lambda_gs", i, np.asarray(forward["exponents"], float)[i - 1], sp["lambda_gs"])
             c.compare("spectrum.csv", "stderr_gs", i, np.array([np.nan if x is None else x for x in forward["stderr"]], float)[i - 1], sp["stderr_gs"], TOL_ERR)
+
+    # The forward GS spectrum from the run's R_n: spectrum.csv's lambda_gs and stderr_gs, the
+    # run's spectrum.json and the frame file's copy of it.
+    forward_r = None
+    if args.run is not None:
+        forward_r = forward_from_r(args.run)
+        ours = {k: v for k, v in forward_r["config"].items() if k != "threads"}
+        theirs = {k: v for k, v in config.items() if k != "threads"}
+        if ours != theirs:
+            sys.exit(f"{args.run} is not the run of {args.frames}: run.json's config {ours} there, {theirs} in the frame file")
+        if sp is not None and "lambda_gs" in sp:
+            i = sp["i"].astype(int)
+            c.compare("spectrum.csv", "lambda_gs", i, forward_r["exponents"][i - 1], sp["lambda_gs"])
+            if "stderr_gs" in sp:
+                c.compare("spectrum.csv", "stderr_gs", i, forward_r["stderr"][i - 1], sp["stderr_gs"], TOL_ERR)
+        path = os.path.join(args.run, "spectrum.json")
+        if not os.path.exists(path):
+            c.bad.append(f"disagreement: {path} is not there (the run is not finished)")
+        else:
+            with open(path) as f:
+                compare_spectrum_json(c, "run/spectrum.json", forward_r, json.load(f))
+        if forward is not None:
+            compare_spectrum_json(c, "frames/spectrum.json", forward_r, forward)
 
     # Convergence: running means of the batch means (CLV: of every frame's local exponents;
     # GS: the forward run's block averages in spectrum.json), and their tests.
@@ -1423,7 +1591,8 @@ def main():
 
     if not c.checked:
         sys.exit(f"{args.report}: none of the tables this script checks is there")
-    print(json.dumps({"agree": not c.bad, "checked": c.checked, "checked_std": c.checked_std, "columns": c.columns, "frames": len(frames), "sampled": len(sampled), "every": every, "blocks": blocks, "tolerance": TOL, "tolerance_errors": TOL_ERR, "mode_steps": [[st[0] + 1, st[0] + st[1], how] for st, how in steps], "theta_j": j, "theta_at_bin_edges": ambiguous}))
+    print(json.dumps({"agree": not c.bad, "checked": c.checked, "checked_std": c.checked_std, "columns": c.columns, "frames": len(frames), "sampled": len(sampled), "every": every, "blocks": blocks, "tolerance": TOL, "tolerance_errors": TOL_ERR, "mode_steps": [[st[0] + 1, st[0] + st[1], how] for st, how in steps], "theta_j": j, "theta_at_bin_edges": ambiguous}
+                     | ({} if forward_r is None else {"forward_r": {k: forward_r[k] for k in ("steps", "block_steps", "planned_block_steps", "plan_from")} | {"blocks": len(forward_r["block_means"])}})))
     if c.bad:
         for line in c.bad:
             print(line, file=sys.stderr)

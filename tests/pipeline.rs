@@ -876,14 +876,26 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     }
     let base = scratch("verify-report");
     let (run, frames, report) = (base.join("run"), base.join("frames.mcap"), base.join("report"));
-    ok(clv(&["forward", "--n", "8", "--aspect", "2/11", "--steps", "600", "--relax-steps", "100", "--clv-steps", "300", "--seed", "1", "--quiet", "--out", run.to_str().unwrap()]));
+    // --store-r all with --clv-steps + --transient = --steps: R_n is kept at every measured
+    // step 101..700, so that the script recomputes the forward GS spectrum from it (--run).
+    ok(clv(&["forward", "--n", "8", "--aspect", "2/11", "--steps", "600", "--relax-steps", "100", "--clv-steps", "300", "--transient", "300", "--store-r", "all", "--seed", "1", "--quiet", "--out", run.to_str().unwrap()]));
     ok(clv(&["backward", run.to_str().unwrap(), "--out", frames.to_str().unwrap(), "--with-gs", "--quiet"]));
     ok(clv(&["analyze", frames.to_str().unwrap(), "--every", "3", "--out", report.to_str().unwrap(), "--quiet"]));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/verify_report.py");
     let verify = |report: &Path, frames: &Path| Command::new("python3").arg(&script).arg(report).arg(frames).output().unwrap();
-    let out = ok(verify(&report, &frames));
+    let verify_with_run = |report: &Path, frames: &Path| Command::new("python3").arg(&script).arg(report).arg(frames).arg("--run").arg(&run).output().unwrap();
+    let out = ok(verify_with_run(&report, &frames));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(v["agree"] == true && v["every"] == 3 && v["sampled"].as_u64() == Some(100), "{v}");
+    // lambda_gs and stderr_gs from the run's R_n (steps 101..700, 20 blocks of 30), against
+    // spectrum.csv, the run's spectrum.json and the frame file's copy of it.
+    assert!(v["forward_r"]["steps"] == serde_json::json!([101, 700]) && v["forward_r"]["blocks"] == 20 && v["forward_r"]["block_steps"] == 30, "{v}");
+    for (table, columns) in [("spectrum.csv", &["lambda_gs", "stderr_gs"][..]), ("run/spectrum.json", &["exponents", "stderr", "blocks.block_steps", "blocks.exponents[19]"]), ("frames/spectrum.json", &["exponents", "stderr"])] {
+        assert!(v["checked"][table].as_f64().is_some_and(|d| d < 1e-12), "{table}: {v}");
+        for column in columns {
+            assert!(v["columns"][table].as_array().unwrap().iter().any(|c| c == column), "{table} {column}: {v}");
+        }
+    }
     let all_checked = |v: &serde_json::Value, tables: &[&str]| {
         for table in tables {
             assert!(v["checked"][table].as_f64().is_some_and(|d| d < 1e-12), "{table}: {v}");
@@ -982,6 +994,19 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
         1 + (0..values.len()).max_by(|&a, &b| values[a].total_cmp(&values[b])).unwrap()
     };
     let small = (report.as_path(), altered.as_path(), frames.as_path());
+    // lambda_3 of the forward run off in its 8th significant digit: against the R_n of the
+    // run (--run), exactly that one disagreement.
+    let table = read(&report.join("spectrum.csv"));
+    let mut lines: Vec<String> = table.lines().map(str::to_string).collect();
+    let at = fields(&lines[0]).iter().position(|c| c == "lambda_gs").unwrap();
+    let mut cells = fields(&lines[3]);
+    assert_eq!(cells[0], "3");
+    let x: f64 = cells[at].parse().unwrap();
+    cells[at] = format!("{:e}", x + 10f64.powf(x.abs().log10().floor() - 7.0));
+    lines[3] = cells.join(",");
+    std::fs::write(altered.join("spectrum.csv"), lines.join("\n") + "\n").unwrap();
+    is_the_one(&verify_with_run(&altered, &frames), "spectrum.csv lambda_gs 3");
+    std::fs::copy(report.join("spectrum.csv"), altered.join("spectrum.csv")).unwrap();
     for (file, column, row) in [
         ("localization.csv", "W_clv", 2),
         ("spectrum.csv", "stderr_clv", 3),
