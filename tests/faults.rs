@@ -163,6 +163,67 @@ fn a_crash_between_any_two_durable_steps_is_recovered() {
     assert!(missed.is_empty(), "crash points never reached: {missed:?}");
 }
 
+/// A tmpfs mounted for one test, unmounted when dropped (also when the test fails).
+struct Tmpfs<'a>(&'a Path);
+
+impl<'a> Tmpfs<'a> {
+    /// None where this process may not mount one (not root, not Linux): the test says so.
+    fn mount(at: &'a Path, size: &str) -> Option<Self> {
+        let mounted = Command::new("mount").args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"]).arg(at).output().is_ok_and(|o| o.status.success());
+        if !mounted {
+            eprintln!("SKIPPED: cannot mount a tmpfs here (needs root on Linux)");
+        }
+        mounted.then_some(Tmpfs(at))
+    }
+
+    fn resize(&self, size: &str) {
+        ok(Command::new("mount").args(["-o", &format!("remount,size={size}")]).arg(self.0).output().unwrap());
+    }
+}
+
+impl Drop for Tmpfs<'_> {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg("-l").arg(self.0).output();
+    }
+}
+
+/// A real full file system, where the other disk tests fake one (CLV_FAULT_DISK_FULL_AFTER):
+/// a 1 MB tmpfs. Each stage is told beforehand how little space there is, stops with the
+/// way on when the disk fills, and continues, once the file system is larger, to the
+/// uninterrupted run's numbers and frames.
+#[test]
+fn a_real_full_file_system_stops_each_stage_and_resume_recovers() {
+    let mnt = scratch("faults", "tmpfs").join("mnt");
+    std::fs::create_dir_all(&mnt).unwrap();
+    let Some(tmpfs) = Tmpfs::mount(&mnt, "1m") else { return };
+    let (reference_dir, want) = reference("tmpfs-ref");
+    let want_frames = reference_dir.parent().unwrap().join("frames.mcap");
+    ok(clv(&["backward", reference_dir.to_str().unwrap(), "--quiet", "--out", want_frames.to_str().unwrap()]));
+
+    let dir = mnt.join("run");
+    let d = dir.to_str().unwrap();
+    let args = forward_args(&dir);
+    let out = clv(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let err = stderr(&out);
+    assert!(err.contains("warning: this needs about") && err.contains("MB free"), "{err}");
+    assert!(out.status.code() == Some(1) && err.contains("disk full") && err.contains(&format!("clv forward --resume {d}")) && !err.contains("panicked"), "{err}");
+    for seg in (clv::store::RunDir { path: dir.clone() }).segments().unwrap() {
+        clv::store::segment::read_segment(&seg.path, clv::store::segment::ReadMode::Strict, |_| Ok(())).unwrap();
+    }
+    tmpfs.resize("16m");
+    ok(clv(&["forward", "--resume", d, "--quiet"]));
+    assert!(contents(&dir) == want, "the run resumed after a full file system differs");
+
+    // The frame file does not fit in what is left of 16 MB.
+    let frames_file = mnt.join("frames.mcap");
+    let out = clv(&["backward", d, "--quiet", "--out", frames_file.to_str().unwrap()]);
+    let err = stderr(&out);
+    assert!(out.status.code() == Some(1) && err.contains("disk full") && err.contains(&format!("clv backward {d} --resume")) && !err.contains("panicked"), "{err}");
+    tmpfs.resize("64m");
+    ok(clv(&["backward", d, "--quiet", "--out", frames_file.to_str().unwrap(), "--resume"]));
+    assert!(frames(&frames_file) == frames(&want_frames), "the sweep resumed after a full file system differs");
+}
+
 #[test]
 fn disk_full_stops_with_a_clear_error_and_resume_recovers() {
     let (_, want) = reference("full-ref");
