@@ -222,6 +222,24 @@ fn a_real_full_file_system_stops_each_stage_and_resume_recovers() {
     tmpfs.resize("64m");
     ok(clv(&["backward", d, "--quiet", "--out", frames_file.to_str().unwrap(), "--resume"]));
     assert!(frames(&frames_file) == frames(&want_frames), "the sweep resumed after a full file system differs");
+
+    // The report, with 200 kB left: an incomplete report that says so (index.html), written
+    // whole with --overwrite once there is space.
+    let df = ok(Command::new("df").args(["-k", "--output=used"]).arg(&mnt).output().unwrap());
+    let used_kb: u64 = String::from_utf8_lossy(&df.stdout).lines().nth(1).unwrap().trim().parse().unwrap();
+    tmpfs.resize(&format!("{}k", used_kb + 200));
+    let report = mnt.join("report");
+    let out = clv(&["analyze", frames_file.to_str().unwrap(), "--out", report.to_str().unwrap(), "--quiet"]);
+    let err = stderr(&out);
+    assert!(!out.status.success() && err.contains("disk full") && err.contains("again with --overwrite") && err.matches("clv: error").count() == 1 && !err.contains("panicked"), "{err}");
+    assert!(!report.join("summary.json").exists());
+    let index = std::fs::read_to_string(report.join("index.html")).unwrap();
+    // (The page naming the failed analyses, or where even that did not fit, the placeholder
+    // written first, which names a full disk among what may have stopped it.)
+    assert!(index.contains("<title>clv analyses: incomplete"), "{index:.300}");
+    tmpfs.resize("128m");
+    ok(clv(&["analyze", frames_file.to_str().unwrap(), "--out", report.to_str().unwrap(), "--overwrite", "--quiet"]));
+    assert!(report.join("summary.json").exists());
 }
 
 #[test]
