@@ -1447,6 +1447,12 @@ fn clv_run_killed_in_any_stage_is_finished_by_the_same_command() {
     let landed = kill_when(&forward_done);
     assert!(!landed || !out.join("report/summary.json").exists(), "a killed job left a finished report");
     ok(clv(&strs(&args(&out))));
+    assert_same_reports(&want, &out);
+}
+
+/// The reports of two `clv run --out` directories hold the same files, byte for byte
+/// (index.html but for the line that names the run directory).
+fn assert_same_reports(want: &Path, got: &Path) {
     let report = |dir: &Path| -> std::collections::BTreeMap<String, Vec<u8>> {
         std::fs::read_dir(dir.join("report"))
             .unwrap()
@@ -1458,9 +1464,37 @@ fn clv_run_killed_in_any_stage_is_finished_by_the_same_command() {
             })
             .collect()
     };
-    let (a, b) = (report(&want), report(&out));
+    let (a, b) = (report(want), report(got));
     assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>(), "the files of the two reports");
     for (name, bytes) in &a {
         assert!(b[name] == *bytes, "{name} differs from the uninterrupted run's");
     }
+}
+
+/// `clv run` on a real full disk (a tmpfs, as above), filled first in its forward stage and
+/// then while it writes the report: each time the same command, given again once there is
+/// space, continues, and the report is the one an uninterrupted run writes.
+#[test]
+fn clv_run_on_a_real_full_disk_is_finished_by_the_same_command() {
+    let base = scratch("faults", "run-full");
+    let (want, mnt) = (base.join("want"), base.join("mnt"));
+    std::fs::create_dir_all(&mnt).unwrap();
+    let Some(tmpfs) = Tmpfs::mount(&mnt, "2m") else { return };
+    let args = |dir: &Path| -> Vec<String> { ["run", "--out", dir.to_str().unwrap(), "--steps", "4000", "--quiet"].iter().map(|s| s.to_string()).collect() };
+    ok(clv(&strs(&args(&want))));
+    let job = mnt.join("job");
+    let again = "give the same `clv run` command again";
+    let out = clv(&strs(&args(&job)));
+    assert!(out.status.code() == Some(1) && stderr(&out).contains("disk full") && stderr(&out).contains(again), "{}", stderr(&out));
+    // Room for the run directory (as large as the uninterrupted one's) and 1 MB, half of
+    // what the report takes.
+    let du = ok(Command::new("du").arg("-sk").arg(want.join("run")).output().unwrap());
+    let run_kb: u64 = String::from_utf8_lossy(&du.stdout).split_whitespace().next().unwrap().parse().unwrap();
+    tmpfs.resize(&format!("{}k", run_kb + 1024));
+    let out = clv(&strs(&args(&job)));
+    assert!(out.status.code() == Some(1) && stderr(&out).contains("disk full") && stderr(&out).contains(again), "{}", stderr(&out));
+    assert!(job.join("run/spectrum.json").exists() && !job.join("report/summary.json").exists(), "the forward stage finished, the report did not");
+    tmpfs.resize("256m");
+    ok(clv(&strs(&args(&job))));
+    assert_same_reports(&want, &job);
 }
