@@ -66,6 +66,13 @@ pub struct Rss {
     pub runs: usize,
 }
 
+/// Collisions per second of one system size (k = 0).
+#[derive(Clone, Debug, Serialize)]
+pub struct CollisionRate {
+    pub n: usize,
+    pub per_second: Stat,
+}
+
 /// Child processes per run length, short and long. The peak of a run moves by one or two
 /// encoded messages (2.5 MB at D = k = 792) with how far the writer thread lags behind
 /// when it is reached (52.4 or 54.4 MB in four 20-step forward runs, 54.4-55.0 MB at 200
@@ -124,8 +131,12 @@ pub struct BenchReport {
     pub leading_k16_step_ms: Stat,
     pub leading_k16_md_tangent_ms: Stat,
     pub leading_k16_qr_ms: Stat,
-    /// (N, collisions per second) with k = 0.
-    pub collisions_per_second: Vec<(usize, f64)>,
+    /// Collisions per second with k = 0, each system size measured `reps` times, the sizes
+    /// in turn (so that the host's slow spells fall on all of them).
+    pub collisions_per_second: Vec<CollisionRate>,
+    /// The median over those rounds of the fastest size's rate over the slowest's (the
+    /// target: within 2x across N = 198 .. 19800).
+    pub collision_rate_spread: f64,
     pub forward_peak_rss: Vec<Rss>,
     pub backward_peak_rss: Vec<Rss>,
     /// Projected hours for the paper's run (2.5e5 forward steps, 2.5e4 backward steps with
@@ -285,7 +296,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     }
 
     say("collision rates (k = 0)");
-    let collisions_per_second = o.collision_sizes.iter().map(|&size| Ok((size, collision_rate(size)?))).collect::<Result<Vec<_>>>()?;
+    let (collisions_per_second, collision_rate_spread) = collision_rates(&o.collision_sizes, reps)?;
 
     let (forward_peak_rss, backward_peak_rss) = match &o.exe {
         Some(exe) => {
@@ -325,6 +336,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         leading_k16_md_tangent_ms: Stat::of(a16),
         leading_k16_qr_ms: Stat::of(q16),
         collisions_per_second,
+        collision_rate_spread,
         forward_peak_rss,
         backward_peak_rss,
         paper_forward_hours: 250_000.0 * forward_step_ms.median / 3.6e6,
@@ -520,18 +532,37 @@ fn backward_step_ms(dir: &Path, meta: &RunMeta, vectors_every: u64) -> Result<f6
     })
 }
 
-/// Collisions per second of `size` disks without tangent vectors, over 300000 collisions.
-fn collision_rate(size: usize) -> Result<f64> {
-    let (lx, ly) = box_sides(size, 0.7, 2.0 / 11.0);
-    let mut s = HardDisks::new(size, lx, ly, 0.6, 3)?;
-    let mut none = Tangent::zeros(4 * size, 0);
-    s.advance(&mut none)?; // melt the lattice
-    let c0 = s.invariants().events;
-    let t = Instant::now();
-    while s.invariants().events - c0 < 300_000 {
-        s.advance(&mut none)?;
+/// Collisions per second of each size in `sizes` without tangent vectors, over 300000
+/// collisions, `reps` rounds of all sizes in turn; and the median over the rounds of the
+/// largest rate over the smallest.
+fn collision_rates(sizes: &[usize], reps: usize) -> Result<(Vec<CollisionRate>, f64)> {
+    let mut systems = sizes
+        .iter()
+        .map(|&size| {
+            let (lx, ly) = box_sides(size, 0.7, 2.0 / 11.0);
+            let mut s = HardDisks::new(size, lx, ly, 0.6, 3)?;
+            s.advance(&mut Tangent::zeros(4 * size, 0))?; // melt the lattice
+            Ok(s)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let mut rates = vec![Vec::new(); sizes.len()];
+    let mut spreads = Vec::new();
+    for _ in 0..reps {
+        for (s, rates) in systems.iter_mut().zip(&mut rates) {
+            let mut none = Tangent::zeros(s.dim(), 0);
+            let c0 = s.invariants().events;
+            let t = Instant::now();
+            while s.invariants().events - c0 < 300_000 {
+                s.advance(&mut none)?;
+            }
+            rates.push((s.invariants().events - c0) as f64 / t.elapsed().as_secs_f64());
+        }
+        let round = rates.iter().filter_map(|r| r.last().copied());
+        let (lo, hi) = round.fold((f64::INFINITY, 0.0f64), |(lo, hi), r| (lo.min(r), hi.max(r)));
+        spreads.push(hi / lo);
     }
-    Ok((s.invariants().events - c0) as f64 / t.elapsed().as_secs_f64())
+    let per_size = sizes.iter().zip(rates).map(|(&n, r)| CollisionRate { n, per_second: Stat::of(r) }).collect();
+    Ok((per_size, Stat::of(spreads).median))
 }
 
 /// Peak RSS of forward and backward runs of two lengths 10x apart, as child processes of
@@ -588,8 +619,12 @@ impl BenchReport {
         }
         let _ = writeln!(s, "  with V every {:>3} steps: backward_step_ms {}, over forward {:.3}", self.sampled_every, st(&self.backward_sampled_step_ms), self.backward_sampled_over_forward);
         let _ = writeln!(s, "  k = 16: step {}  md+tangent {}  qr {}", st(&self.leading_k16_step_ms), st(&self.leading_k16_md_tangent_ms), st(&self.leading_k16_qr_ms));
-        for (n, r) in &self.collisions_per_second {
-            let _ = writeln!(s, "  collisions/s, k = 0, N = {n:>6}: {r:.3e}");
+        for r in &self.collisions_per_second {
+            let p = &r.per_second;
+            let _ = writeln!(s, "  collisions/s, k = 0, N = {:>6}: {:.3e}  ({:.3e} .. {:.3e})", r.n, p.median, p.min, p.max);
+        }
+        if self.collisions_per_second.len() > 1 {
+            let _ = writeln!(s, "  collision_rate_spread   {:>9.3}   (fastest size over slowest, target <= 2)", self.collision_rate_spread);
         }
         for r in &self.forward_peak_rss {
             let _ = writeln!(s, "  forward peak RSS, {:>5} steps: {:.1} MB (largest of {} runs)", r.steps, r.peak_mb, r.runs);

@@ -16,7 +16,11 @@ fn bench_reports_every_quantity_as_json() {
     for key in ["floor_ms", "forward_step_over_qr", "qr_over_floor", "backward_over_forward", "paper_forward_hours"] {
         assert!(v[key].as_f64().is_some_and(|x| x.is_finite() && x > 0.0), "{key}: {}", v[key]);
     }
-    assert_eq!(v["collisions_per_second"].as_array().unwrap().len(), 2);
+    let rates = v["collisions_per_second"].as_array().unwrap();
+    assert_eq!(rates.iter().map(|r| r["n"].as_u64()).collect::<Vec<_>>(), [Some(8), Some(80)]);
+    assert!(rates.iter().all(|r| r["per_second"]["min"].as_f64().unwrap() > 0.0), "{rates:?}");
+    // The spread is of rates measured side by side in each round, not of the medians.
+    assert!(v["collision_rate_spread"].as_f64().is_some_and(|x| x >= 1.0 && x.is_finite()), "{}", v["collision_rate_spread"]);
     let rss = v["forward_peak_rss"].as_array().unwrap();
     assert_eq!(rss.len(), 2);
     assert!(rss.iter().all(|r| r["peak_mb"].as_f64().unwrap() > 1.0));

@@ -5,9 +5,15 @@
 //!   Pairs are found through the 3 x 3 neighbouring cells, and the periodic image of a
 //!   partner is fixed by the cell offset, not by a minimum-image guess; this also handles
 //!   boxes with fewer than three cells in a direction, where a disk may meet two images.
-//! - Each particle keeps only its earliest predicted event in a binary heap; per-particle
-//!   counters invalidate stale events. A popped event whose partner has moved on is not
-//!   lost: its owner is predicted again at that time.
+//! - Each particle keeps only its earliest predicted event, queued by time in a bucket
+//!   queue ([`super::queue`]); per-particle counters invalidate stale events. A popped event
+//!   whose partner has moved on is not lost: its owner is predicted again at that time.
+//! - Within an interval the disks are stored in cell order, one cache line each, and each
+//!   cell lists its members in a fixed block of slots: the neighbours an event reads lie
+//!   together in memory. With N = 19800 (beyond the L2 cache) this and the bucket queue
+//!   made a collision 1.8x faster than a binary heap and the caller's order (measured with
+//!   examples/collision_scaling.rs), with the same bits (spectra of runs with N = 30, 198 and
+//!   1980 compared).
 //! - Positions and tangent rows are updated lazily, each particle at its own time, so an
 //!   event touches two particles only.
 //! - Every interval starts from scratch (times relative to the interval start, cells and
@@ -15,10 +21,9 @@
 //!   runs, and a state restored from a snapshot continues bit for bit.
 
 use super::collision;
+use super::queue::{EventQueue, Queued};
 use crate::error::{Error, Result};
 use crate::system::Tangent;
-use std::cmp::Ordering;
-use std::collections::BinaryHeap;
 use std::ops::Range;
 
 #[derive(Clone, Copy, Debug)]
@@ -29,33 +34,34 @@ enum Kind {
     Crossing { axis: u8, dir: i8 },
 }
 
+/// A disk's predicted event, kept with it: the queue holds only its time and owner.
 #[derive(Clone, Copy, Debug)]
-struct Event {
-    t: f64,
-    i: u32,
+struct Pending {
+    /// The partner's local index and its event counter when predicted.
     j: u32,
-    ci: u32,
     cj: u32,
     kind: Kind,
 }
 
-impl PartialEq for Event {
-    fn eq(&self, o: &Self) -> bool {
-        self.cmp(o) == Ordering::Equal
+impl Default for Pending {
+    fn default() -> Self {
+        Pending { j: u32::MAX, cj: 0, kind: Kind::Crossing { axis: 0, dir: 0 } }
     }
 }
-impl Eq for Event {}
-impl PartialOrd for Event {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Event {
-    /// Reversed, so that `BinaryHeap` pops the earliest event; ties are broken by the
-    /// particle indices, which keeps the order total and the run deterministic.
-    fn cmp(&self, o: &Self) -> Ordering {
-        o.t.total_cmp(&self.t).then(o.i.cmp(&self.i)).then(o.j.cmp(&self.j))
-    }
+
+/// A disk as the engine moves it within an interval: all that an event of the disk reads
+/// and writes, in one cache line.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(64))]
+struct Disk {
+    /// Position at time `t_pos` (not wrapped between crossings).
+    r: [f64; 2],
+    v: [f64; 2],
+    t_pos: f64,
+    /// Event counter: predictions made before it last changed are stale.
+    count: u32,
+    cell: [u32; 2],
+    pending: Pending,
 }
 
 /// Positions, velocities and box of the disks; what the engine moves.
@@ -84,6 +90,9 @@ struct TangentCollision {
 /// instead of the whole block streaming through memory once per collision.
 const COLUMN_BLOCK: usize = 32;
 
+/// Slots per cell at least (a cell has room for twice the most disks any cell starts with).
+const MIN_CELL_SLOTS: usize = 8;
+
 /// The tangent block shared by the replay workers, each of which owns a block of columns.
 struct SharedBlock {
     ptr: *mut f64,
@@ -111,12 +120,18 @@ pub struct Engine {
     log: Vec<TangentCollision>,
     nc: [usize; 2],
     w: [f64; 2],
-    cell: Vec<[u32; 2]>,
-    members: Vec<Vec<u32>>,
-    t_pos: Vec<f64>,
+    /// The disks in cell order (local index), so that neighbours are near in memory.
+    disks: Vec<Disk>,
+    /// Time up to which local disk l's tangent rows have been advanced.
     t_tan: Vec<f64>,
-    count: Vec<u32>,
-    heap: BinaryHeap<Event>,
+    /// Caller's index of local disk l; local index of the caller's disk i while sorting.
+    id: Vec<u32>,
+    local: Vec<u32>,
+    /// Members (local indices) of cell c: `slots[c * cap..][..fill[c]]`.
+    slots: Vec<u32>,
+    fill: Vec<u32>,
+    cap: usize,
+    queue: EventQueue,
 }
 
 /// Cells per direction: as many as fit with a width of at least sigma (with a margin so
@@ -184,14 +199,16 @@ impl Engine {
     pub fn run(&mut self, d: &mut Disks, tangent: &mut Tangent, tau: f64) -> Result<u64> {
         let n = d.pos.len();
         let k = tangent.count();
+        let sides = [d.lx, d.ly];
         self.rebuild(d);
+        self.queue.reset(tau, n);
         for i in 0..n {
-            self.predict(d, i, 0.0, tau);
+            self.predict(i, 0.0, tau, sides);
         }
         let mut collisions = 0u64;
         let mut events = 0u64;
         let limit = (100_000 * n as u64).saturating_mul((tau.ceil() as u64).max(1)).saturating_add(1_000_000);
-        while let Some(ev) = self.heap.pop() {
+        while let Some(ev) = self.queue.pop() {
             events += 1;
             if events > limit {
                 return Err(Error::Dynamics(format!(
@@ -200,34 +217,36 @@ impl Engine {
                     ev.t
                 )));
             }
-            let i = ev.i as usize;
-            if ev.ci != self.count[i] {
+            let i = ev.l as usize;
+            if ev.ci != self.disks[i].count {
                 continue;
             }
-            match ev.kind {
-                Kind::Crossing { axis, dir } => self.cross(d, i, axis as usize, dir, ev.t, tau),
+            let p = self.disks[i].pending;
+            match p.kind {
+                Kind::Crossing { axis, dir } => self.cross(i, axis as usize, dir, ev.t, tau, sides),
                 Kind::Collision { sx, sy } => {
-                    let j = ev.j as usize;
-                    if ev.cj != self.count[j] {
-                        self.predict(d, i, ev.t, tau);
+                    let j = p.j as usize;
+                    if p.cj != self.disks[j].count {
+                        self.predict(i, ev.t, tau, sides);
                         continue;
                     }
-                    if self.collide(d, k, i, j, [sx, sy], ev.t) {
+                    if self.collide(k, i, j, [sx, sy], ev.t, sides) {
                         collisions += 1;
-                        self.predict(d, i, ev.t, tau);
-                        self.predict(d, j, ev.t, tau);
+                        self.predict(i, ev.t, tau, sides);
+                        self.predict(j, ev.t, tau, sides);
                     } else {
-                        self.predict(d, i, ev.t, tau);
+                        self.predict(i, ev.t, tau, sides);
                     }
                 }
             }
         }
-        for i in 0..n {
-            let dt = tau - self.t_pos[i];
+        for (l, disk) in self.disks.iter().enumerate() {
+            let i = self.id[l] as usize;
+            let dt = tau - disk.t_pos;
             for a in 0..2 {
-                let l = if a == 0 { d.lx } else { d.ly };
-                d.pos[i][a] = wrap(d.pos[i][a] + d.vel[i][a] * dt, l);
+                d.pos[i][a] = wrap(disk.r[a] + disk.v[a] * dt, sides[a]);
             }
+            d.vel[i] = disk.v;
         }
         if k > 0 {
             self.replay(tangent, tau);
@@ -276,51 +295,108 @@ impl Engine {
             collision::fly_rows([&mut *qxj, &mut *qyj], [pxj, pyj], e.dt_j);
             collision::collide_rows([qxi, qyi, pxi, pyi, qxj, qyj, pxj, pyj], e.n, e.v, e.vn);
         }
-        for (i, t) in self.t_tan.iter().enumerate() {
-            let [qx, qy, px, py] = disk(i);
+        for (&i, t) in self.id.iter().zip(&self.t_tan) {
+            let [qx, qy, px, py] = disk(i as usize);
             collision::fly_rows([qx, qy], [px, py], tau - t);
         }
     }
 
-    fn rebuild(&mut self, d: &mut Disks) {
+    /// Start an interval: the caller's disks sorted into cells (a stable counting sort, so
+    /// that each cell lists its disks in the caller's order), positions wrapped into the box.
+    fn rebuild(&mut self, d: &Disks) {
         let n = d.pos.len();
+        let sides = [d.lx, d.ly];
         self.nc = cell_counts(d.lx, d.ly, n);
         self.w = [d.lx / self.nc[0] as f64, d.ly / self.nc[1] as f64];
-        self.members.resize_with(self.nc[0] * self.nc[1], Vec::new);
-        self.members.truncate(self.nc[0] * self.nc[1]);
-        self.members.iter_mut().for_each(Vec::clear);
-        self.cell.resize(n, [0, 0]);
-        self.t_pos.clear();
-        self.t_pos.resize(n, 0.0);
+        let cells = self.nc[0] * self.nc[1];
+        self.fill.clear();
+        self.fill.resize(cells, 0);
+        self.local.resize(n, 0);
+        for (i, p) in d.pos.iter().enumerate() {
+            let c = self.cell_of([wrap(p[0], sides[0]), wrap(p[1], sides[1])]);
+            let c = c[1] as usize * self.nc[0] + c[0] as usize;
+            self.local[i] = c as u32;
+            self.fill[c] += 1;
+        }
+        // The first local index of each cell, then each disk's own.
+        let mut next = 0u32;
+        let mut largest = 0;
+        let first: Vec<u32> = self.fill.iter().map(|&f| {
+            largest = largest.max(f as usize);
+            next += f;
+            next - f
+        }).collect();
+        self.cap = (2 * largest).max(MIN_CELL_SLOTS);
+        self.slots.clear();
+        self.slots.resize(cells * self.cap, 0);
+        self.fill.iter_mut().for_each(|f| *f = 0);
+        self.id.resize(n, 0);
+        self.disks.resize(n, Disk::default());
         self.t_tan.clear();
         self.t_tan.resize(n, 0.0);
-        self.log.clear();
-        self.count.clear();
-        self.count.resize(n, 0);
-        self.heap.clear();
         for i in 0..n {
-            let mut c = [0u32; 2];
-            for a in 0..2 {
-                let l = if a == 0 { d.lx } else { d.ly };
-                d.pos[i][a] = wrap(d.pos[i][a], l);
-                c[a] = ((d.pos[i][a] / self.w[a]) as usize).min(self.nc[a] - 1) as u32;
+            let c = self.local[i] as usize;
+            let l = first[c] as usize + self.fill[c] as usize;
+            self.slots[c * self.cap + self.fill[c] as usize] = l as u32;
+            self.fill[c] += 1;
+            self.id[l] = i as u32;
+            self.local[i] = l as u32;
+            let r = [wrap(d.pos[i][0], sides[0]), wrap(d.pos[i][1], sides[1])];
+            self.disks[l] = Disk { r, v: d.vel[i], t_pos: 0.0, count: 0, cell: self.cell_of(r), pending: Pending::default() };
+        }
+        self.log.clear();
+    }
+
+    /// Slots per cell in the interval just run (tests: whether they grew).
+    #[cfg(test)]
+    pub(super) fn slots_per_cell(&self) -> usize {
+        self.cap
+    }
+
+    fn cell_of(&self, r: [f64; 2]) -> [u32; 2] {
+        [0, 1].map(|a| ((r[a] / self.w[a]) as usize).min(self.nc[a] - 1) as u32)
+    }
+
+    /// The members of cell `c` (row-major index), as local indices.
+    fn members(&self, c: usize) -> &[u32] {
+        &self.slots[c * self.cap..c * self.cap + self.fill[c] as usize]
+    }
+
+    /// Add local disk l to cell `c`, after its members; the slots of every cell double when
+    /// one is full (rare: a cell of width below 2 holds at most 9 disks).
+    fn enter(&mut self, c: usize, l: u32) {
+        if self.fill[c] as usize == self.cap {
+            let cap = 2 * self.cap;
+            let mut slots = vec![0; self.fill.len() * cap];
+            for (cell, &f) in self.fill.iter().enumerate() {
+                slots[cell * cap..cell * cap + f as usize].copy_from_slice(&self.slots[cell * self.cap..cell * self.cap + f as usize]);
             }
-            self.cell[i] = c;
-            self.members[c[1] as usize * self.nc[0] + c[0] as usize].push(i as u32);
+            self.slots = slots;
+            self.cap = cap;
+        }
+        self.slots[c * self.cap + self.fill[c] as usize] = l;
+        self.fill[c] += 1;
+    }
+
+    /// Remove local disk l from cell `c`, the last member taking its place.
+    fn leave(&mut self, c: usize, l: u32) {
+        let f = self.fill[c] as usize;
+        let members = &mut self.slots[c * self.cap..c * self.cap + f];
+        if let Some(at) = members.iter().position(|&m| m == l) {
+            members[at] = members[f - 1];
+            self.fill[c] -= 1;
         }
     }
 
-    fn position(&self, d: &Disks, i: usize, t: f64) -> [f64; 2] {
-        let dt = t - self.t_pos[i];
-        [d.pos[i][0] + d.vel[i][0] * dt, d.pos[i][1] + d.vel[i][1] * dt]
-    }
-
-    /// Schedule the earliest event of disk i after time `now` (if it falls within tau).
-    fn predict(&mut self, d: &Disks, i: usize, now: f64, tau: f64) {
-        let ri = self.position(d, i, now);
-        let vi = d.vel[i];
-        let ci = self.cell[i];
-        let mut best = Event { t: f64::INFINITY, i: i as u32, j: u32::MAX, ci: self.count[i], cj: 0, kind: Kind::Crossing { axis: 0, dir: 0 } };
+    /// Schedule the earliest event of local disk i after time `now` (if it falls within
+    /// tau).
+    fn predict(&mut self, i: usize, now: f64, tau: f64, sides: [f64; 2]) {
+        let me = self.disks[i];
+        let ri = me.position(now);
+        let vi = me.v;
+        let ci = me.cell;
+        let mut best_t = f64::INFINITY;
+        let mut best = Pending::default();
         for a in 0..2 {
             let (lo, hi) = (ci[a] as f64 * self.w[a], (ci[a] + 1) as f64 * self.w[a]);
             let (dt, dir) = if vi[a] > 0.0 {
@@ -331,87 +407,92 @@ impl Engine {
                 continue;
             };
             let t = now + dt.max(0.0);
-            if t < best.t {
-                best.t = t;
+            if t < best_t {
+                best_t = t;
                 best.kind = Kind::Crossing { axis: a as u8, dir };
             }
         }
-        let shift = [d.lx, d.ly];
         for oy in -1..=1i64 {
             let (cy, sy) = wrap_cell(ci[1] as i64 + oy, self.nc[1]);
             for ox in -1..=1i64 {
                 let (cx, sx) = wrap_cell(ci[0] as i64 + ox, self.nc[0]);
-                for &j in &self.members[cy * self.nc[0] + cx] {
-                    let j = j as usize;
-                    if j == i {
+                for &j in self.members(cy * self.nc[0] + cx) {
+                    if j as usize == i {
                         continue;
                     }
-                    let rj = self.position(d, j, now);
-                    let r = [ri[0] - rj[0] - sx as f64 * shift[0], ri[1] - rj[1] - sy as f64 * shift[1]];
-                    let v = [vi[0] - d.vel[j][0], vi[1] - d.vel[j][1]];
+                    let other = &self.disks[j as usize];
+                    let rj = other.position(now);
+                    let r = [ri[0] - rj[0] - sx as f64 * sides[0], ri[1] - rj[1] - sy as f64 * sides[1]];
+                    let v = [vi[0] - other.v[0], vi[1] - other.v[1]];
                     if let Some(dt) = contact_time(r, v) {
                         let t = now + dt;
-                        if t < best.t {
-                            best = Event { t, i: i as u32, j: j as u32, ci: self.count[i], cj: self.count[j], kind: Kind::Collision { sx, sy } };
+                        if t < best_t {
+                            best_t = t;
+                            best = Pending { j, cj: other.count, kind: Kind::Collision { sx, sy } };
                         }
                     }
                 }
             }
         }
-        if best.t <= tau {
-            self.heap.push(best);
+        if best_t <= tau {
+            self.disks[i].pending = best;
+            self.queue.push(Queued { t: best_t, l: i as u32, ci: me.count });
         }
     }
 
-    fn cross(&mut self, d: &mut Disks, i: usize, axis: usize, dir: i8, t: f64, tau: f64) {
-        d.pos[i] = self.position(d, i, t);
-        self.t_pos[i] = t;
-        let old = self.cell[i];
+    fn cross(&mut self, i: usize, axis: usize, dir: i8, t: f64, tau: f64, sides: [f64; 2]) {
+        let disk = &mut self.disks[i];
+        disk.r = disk.position(t);
+        disk.t_pos = t;
+        let old = disk.cell;
         let (c, s) = wrap_cell(old[axis] as i64 + dir as i64, self.nc[axis]);
-        let l = if axis == 0 { d.lx } else { d.ly };
-        d.pos[i][axis] -= s as f64 * l;
+        disk.r[axis] -= s as f64 * sides[axis];
         let mut new = old;
         new[axis] = c as u32;
-        let from = &mut self.members[old[1] as usize * self.nc[0] + old[0] as usize];
-        if let Some(at) = from.iter().position(|&m| m as usize == i) {
-            from.swap_remove(at);
-        }
-        self.members[new[1] as usize * self.nc[0] + new[0] as usize].push(i as u32);
-        self.cell[i] = new;
-        self.count[i] = self.count[i].wrapping_add(1);
-        self.predict(d, i, t, tau);
+        disk.cell = new;
+        disk.count = disk.count.wrapping_add(1);
+        let nx = self.nc[0];
+        self.leave(old[1] as usize * nx + old[0] as usize, i as u32);
+        self.enter(new[1] as usize * nx + new[0] as usize, i as u32);
+        self.predict(i, t, tau, sides);
     }
 
-    /// Carry out the collision of i with the image `shift` of j at time t, for the phase
-    /// point and the tangent vectors. Returns false (and changes nothing) if rounding has
-    /// left the pair not approaching.
-    #[allow(clippy::too_many_arguments)]
-    fn collide(&mut self, d: &mut Disks, k: usize, i: usize, j: usize, shift: [i8; 2], t: f64) -> bool {
-        let ri = self.position(d, i, t);
-        let rj = self.position(d, j, t);
-        let r = [ri[0] - rj[0] - shift[0] as f64 * d.lx, ri[1] - rj[1] - shift[1] as f64 * d.ly];
+    /// Carry out the collision of local disks i and j (the image `shift` of j) at time t,
+    /// for the phase point and the tangent vectors. Returns false (and changes nothing) if
+    /// rounding has left the pair not approaching.
+    fn collide(&mut self, k: usize, i: usize, j: usize, shift: [i8; 2], t: f64, sides: [f64; 2]) -> bool {
+        let (a, b) = (self.disks[i], self.disks[j]);
+        let ri = a.position(t);
+        let rj = b.position(t);
+        let r = [ri[0] - rj[0] - shift[0] as f64 * sides[0], ri[1] - rj[1] - shift[1] as f64 * sides[1]];
         let dist = (r[0] * r[0] + r[1] * r[1]).sqrt();
         let n = [r[0] / dist, r[1] / dist];
-        let v = [d.vel[i][0] - d.vel[j][0], d.vel[i][1] - d.vel[j][1]];
+        let v = [a.v[0] - b.v[0], a.v[1] - b.v[1]];
         let vn = v[0] * n[0] + v[1] * n[1];
         if vn >= 0.0 {
             return false;
         }
-        d.pos[i] = ri;
-        d.pos[j] = rj;
-        self.t_pos[i] = t;
-        self.t_pos[j] = t;
         if k > 0 {
-            self.log.push(TangentCollision { i: i as u32, j: j as u32, dt_i: t - self.t_tan[i], dt_j: t - self.t_tan[j], n, v, vn });
+            self.log.push(TangentCollision { i: self.id[i], j: self.id[j], dt_i: t - self.t_tan[i], dt_j: t - self.t_tan[j], n, v, vn });
             self.t_tan[i] = t;
             self.t_tan[j] = t;
         }
-        for a in 0..2 {
-            d.vel[i][a] -= vn * n[a];
-            d.vel[j][a] += vn * n[a];
+        for (l, r, sign) in [(i, ri, -1.0), (j, rj, 1.0)] {
+            let disk = &mut self.disks[l];
+            disk.r = r;
+            disk.t_pos = t;
+            for a in 0..2 {
+                disk.v[a] += sign * vn * n[a];
+            }
+            disk.count = disk.count.wrapping_add(1);
         }
-        self.count[i] = self.count[i].wrapping_add(1);
-        self.count[j] = self.count[j].wrapping_add(1);
         true
+    }
+}
+
+impl Disk {
+    fn position(&self, t: f64) -> [f64; 2] {
+        let dt = t - self.t_pos;
+        [self.r[0] + self.v[0] * dt, self.r[1] + self.v[1] * dt]
     }
 }

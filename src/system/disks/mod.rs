@@ -7,6 +7,7 @@
 
 pub mod collision;
 pub mod events;
+mod queue;
 
 use super::{DynamicalSystem, Invariants, Snapshot, Tangent};
 use crate::error::{Error, Result};

@@ -379,3 +379,39 @@ fn dilute_gases_get_wider_cells_and_miss_no_collision() {
     assert!(worst > 1.0 - 1e-9, "disks overlap, closest pair at {worst}");
     assert!(((s.invariants().energy - start.energy) / start.energy).abs() < 1e-11);
 }
+
+/// Twelve disks on a ring of radius 30 to 32 fly at its centre and meet there (not all at
+/// once: simultaneous collisions would make the order of events matter): the centre cell
+/// holds all twelve at once, more than its slots at the interval's start (8), so the cell
+/// slots grow in mid-interval. The one long interval must agree with forty short ones
+/// (which start from cells sized for what they hold), conserve energy and momentum, and
+/// leave no overlap.
+#[test]
+fn a_cell_filled_in_mid_interval_grows_and_misses_no_collision() {
+    let (n, side, centre, radius) = (12usize, 100.0, 58.0, 30.0);
+    let mut rng = Rng::new(3);
+    let jitter: Vec<(f64, f64)> = (0..n).map(|_| (0.1 * rng.uniform(), 2.0 * rng.uniform())).collect();
+    let angle = |i: usize| 2.0 * std::f64::consts::PI * i as f64 / n as f64 + jitter[i].0;
+    let pos: Vec<[f64; 2]> = (0..n).map(|i| [0, 1].map(|a| centre + (radius + jitter[i].1) * [angle(i).cos(), angle(i).sin()][a])).collect();
+    let vel: Vec<[f64; 2]> = (0..n).map(|i| [-angle(i).cos(), -angle(i).sin()]).collect();
+    let mut long = HardDisks::from_state(side, side, 40.0, pos.clone(), vel.clone()).unwrap();
+    let mut short = HardDisks::from_state(side, side, 1.0, pos, vel).unwrap();
+    let start = long.invariants();
+    let mut none = Tangent::zeros(4 * n, 0);
+    long.advance(&mut none).unwrap();
+    assert!(long.engine.slots_per_cell() > 8, "the centre cell never overflowed its {} slots", long.engine.slots_per_cell());
+    let mut worst = f64::INFINITY;
+    for _ in 0..40 {
+        short.advance(&mut none).unwrap();
+        worst = worst.min(short.min_separation());
+    }
+    assert!(long.collisions >= n as u64 && long.collisions == short.collisions, "{} collisions in one interval, {} in forty", long.collisions, short.collisions);
+    for (a, b) in long.positions().iter().zip(short.positions()) {
+        let d = long.separation(*a, *b);
+        assert!(d[0].hypot(d[1]) < 1e-9, "one interval and forty end apart: {a:?} against {b:?}");
+    }
+    let end = long.invariants();
+    assert!(worst > 1.0 - 1e-9 && long.min_separation() > 1.0 - 1e-9, "disks overlap");
+    assert!(((end.energy - start.energy) / start.energy).abs() < 1e-12);
+    assert!((0..2).all(|a| (end.momentum[a] - start.momentum[a]).abs() < 1e-12), "momentum {:?} became {:?}", start.momentum, end.momentum);
+}
