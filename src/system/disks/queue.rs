@@ -8,19 +8,22 @@
 //! bucket only moves forward, and the pop order is exactly the order of (t, owner, counter),
 //! the same as a heap's: the run does not depend on the queue.
 
-/// An entry: the owner's (local) index `l` and its event counter `ci` when predicted.
+/// An entry: the owner's index `id` in the caller's numbering and `l` in the engine's, and
+/// its event counter `ci` when predicted.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Queued {
     pub t: f64,
+    pub id: u32,
     pub l: u32,
     pub ci: u32,
 }
 
 impl Queued {
-    /// Earlier first; ties are broken by the owner, then its counter, which keeps the order
+    /// Earlier first; ties are broken by the owner in the caller's numbering (so the order
+    /// does not depend on where the engine keeps a disk), then by its counter: the order is
     /// total and the run deterministic.
     fn before(&self, o: &Queued) -> bool {
-        self.t.total_cmp(&o.t).then(self.l.cmp(&o.l)).then(self.ci.cmp(&o.ci)).is_lt()
+        self.t.total_cmp(&o.t).then(self.id.cmp(&o.id)).then(self.ci.cmp(&o.ci)).is_lt()
     }
 }
 
@@ -130,7 +133,7 @@ mod tests {
                     2 => reference.last().map_or(now, |e| e.t),
                     _ => now + (tau - now) * rng.uniform(),
                 };
-                let e = Queued { t, l: i % 13, ci: i % 5 };
+                let e = Queued { t, id: i % 13, l: 0, ci: i % 5 };
                 q.push(e);
                 reference.push(e);
             };
