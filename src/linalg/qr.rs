@@ -121,146 +121,35 @@ impl Qr {
             SharedPacked(out.as_mut_ptr())
         });
         let nb = self.nb;
-        let panels: Vec<Range<usize>> = (0..k.div_ceil(nb)).map(|p| p * nb..((p + 1) * nb).min(k)).collect();
-        let np = panels.len();
-        let workers = self.active;
-        // The trailing columns are updated in chunks of whole panels, about CHUNK wide; the
-        // worker that updates a chunk also factors its panels.
-        let per_chunk = (CHUNK / nb).max(1);
-        let cw = per_chunk * nb;
-        let chunk_of = |p: usize| p / per_chunk;
-        let owner = |p: usize| chunk_of(p) % workers;
-        let a = Shared::new(self.a.as_mut());
-        let t = Shared::new(self.t.as_mut());
         let rows = g.rows_mut();
         assert_eq!(rows.len(), d * k);
-        let g_rows = SharedRows { ptr: rows.as_mut_ptr(), d, k };
-        let r_out = Shared::new(r.as_mut());
-        // Panels factored so far; the first dependent column; set to stop every worker.
-        let factored = AtomicUsize::new(0);
-        let deficient = AtomicUsize::new(usize::MAX);
-        let stop = AtomicBool::new(false);
-        let q_chunks = k.div_ceil(CHUNK);
-        let q_next = AtomicUsize::new(0);
+        let job = Job {
+            a: Shared::new(self.a.as_mut()),
+            t: Shared::new(self.t.as_mut()),
+            panels: (0..k.div_ceil(nb)).map(|p| p * nb..((p + 1) * nb).min(k)).collect(),
+            nb,
+            per_chunk: (CHUNK / nb).max(1),
+            workers: self.active,
+            g_rows: SharedRows { ptr: rows.as_mut_ptr(), d, k },
+            paper,
+            r_out: Shared::new(r.as_mut()),
+            r_packed,
+            factored: AtomicUsize::new(0),
+            deficient: AtomicUsize::new(usize::MAX),
+            stop: AtomicBool::new(false),
+            q_next: AtomicUsize::new(0),
+        };
         let scratch = &self.scratch;
-
-        self.crew.run_on(workers, &|me| {
-            let _stop_others = StopOnPanic(&stop);
+        self.crew.run_on(job.workers, &|me| {
+            let _stop_others = StopOnPanic(&job.stop);
             let _flush = super::FlushSubnormals::new();
             let mut guard = scratch[me].lock().unwrap_or_else(|e| e.into_inner());
-            let Scratch { mem, q, sign } = &mut *guard;
-            // Safety (for all views below): a worker writes only the panels it owns (p with
-            // owner(p) == me) until all panels are factored; a panel is read by others only
-            // after it is factored (published through `factored`), and then never written.
-            let factor_panel = |p: usize, mem: &mut MemBuffer| unsafe {
-                let cols = panels[p].clone();
-                let w = cols.len();
-                let info = factor::qr_in_place(a.view(cols.start.., cols.clone()), t.view(..w, cols.clone()), Par::Seq, MemStack::new(mem), Default::default());
-                if info.rank < w {
-                    deficient.fetch_min(cols.start + info.rank, Ordering::Relaxed);
-                    stop.store(true, Ordering::Release);
-                }
-                factored.store(p + 1, Ordering::Release);
-            };
-            // Reflector block p applied to columns `cols`.
-            let update = |p: usize, cols: Range<usize>, mem: &mut MemBuffer| unsafe {
-                let panel = panels[p].clone();
-                householder::apply_block_householder_transpose_on_the_left_in_place_with_conj(
-                    a.view(panel.start.., panel.clone()).as_ref(),
-                    t.view(..panel.len(), panel.clone()).as_ref(),
-                    Conj::Yes,
-                    a.view(panel.start.., cols),
-                    Par::Seq,
-                    MemStack::new(mem),
-                );
-            };
-
-            for p in (0..np).filter(|&p| owner(p) == me) {
-                // Safety: G is only read until every panel is factored.
-                unsafe { g_rows.read_cols(a.view(.., panels[p].clone()), panels[p].start) };
-            }
-            if owner(0) == me {
-                factor_panel(0, mem);
-            }
-            // Right-looking, one panel of lookahead: apply reflector block p to my panels,
-            // the next one first, and factor it as soon as it is up to date.
-            for p in 0..np - 1 {
-                if !wait_for(&factored, p + 1, &stop) {
-                    return;
-                }
-                // My chunks' columns right of panel p, on the fixed chunk grid (so that the
-                // gemm calls, and the rounding, are the same for any number of workers).
-                let first = chunk_of(p + 1);
-                let chunk_cols = |c: usize| (c * cw).max(panels[p].end)..((c + 1) * cw).min(k);
-                if owner(p + 1) == me {
-                    update(p, chunk_cols(first), mem);
-                    factor_panel(p + 1, mem);
-                }
-                for c in (first + 1..k.div_ceil(cw)).filter(|&c| c % workers == me) {
-                    update(p, chunk_cols(c), mem);
-                }
-            }
-            if !wait_for(&factored, np, &stop) {
-                return;
-            }
-
-            // Q, one chunk of columns at a time (orgqr), the most expensive chunks first;
-            // then the signs fixed, G written row-major and R extracted.
-            // Safety: every panel is factored, nothing writes `a` any more.
-            for (i, s) in sign.iter_mut().enumerate() {
-                *s = if unsafe { a.read(i, i) } < 0.0 { -1.0 } else { 1.0 };
-            }
-            loop {
-                let i = q_next.fetch_add(1, Ordering::Relaxed);
-                if i >= q_chunks {
-                    break;
-                }
-                let c = q_chunks - 1 - i;
-                let cols = c * CHUNK..((c + 1) * CHUNK).min(k);
-                let mut q = q.as_mut().get_mut(.., ..cols.len());
-                q.fill(0.0);
-                for (j, col) in cols.clone().enumerate() {
-                    q[(col, j)] = 1.0;
-                }
-                for panel in panels.iter().rev().filter(|p| p.start < cols.end) {
-                    let from = panel.start.max(cols.start);
-                    unsafe {
-                        householder::apply_block_householder_on_the_left_in_place_with_conj(
-                            a.view(panel.start.., panel.clone()).as_ref(),
-                            t.view(..panel.len(), panel.clone()).as_ref(),
-                            Conj::No,
-                            q.as_mut().get_mut(panel.start.., from - cols.start..),
-                            Par::Seq,
-                            MemStack::new(mem),
-                        );
-                    }
-                }
-                // Safety: this worker alone took chunk `cols` of G and of R.
-                unsafe {
-                    g_rows.write_cols(q.as_ref(), cols.start, &sign[cols.clone()]);
-                    if let Some(paper) = &paper {
-                        paper.write_cols(q.as_ref(), cols.start, &sign[cols.clone()]);
-                    }
-                    let mut rc = r_out.view(.., cols.clone());
-                    let fa = a.view(.., cols.clone());
-                    for (jj, j) in cols.clone().enumerate() {
-                        let src = fa.as_ref().col(jj).try_as_col_major().expect("column-major").as_slice();
-                        let dst = rc.as_mut().col_mut(jj).try_as_col_major_mut().expect("column-major").as_slice_mut();
-                        let (upper, lower) = dst.split_at_mut(j + 1);
-                        for ((x, y), s) in upper.iter_mut().zip(src).zip(sign.iter()) {
-                            *x = s * y;
-                        }
-                        lower.fill(0.0);
-                        if let Some(packed) = &r_packed {
-                            // Column j of the packed triangle starts at j (j + 1) / 2.
-                            std::slice::from_raw_parts_mut(packed.0.add(j * (j + 1) / 2), j + 1).copy_from_slice(upper);
-                        }
-                    }
-                }
+            if job.factor(me, &mut guard.mem) {
+                job.form_q(&mut guard);
             }
         });
 
-        let i = deficient.into_inner();
+        let i = job.deficient.into_inner();
         if i == usize::MAX {
             return None;
         }
@@ -268,6 +157,179 @@ impl Qr {
         r[(i, i)] = if g.rows().iter().all(|x| x.is_finite()) { 0.0 } else { f64::NAN };
         // `g` still holds the input: Q is only written once every panel is factored.
         Some(i)
+    }
+}
+
+/// One factorisation, shared by the crew's workers: the block and its copies, and what
+/// the workers tell each other.
+///
+/// Safety of the shared views, for every method: a worker writes only the panels it owns
+/// (p with `owner(p) == me`) until all panels are factored; a panel is read by others only
+/// after it is factored (published through `factored`), and then never written. G is only
+/// read until every panel is factored. After that, nothing writes `a` any more, and each
+/// chunk of Q, and so of G, its paper copy and R, is taken by one worker alone (`q_next`).
+struct Job<'a> {
+    /// The block in column-major order; once factored, R above the diagonal and the
+    /// Householder vectors below it.
+    a: Shared,
+    /// The triangular factor T of each panel's block reflector.
+    t: Shared,
+    panels: Vec<Range<usize>>,
+    nb: usize,
+    /// Panels per chunk: the trailing columns are updated in chunks of whole panels, about
+    /// CHUNK wide, and the worker that updates a chunk also factors its panels.
+    per_chunk: usize,
+    workers: usize,
+    g_rows: SharedRows,
+    paper: Option<SharedPaper<'a>>,
+    r_out: Shared,
+    r_packed: Option<SharedPacked>,
+    /// Panels factored so far.
+    factored: AtomicUsize,
+    /// The first dependent column found.
+    deficient: AtomicUsize,
+    /// Set to stop every worker.
+    stop: AtomicBool,
+    /// The next chunk of Q to form.
+    q_next: AtomicUsize,
+}
+
+impl Job<'_> {
+    fn chunk_of(&self, p: usize) -> usize {
+        p / self.per_chunk
+    }
+
+    fn owner(&self, p: usize) -> usize {
+        self.chunk_of(p) % self.workers
+    }
+
+    fn k(&self) -> usize {
+        self.a.ncols
+    }
+
+    /// Factor panel p (owned by the caller, up to date) and publish it.
+    unsafe fn factor_panel(&self, p: usize, mem: &mut MemBuffer) {
+        let cols = self.panels[p].clone();
+        let w = cols.len();
+        let info = unsafe { factor::qr_in_place(self.a.view(cols.start.., cols.clone()), self.t.view(..w, cols.clone()), Par::Seq, MemStack::new(mem), Default::default()) };
+        if info.rank < w {
+            self.deficient.fetch_min(cols.start + info.rank, Ordering::Relaxed);
+            self.stop.store(true, Ordering::Release);
+        }
+        self.factored.store(p + 1, Ordering::Release);
+    }
+
+    /// Reflector block p (factored) applied to columns `cols` (owned by the caller).
+    unsafe fn update(&self, p: usize, cols: Range<usize>, mem: &mut MemBuffer) {
+        let panel = self.panels[p].clone();
+        unsafe {
+            householder::apply_block_householder_transpose_on_the_left_in_place_with_conj(
+                self.a.view(panel.start.., panel.clone()).as_ref(),
+                self.t.view(..panel.len(), panel.clone()).as_ref(),
+                Conj::Yes,
+                self.a.view(panel.start.., cols),
+                Par::Seq,
+                MemStack::new(mem),
+            );
+        }
+    }
+
+    /// Worker `me`'s part of the factorisation: right-looking, one panel of lookahead. It
+    /// applies reflector block p to its panels, the next one first, and factors that as soon
+    /// as it is up to date. False if the factorisation stopped (a dependent column or a
+    /// worker's panic).
+    fn factor(&self, me: usize, mem: &mut MemBuffer) -> bool {
+        let (np, k) = (self.panels.len(), self.k());
+        let cw = self.per_chunk * self.nb;
+        for p in (0..np).filter(|&p| self.owner(p) == me) {
+            unsafe { self.g_rows.read_cols(self.a.view(.., self.panels[p].clone()), self.panels[p].start) };
+        }
+        if self.owner(0) == me {
+            unsafe { self.factor_panel(0, mem) };
+        }
+        for p in 0..np - 1 {
+            if !wait_for(&self.factored, p + 1, &self.stop) {
+                return false;
+            }
+            // My chunks' columns right of panel p, on the fixed chunk grid (so that the gemm
+            // calls, and the rounding, are the same for any number of workers).
+            let first = self.chunk_of(p + 1);
+            let chunk_cols = |c: usize| (c * cw).max(self.panels[p].end)..((c + 1) * cw).min(k);
+            if self.owner(p + 1) == me {
+                unsafe {
+                    self.update(p, chunk_cols(first), mem);
+                    self.factor_panel(p + 1, mem);
+                }
+            }
+            for c in (first + 1..k.div_ceil(cw)).filter(|&c| c % self.workers == me) {
+                unsafe { self.update(p, chunk_cols(c), mem) };
+            }
+        }
+        wait_for(&self.factored, np, &self.stop)
+    }
+
+    /// Q one chunk of columns at a time (orgqr), the most expensive chunks first; each with
+    /// its signs fixed, written to G (and its paper copy), and its columns of R.
+    fn form_q(&self, scratch: &mut Scratch) {
+        let Scratch { mem, q, sign } = scratch;
+        let k = self.k();
+        for (i, s) in sign.iter_mut().enumerate() {
+            *s = if unsafe { self.a.read(i, i) } < 0.0 { -1.0 } else { 1.0 };
+        }
+        let q_chunks = k.div_ceil(CHUNK);
+        loop {
+            let i = self.q_next.fetch_add(1, Ordering::Relaxed);
+            if i >= q_chunks {
+                return;
+            }
+            let c = q_chunks - 1 - i;
+            let cols = c * CHUNK..((c + 1) * CHUNK).min(k);
+            let mut q = q.as_mut().get_mut(.., ..cols.len());
+            q.fill(0.0);
+            for (j, col) in cols.clone().enumerate() {
+                q[(col, j)] = 1.0;
+            }
+            for panel in self.panels.iter().rev().filter(|p| p.start < cols.end) {
+                let from = panel.start.max(cols.start);
+                unsafe {
+                    householder::apply_block_householder_on_the_left_in_place_with_conj(
+                        self.a.view(panel.start.., panel.clone()).as_ref(),
+                        self.t.view(..panel.len(), panel.clone()).as_ref(),
+                        Conj::No,
+                        q.as_mut().get_mut(panel.start.., from - cols.start..),
+                        Par::Seq,
+                        MemStack::new(mem),
+                    );
+                }
+            }
+            unsafe {
+                self.g_rows.write_cols(q.as_ref(), cols.start, &sign[cols.clone()]);
+                if let Some(paper) = &self.paper {
+                    paper.write_cols(q.as_ref(), cols.start, &sign[cols.clone()]);
+                }
+                self.write_r(cols, sign);
+            }
+        }
+    }
+
+    /// Columns `cols` of R (and of its packed copy): the upper triangle of the factored
+    /// block with the signs of `sign`, zero below.
+    unsafe fn write_r(&self, cols: Range<usize>, sign: &[f64]) {
+        let mut rc = unsafe { self.r_out.view(.., cols.clone()) };
+        let fa = unsafe { self.a.view(.., cols.clone()) };
+        for (jj, j) in cols.enumerate() {
+            let src = fa.as_ref().col(jj).try_as_col_major().expect("column-major").as_slice();
+            let dst = rc.as_mut().col_mut(jj).try_as_col_major_mut().expect("column-major").as_slice_mut();
+            let (upper, lower) = dst.split_at_mut(j + 1);
+            for ((x, y), s) in upper.iter_mut().zip(src).zip(sign) {
+                *x = s * y;
+            }
+            lower.fill(0.0);
+            if let Some(packed) = &self.r_packed {
+                // Column j of the packed triangle starts at j (j + 1) / 2.
+                unsafe { std::slice::from_raw_parts_mut(packed.0.add(j * (j + 1) / 2), j + 1).copy_from_slice(upper) };
+            }
+        }
     }
 }
 
