@@ -131,6 +131,8 @@ pub struct Engine {
     slots: Vec<u32>,
     fill: Vec<u32>,
     cap: usize,
+    /// The first local index of each cell at the interval's start.
+    cell_start: Vec<u32>,
     queue: EventQueue,
 }
 
@@ -201,7 +203,7 @@ impl Engine {
         let k = tangent.count();
         let sides = [d.lx, d.ly];
         self.rebuild(d);
-        self.queue.reset(tau, n);
+        self.queue.reset(n);
         for i in 0..n {
             self.predict(i, 0.0, tau, sides);
         }
@@ -320,14 +322,13 @@ impl Engine {
         }
         // The first local index of each cell, then each disk's own.
         let mut next = 0u32;
-        let mut largest = 0;
-        let first: Vec<u32> = self.fill.iter().map(|&f| {
-            largest = largest.max(f as usize);
+        self.cell_start.clear();
+        self.cell_start.extend(self.fill.iter().map(|&f| {
             next += f;
             next - f
-        }).collect();
-        self.cap = (2 * largest).max(MIN_CELL_SLOTS);
-        self.slots.clear();
+        }));
+        self.cap = (2 * self.fill.iter().max().copied().unwrap_or(0) as usize).max(MIN_CELL_SLOTS);
+        // Slots past a cell's fill are never read: only the length matters.
         self.slots.resize(cells * self.cap, 0);
         self.fill.iter_mut().for_each(|f| *f = 0);
         self.id.resize(n, 0);
@@ -336,7 +337,7 @@ impl Engine {
         self.t_tan.resize(n, 0.0);
         for i in 0..n {
             let c = self.local[i] as usize;
-            let l = first[c] as usize + self.fill[c] as usize;
+            let l = self.cell_start[c] as usize + self.fill[c] as usize;
             self.slots[c * self.cap + self.fill[c] as usize] = l as u32;
             self.fill[c] += 1;
             self.id[l] = i as u32;
