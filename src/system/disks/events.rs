@@ -354,6 +354,12 @@ impl Engine {
         self.cap
     }
 
+    /// Times the event queue's window moved on in the interval just run.
+    #[cfg(test)]
+    pub(super) fn queue_window_moves(&self) -> u64 {
+        self.queue.moves
+    }
+
     fn cell_of(&self, r: [f64; 2]) -> [u32; 2] {
         [0, 1].map(|a| ((r[a] / self.w[a]) as usize).min(self.nc[a] - 1) as u32)
     }

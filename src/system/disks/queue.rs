@@ -52,6 +52,8 @@ pub struct EventQueue {
     /// Entries pushed before the first pop, which sets the buckets' width from them.
     first: Vec<Queued>,
     calibrated: bool,
+    /// Times the window moved on in this interval.
+    pub moves: u64,
 }
 
 /// An entry beyond the window, earliest first out of the heap.
@@ -95,6 +97,7 @@ impl EventQueue {
         self.later.clear();
         self.first.clear();
         self.calibrated = false;
+        self.moves = 0;
     }
 
     /// The buckets' width, from the entries pushed so far (times from 0): two entries to a
@@ -155,6 +158,7 @@ impl EventQueue {
             }
             // The window is empty: move it on to the earliest later event.
             let first = self.later.peek()?.0.t;
+            self.moves += 1;
             self.start = first;
             self.end = first + self.heads.len() as f64 / self.scale;
             self.current = 0;

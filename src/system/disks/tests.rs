@@ -194,9 +194,11 @@ fn tangent_map_is_symplectic() {
 
 /// Energy and momentum to round-off and no overlap, over at least 1e5 collisions, in boxes
 /// with two cells per side, a square box and the paper's long thin box.
+/// Also over long intervals (tau = 50, N = 16: the event queue's window moves on about a
+/// dozen times in each).
 #[test]
 fn conserves_energy_and_momentum_without_overlap() {
-    for (n, aspect, tau) in [(4usize, 1.0, 0.3), (16, 1.0, 0.3), (198, 2.0 / 11.0, 0.6)] {
+    for (n, aspect, tau) in [(4usize, 1.0, 0.3), (16, 1.0, 0.3), (16, 1.0, 50.0), (198, 2.0 / 11.0, 0.6)] {
         let (lx, ly) = box_sides(n, 0.7, aspect);
         let mut s = HardDisks::new(n, lx, ly, tau, 2).unwrap();
         let start = s.invariants();
@@ -204,10 +206,13 @@ fn conserves_energy_and_momentum_without_overlap() {
         assert_eq!(start.momentum, [0.0, 0.0]);
         let mut none = Tangent::zeros(4 * n, 0);
         let mut worst = f64::INFINITY;
+        let mut moves = 0;
         while s.collisions < 100_000 {
             s.advance(&mut none).unwrap();
             worst = worst.min(s.min_separation());
+            moves += s.engine.queue_window_moves();
         }
+        assert!(tau < 1.0 || moves > 0, "N = {n}, tau = {tau}: the queue's window never moved");
         let end = s.invariants();
         assert!(worst > 1.0 - 1e-9, "N = {n}: disks overlap, closest pair at {worst}");
         assert!(((end.energy - start.energy) / start.energy).abs() < 1e-11, "N = {n}: energy drift");
