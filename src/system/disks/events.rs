@@ -11,9 +11,10 @@
 //! - Within an interval the disks are stored in cell order, one cache line each, and each
 //!   cell lists its members in a fixed block of slots: the neighbours an event reads lie
 //!   together in memory. With N = 19800 (beyond the L2 cache) this and the bucket queue
-//!   made a collision 1.8x faster than a binary heap and the caller's order (measured with
+//!   made a collision 1.5-2x faster than a binary heap and the caller's order (measured with
 //!   examples/collision_scaling.rs), with the same order of events, ties included, and the
-//!   same bits (spectra of runs with N = 30, 198 and 1980 compared).
+//!   same bits (spectra of runs with N = 30, 198 and 1980, and N = 100 at tau = 20,
+//!   compared).
 //! - Positions and tangent rows are updated lazily, each particle at its own time, so an
 //!   event touches two particles only.
 //! - Every interval starts from scratch (times relative to the interval start, cells and
@@ -370,7 +371,8 @@ impl Engine {
     }
 
     /// Add local disk l to cell `c`, after its members; the slots of every cell double when
-    /// one is full (rare: a cell of width below 2 holds at most 9 disks).
+    /// one is full (rare: a cell narrower than 2 holds at most 9 disks; only dilute gases get
+    /// wider cells).
     fn enter(&mut self, c: usize, l: u32) {
         if self.fill[c] as usize == self.cap {
             let cap = 2 * self.cap;

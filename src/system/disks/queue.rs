@@ -8,9 +8,11 @@
 //! (their mean time m: the entries lie about N / m to a unit of time), so it suits any N,
 //! density and tau. The buckets, 8N of them, cover a window of sixteen times m (all of
 //! tau = 0.6 in the paper's system); the rare events beyond it wait in a heap and move into
-//! the buckets when the window moves on. So the memory stays O(N) however long tau is. No event is ever scheduled before the one being
-//! handled, so the current bucket only moves forward, and the pop order is exactly the order
-//! of (t, owner, counter), the same as a heap's: the run does not depend on the queue.
+//! the buckets when the window moves on. So the memory stays O(N) however long tau is.
+//!
+//! No event is ever scheduled before the one being handled, so the current bucket only moves
+//! forward, and the pop order is exactly the order of (t, owner, counter), the same as a
+//! heap's: the run does not depend on the queue.
 
 /// An entry: the owner's index `id` in the caller's numbering and `l` in the engine's, and
 /// its event counter `ci` when predicted.
@@ -62,7 +64,7 @@ struct Later(Queued);
 
 impl PartialEq for Later {
     fn eq(&self, o: &Self) -> bool {
-        self.0 == o.0
+        self.cmp(o) == std::cmp::Ordering::Equal
     }
 }
 impl Eq for Later {}
