@@ -73,10 +73,11 @@ pub struct CollisionRate {
     pub per_second: Stat,
 }
 
-/// Child processes per run length, short and long. The peak of a run moves by one or two
-/// encoded messages (2.5 MB at D = k = 792) with how far the writer thread lags behind
-/// when it is reached (52.4 or 54.4 MB in four 20-step forward runs, 54.4-55.0 MB at 200
-/// steps). One long run against the largest of three short ones was not a fair comparison:
+/// Child processes per run length, short and long. The peak of a run moves from run to run
+/// by up to 2 MB at D = k = 792 (52.4 or 54.4 MB in four 20-step forward runs, 54.4-55.0 MB
+/// at 200 steps; not with the writer's lag: a fixed pool of message buffers left it as wide,
+/// 2026-11-27), and a 20-step forward run ends before its memory settles (about 80 steps).
+/// One long run against the largest of three short ones was not a fair comparison:
 /// on 2026-11-26 the short runs' largest was 55.6 MB, the one long run 51.6 MB. Both
 /// lengths now take the largest of three, so that growth with the run's length is what
 /// their difference shows.
@@ -525,8 +526,8 @@ fn backward_step_ms(dir: &Path, meta: &RunMeta, vectors_every: u64) -> Result<f6
     backward::run(dir, &opts, false, u64::MAX, None, &mut |_| Ok(Flow::Continue), &mut |steps, _| marks.push((Instant::now(), steps)))?;
     // Seven segments (six of 100 steps) in the bench's pairs; the time per step is taken from
     // the end of the third segment's sweep to the end of the last but one (three segments):
-    // the period of the overlapped pipeline, once both segment buffers have been written whole (their first
-    // writes fault the pages in). The last sweep runs alone after the last recomputation,
+    // the period of the overlapped pipeline, once both segment buffers have been written
+    // whole (their first writes fault the pages in). The last sweep runs alone after the last recomputation,
     // once per run.
     Ok(match (marks.get(2), marks.len().checked_sub(2).and_then(|i| marks.get(i))) {
         (Some(first), Some(last)) if last.1 > first.1 => ms(last.0 - first.0) / (last.1 - first.1) as f64,
