@@ -75,7 +75,7 @@ pub struct CollisionRate {
 
 /// Child processes per run length, short and long. The peak of a run moves from run to run
 /// by up to 2 MB at D = k = 792 (52.4 or 54.4 MB in four 20-step forward runs, 54.4-55.0 MB
-/// at 200 steps; not with the writer's lag: a fixed pool of message buffers left it as wide,
+/// at 200 steps; not with the writer's lag: a fixed pool of message buffers did not narrow it,
 /// 2026-11-27), and a 20-step forward run ends before its memory settles (about 80 steps).
 /// One long run against the largest of three short ones was not a fair comparison:
 /// on 2026-11-26 the short runs' largest was 55.6 MB, the one long run 51.6 MB. Both
