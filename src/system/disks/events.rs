@@ -125,9 +125,10 @@ pub struct Engine {
     disks: Vec<Disk>,
     /// Time up to which local disk l's tangent rows have been advanced.
     t_tan: Vec<f64>,
-    /// Caller's index of local disk l; local index of the caller's disk i while sorting.
+    /// Caller's index of local disk l.
     id: Vec<u32>,
-    local: Vec<u32>,
+    /// The cell of the caller's disk i (row-major index), while sorting.
+    cell_of_id: Vec<u32>,
     /// Members (local indices) of cell c: `slots[c * cap..][..fill[c]]`.
     slots: Vec<u32>,
     fill: Vec<u32>,
@@ -314,11 +315,11 @@ impl Engine {
         let cells = self.nc[0] * self.nc[1];
         self.fill.clear();
         self.fill.resize(cells, 0);
-        self.local.resize(n, 0);
+        self.cell_of_id.resize(n, 0);
         for (i, p) in d.pos.iter().enumerate() {
             let c = self.cell_of([wrap(p[0], sides[0]), wrap(p[1], sides[1])]);
             let c = c[1] as usize * self.nc[0] + c[0] as usize;
-            self.local[i] = c as u32;
+            self.cell_of_id[i] = c as u32;
             self.fill[c] += 1;
         }
         // The first local index of each cell, then each disk's own.
@@ -337,14 +338,14 @@ impl Engine {
         self.t_tan.clear();
         self.t_tan.resize(n, 0.0);
         for i in 0..n {
-            let c = self.local[i] as usize;
+            let c = self.cell_of_id[i] as usize;
             let l = self.cell_start[c] as usize + self.fill[c] as usize;
             self.slots[c * self.cap + self.fill[c] as usize] = l as u32;
             self.fill[c] += 1;
             self.id[l] = i as u32;
-            self.local[i] = l as u32;
             let r = [wrap(d.pos[i][0], sides[0]), wrap(d.pos[i][1], sides[1])];
-            self.disks[l] = Disk { r, v: d.vel[i], t_pos: 0.0, count: 0, cell: self.cell_of(r), pending: Pending::default() };
+            let cell = [(c % self.nc[0]) as u32, (c / self.nc[0]) as u32];
+            self.disks[l] = Disk { r, v: d.vel[i], t_pos: 0.0, count: 0, cell, pending: Pending::default() };
         }
         self.log.clear();
     }
