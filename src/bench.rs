@@ -73,10 +73,10 @@ pub struct CollisionRate {
     pub per_second: Stat,
 }
 
-/// Child processes per run length, short and long. The peak of a run moves from run to run
-/// by up to 2 MB at D = k = 792 (52.4 or 54.4 MB in four 20-step forward runs, 54.4-55.0 MB
-/// at 200 steps; not with the writer's lag: a fixed pool of message buffers did not narrow it,
-/// 2026-11-27), and a 20-step forward run ends before its memory settles (about 80 steps).
+/// Child processes per run length, short and long. The forward peak moved from run to run
+/// by up to 4 MB at D = k = 792 while zstd's worker threads compressed the segments (their
+/// job buffers came and went); on the writer's thread alone it moves by 2 MB (35.6-38.1 MB
+/// in four 20-step runs, 37.1-38.0 MB at 200 steps, 2026-11-27).
 /// One long run against the largest of three short ones was not a fair comparison:
 /// on 2026-11-26 the short runs' largest was 55.6 MB, the one long run 51.6 MB. Both
 /// lengths now take the largest of three, so that growth with the run's length is what

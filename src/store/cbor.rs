@@ -66,11 +66,18 @@ impl MapWriter {
     }
 
     pub fn f64s(&mut self, k: &str, v: &[f64]) {
+        self.f64s_of(k, v.len(), v.iter().copied());
+    }
+
+    /// [`MapWriter::f64s`] of `len` values drawn from `v`, without a slice of them in memory.
+    pub fn f64s_of(&mut self, k: &str, len: usize, v: impl Iterator<Item = f64>) {
         self.key(k);
-        head(&mut self.buf, 2, 8 * v.len() as u64);
+        head(&mut self.buf, 2, 8 * len as u64);
+        let start = self.buf.len();
         for x in v {
             self.buf.extend_from_slice(&x.to_le_bytes());
         }
+        assert_eq!(self.buf.len() - start, 8 * len, "f64s_of: the values must number len");
     }
 
     pub fn text(&mut self, k: &str, v: &str) {

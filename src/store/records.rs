@@ -67,9 +67,13 @@ impl Checkpoint {
     }
 }
 
+/// R_n's upper triangle, column by column, encoded straight from the matrix (a step of a run
+/// that stores every R_n allocates only the message).
 pub fn encode_r(step: u64, r: &Mat<f64>) -> Vec<u8> {
-    let packed = crate::linalg::pack_upper(r.as_ref());
-    R.encoder(8 * packed.len()).u64("step", step).u64("k", r.ncols() as u64).f64s("r", &packed).finish()
+    let k = r.ncols();
+    let len = k * (k + 1) / 2;
+    let upper = (0..k).flat_map(|j| r.col_as_slice(j)[..=j].iter().copied());
+    R.encoder(8 * len).u64("step", step).u64("k", k as u64).f64s_of("r", len, upper).finish()
 }
 
 /// (step, R_n).
@@ -185,5 +189,23 @@ mod tests {
         let short = Frame { v: vec![1.0; d * k - 1], ..full.clone() };
         let err = Frame::decode(&short.encode()).unwrap_err();
         assert!(err.contains("step 12") && err.contains("D = 4"), "{err}");
+    }
+
+    /// R_n encoded straight from the matrix is the message of its packed triangle (the format
+    /// of every stored run), reads back bit for bit, and leaves the lower part out.
+    #[test]
+    fn r_is_encoded_from_its_upper_triangle() {
+        let k = 5;
+        let r = faer::Mat::from_fn(k, k, |i, j| if i <= j { (1 + i + 7 * j) as f64 / 3.0 } else { f64::NAN });
+        let bytes = super::encode_r(9, &r);
+        let packed = crate::linalg::pack_upper(r.as_ref());
+        assert_eq!(bytes, crate::store::schema::R.encoder(0).u64("step", 9).u64("k", k as u64).f64s("r", &packed).finish());
+        let (step, back) = super::decode_r(&bytes).unwrap();
+        assert_eq!(step, 9);
+        for j in 0..k {
+            for i in 0..=j {
+                assert_eq!(back[(i, j)].to_bits(), r[(i, j)].to_bits());
+            }
+        }
     }
 }

@@ -124,6 +124,12 @@ impl Encoder {
         self.map.f64s(name, v);
         self
     }
+    /// [`Encoder::f64s`] of `len` values drawn from `v`.
+    pub fn f64s_of(mut self, name: &str, len: usize, v: impl Iterator<Item = f64>) -> Self {
+        self.check(name, FieldType::F64s);
+        self.map.f64s_of(name, len, v);
+        self
+    }
     pub fn text(mut self, name: &str, v: &str) -> Self {
         self.check(name, FieldType::Text);
         self.map.text(name, v);

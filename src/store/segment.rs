@@ -54,9 +54,14 @@ impl SegmentWriter {
     pub fn create(dir: &Path, first_step: u64, run_json: &str, schemas: &[&'static Schema]) -> Result<Self> {
         let tmp = dir.join(tmp_name(first_step));
         let file = File::options().write(true).create_new(true).open(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        // zstd on the writer thread alone (the mcap crate's default is a worker per core): the
+        // writer is already off the simulation thread, and zstd's workers held 15-19 MB of job
+        // buffers per segment that set the forward stage's peak RSS and moved it from run to
+        // run (48-52 MB at D = k = 792; 35-38 MB without them, the same step time).
         let options = WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
             .compression_level(1)
+            .compression_threads(0)
             .chunk_size(Some(4 << 20))
             .profile("clv");
         let witness = Witness::default();
