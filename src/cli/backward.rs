@@ -233,7 +233,7 @@ fn warn_if_short_of_space(args: &BackwardArgs, meta: &clv::store::RunMeta, opts:
     // Only for a sweep that will write (--resume of none, or of a finished one, does not).
     let writes = !args.resume || clv::store::progress::last_sweep(&args.dir).ok().flatten().is_some_and(|last| !last.done);
     if let Some(path) = opts.frames_file(&args.dir).filter(|_| writes)
-        && let Some(warning) = clv::store::run::space_warning(&path, backward::frame_file_bytes(meta, opts))
+        && let Some(warning) = clv::store::run::short_of_space(&path, backward::frame_file_bytes(meta, opts))
     {
         clv::note!("clv: {warning} (--save-every m keeps one frame in m)");
     }

@@ -324,7 +324,7 @@ fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
             clv::note!("clv: configuration: {}", serde_json::to_string(&meta.config).unwrap_or_default());
             clv::note!("clv: writing {}: {}", dir.display(), meta.store.footprint(&meta.config).1);
         }
-        if let Some(warning) = clv::store::run::space_warning(dir, meta.store.footprint(&meta.config).0) {
+        if let Some(warning) = clv::store::run::short_of_space(dir, meta.store.footprint(&meta.config).0) {
             clv::note!("clv: {warning}");
         }
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };

@@ -96,7 +96,7 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
         // stage's progress record (C as hex, two copies while it is replaced).
         let k = config.vectors as u64;
         let beside = (2 << 20) + 2 * 16 * (k * (k + 1) / 2);
-        if let Some(warning) = crate::store::run::space_warning(&run_dir, meta.store.footprint(config).0 + beside) {
+        if let Some(warning) = crate::store::run::short_of_space(&run_dir, meta.store.footprint(config).0 + beside) {
             crate::note!("clv run: {warning}");
         }
         forward_run::create(&run_dir, &meta, feedback)?;

@@ -30,12 +30,14 @@ pub enum Flow {
     Stop,
 }
 
-/// Files are zstd-compressed; a stream (a pipe to the next stage) is not: both ends would
-/// pay for compression that saves nothing in memory.
+/// Frames are not compressed, in files or in streams: covariant vectors of a chaotic system
+/// are nearly random doubles. zstd (level 1) made a file of 201 frames at D = k = 792 4.6 %
+/// smaller (924 against 967 MiB) for about 10 ms of a core per 5 MB frame, and the backward
+/// stage took 10.4-11.0 s with it against 9.8-10.1 s without (2 threads, runs alternating).
+/// Files written compressed by earlier builds read as before.
 fn options(seekable: bool) -> WriteOptions {
     WriteOptions::new()
-        .compression(seekable.then_some(mcap::Compression::Zstd))
-        .compression_level(1)
+        .compression(None)
         .chunk_size(Some(8 << 20))
         .disable_seeking(!seekable)
         .profile("clv")

@@ -184,17 +184,31 @@ fn statvfs_free(_: &Path) -> Option<u64> {
     None
 }
 
-/// A warning when `needed` bytes will not fit in the free space where `path` is written.
-pub fn space_warning(path: &Path, needed: u64) -> Option<String> {
-    let free = free_bytes(path)?;
-    (free < needed).then(|| {
-        format!(
+/// Less space free where a file is written than it will need: see [`short_of_space`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShortOfSpace {
+    pub path: PathBuf,
+    pub needed: u64,
+    pub free: u64,
+}
+
+impl std::fmt::Display for ShortOfSpace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
             "warning: this needs about {} on disk, and the file system of {} has {} free; when it fills, the stage stops cleanly, and once there is space it continues where it stopped (the message then says how)",
-            human(needed),
-            path.display(),
-            human(free)
+            human(self.needed),
+            self.path.display(),
+            human(self.free)
         )
-    })
+    }
+}
+
+/// `Some` when `needed` bytes will not fit in the free space where `path` is written (None
+/// also where the free space cannot be found out).
+pub fn short_of_space(path: &Path, needed: u64) -> Option<ShortOfSpace> {
+    let free = free_bytes(path)?;
+    (free < needed).then(|| ShortOfSpace { path: path.to_path_buf(), needed, free })
 }
 
 pub fn human(bytes: u64) -> String {
@@ -651,11 +665,24 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use super::free_bytes;
+    use super::{free_bytes, short_of_space};
 
     #[test]
     fn free_space_is_found_for_a_directory_not_made_yet() {
         let path = std::env::temp_dir().join("clv-no-such-dir").join("run");
         assert!(free_bytes(&path).is_some_and(|b| b > 0));
+    }
+
+    /// Short of space only past the free bytes, and then saying where, how much and what
+    /// happens when the disk fills.
+    #[test]
+    fn short_of_space_compares_with_the_free_bytes_and_names_the_file_system() {
+        let path = std::env::temp_dir().join("clv-no-such-dir").join("run");
+        let free = free_bytes(&path).unwrap();
+        assert_eq!(short_of_space(&path, free / 2), None);
+        let short = short_of_space(&path, free.saturating_mul(2).max(1 << 40)).unwrap();
+        assert_eq!((short.path.as_path(), short.free <= free * 2), (path.as_path(), true));
+        let text = short.to_string();
+        assert!(text.contains(&path.display().to_string()) && text.contains("needs about") && text.contains("stops cleanly"), "{text}");
     }
 }
