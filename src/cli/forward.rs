@@ -322,9 +322,9 @@ fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
         let meta = args.meta()?;
         if !args.quiet {
             clv::note!("clv: configuration: {}", serde_json::to_string(&meta.config).unwrap_or_default());
-            clv::note!("clv: writing {}: {}", dir.display(), meta.store.footprint(&meta.config).1);
+            clv::note!("clv: writing {}: {}", dir.display(), meta.store.footprint(&meta.config));
         }
-        if let Some(warning) = clv::store::run::short_of_space(dir, meta.store.footprint(&meta.config).0) {
+        if let Some(warning) = clv::store::run::short_of_space(dir, meta.store.footprint(&meta.config).bytes) {
             clv::note!("clv: {warning}");
         }
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };

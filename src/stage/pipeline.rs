@@ -91,12 +91,12 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
         }
     } else {
         let meta = RunMeta { format: FORMAT.into(), config: config.clone(), store: store.clone(), build: BuildInfo::current() };
-        say(format!("forward pass into {} ({})", run_dir.display(), meta.store.footprint(config).1));
+        say(format!("forward pass into {} ({})", run_dir.display(), meta.store.footprint(config)));
         // On top of the run: the report (about 2 MB of figures and tables) and the backward
         // stage's progress record (C as hex, two copies while it is replaced).
         let k = config.vectors as u64;
         let beside = (2 << 20) + 2 * 16 * (k * (k + 1) / 2);
-        if let Some(warning) = crate::store::run::short_of_space(&run_dir, meta.store.footprint(config).0 + beside) {
+        if let Some(warning) = crate::store::run::short_of_space(&run_dir, meta.store.footprint(config).bytes + beside) {
             crate::note!("clv run: {warning}");
         }
         forward_run::create(&run_dir, &meta, feedback)?;

@@ -141,21 +141,38 @@ impl StoreConfig {
         (8.0 * (d * k + d + k * (3.0 + blocks)) + 4.0 * k * (k + 1.0) + 8.0 * 3.0 * k + 600.0) as u64
     }
 
-    /// Estimated disk footprint of the finished run and a sentence that explains it.
-    pub fn footprint(&self, config: &RunConfig) -> (u64, String) {
-        let per = self.checkpoint_bytes(config);
+    /// Estimated disk footprint of the finished run.
+    pub fn footprint(&self, config: &RunConfig) -> Footprint {
+        let per_checkpoint = self.checkpoint_bytes(config);
         let window = self.clv_steps + self.transient;
         let kept = window.div_ceil(self.checkpoint_every) + 1 + self.keep_segments * self.segment_checkpoints;
         let total_cps = (config.relax_steps + config.steps).div_ceil(self.checkpoint_every) + 1;
-        let kept = kept.min(total_cps);
+        let checkpoints = kept.min(total_cps);
         let k = config.vectors as u64;
         let r_all = if self.store_r == StoreR::All { window.saturating_mul(4 * k).saturating_mul(k + 1) } else { 0 };
-        let bytes = kept.saturating_mul(per).saturating_add(r_all);
-        let mut msg = format!("about {} on disk: {kept} checkpoints of {} kept", human(bytes), human(per));
-        if r_all > 0 {
-            msg += &format!(" + {} of R matrices for {window} steps (--store-r all)", human(r_all));
+        Footprint { bytes: checkpoints.saturating_mul(per_checkpoint).saturating_add(r_all), checkpoints, per_checkpoint, r_all, r_steps: window }
+    }
+}
+
+/// What a finished run keeps on disk ([`StoreConfig::footprint`]); its Display explains it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Footprint {
+    pub bytes: u64,
+    /// Checkpoints kept, each of `per_checkpoint` bytes (with its R and statistics).
+    pub checkpoints: u64,
+    pub per_checkpoint: u64,
+    /// Bytes of the R_n of `r_steps` steps (--store-r all; 0 otherwise).
+    pub r_all: u64,
+    pub r_steps: u64,
+}
+
+impl std::fmt::Display for Footprint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "about {} on disk: {} checkpoints of {} kept", human(self.bytes), self.checkpoints, human(self.per_checkpoint))?;
+        if self.r_all > 0 {
+            write!(f, " + {} of R matrices for {} steps (--store-r all)", human(self.r_all), self.r_steps)?;
         }
-        (bytes, msg)
+        Ok(())
     }
 }
 
