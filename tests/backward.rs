@@ -343,10 +343,10 @@ fn killed_between_the_finished_file_and_its_record_resumes() {
     let sweep_ms = started.elapsed().as_secs_f64() * 1e3;
     let want = frames(&dir.join("full.mcap"));
     // The size the disk-space warning expects is the file's, within 10 %.
-    let (_, meta) = clv::store::RunDir::open(&dir).unwrap();
+    let (run, meta) = clv::store::RunDir::open(&dir).unwrap();
     let mut opts = clv::stage::backward::BackwardOptions::for_run(&meta);
     opts.frames_path = Some(dir.join("full.mcap"));
-    let (expected, actual) = (clv::stage::backward::frame_file_bytes(&meta, &opts), std::fs::metadata(dir.join("full.mcap")).unwrap().len());
+    let (expected, actual) = (clv::stage::backward::frame_file_bytes(&run, &meta, &opts), std::fs::metadata(dir.join("full.mcap")).unwrap().len());
     assert!((expected as f64 / actual as f64 - 1.0).abs() < 0.1, "expected {expected} bytes, the file has {actual}");
     let (out, record) = (dir.join("part.mcap"), dir.join("backward.json"));
     let o = out.to_str().unwrap();
@@ -723,4 +723,22 @@ fn analyze_run_dir_refuses_a_file_of_another_run_or_sweep() {
 
 fn read_text(path: &Path) -> String {
     std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The size `clv backward --out FILE` warns about when the disk is short is the size of the
+/// file it writes (frames are stored uncompressed): with GS vectors, every third frame kept,
+/// vectors in every other step's frame.
+#[test]
+fn the_frame_file_estimate_is_the_files_size() {
+    let dir = forward("frame-estimate", &["--n", "16", "--vectors", "64", "--steps", "300", "--clv-steps", "90", "--transient", "20"]);
+    let file = dir.join("sampled.mcap");
+    ok(clv(&["backward", dir.to_str().unwrap(), "--quiet", "--with-gs", "--save-every", "3", "--vectors-every", "2", "--out", file.to_str().unwrap()]));
+    let (run, meta) = clv::store::RunDir::open(&dir).unwrap();
+    let mut opts = clv::stage::backward::BackwardOptions::for_run(&meta);
+    (opts.with_gs, opts.save_every, opts.vectors_every, opts.frames_path) = (true, 3, 2, Some(file.clone()));
+    let estimate = clv::stage::backward::frame_file_bytes(&run, &meta, &opts) as f64;
+    let size = std::fs::metadata(&file).unwrap().len() as f64;
+    let with_vectors = frames(&file).iter().filter(|f| !f.v.is_empty()).count();
+    assert!(with_vectors > 5 && with_vectors < frames(&file).len(), "the file should mix frames with and without vectors");
+    assert!((0.97..1.03).contains(&(estimate / size)), "estimated {estimate} bytes, the file has {size}");
 }

@@ -68,7 +68,7 @@ pub fn backward(args: &BackwardArgs, matches: &ArgMatches) -> Result<()> {
     if !args.quiet {
         warn_if_no_vectors(&meta, &opts, to_stdout);
     }
-    warn_if_short_of_space(args, &meta, &opts);
+    warn_if_short_of_space(args, &dir, &meta, &opts);
     let stream_meta = backward::stream_info(&dir, &meta, &opts).metadata();
     let mut stdout = if to_stdout { Some(FrameStdout::new(&stream_meta)?) } else { None };
     // Two bars: segments recomputed (from the checkpoints) and frames emitted by the sweep.
@@ -229,11 +229,11 @@ fn warn_if_no_vectors(meta: &clv::store::RunMeta, opts: &BackwardOptions, to_std
 }
 
 /// A frame file that may not fit on its file system is announced before the sweep starts.
-fn warn_if_short_of_space(args: &BackwardArgs, meta: &clv::store::RunMeta, opts: &BackwardOptions) {
+fn warn_if_short_of_space(args: &BackwardArgs, dir: &clv::store::RunDir, meta: &clv::store::RunMeta, opts: &BackwardOptions) {
     // Only for a sweep that will write (--resume of none, or of a finished one, does not).
     let writes = !args.resume || clv::store::progress::last_sweep(&args.dir).ok().flatten().is_some_and(|last| !last.done);
     if let Some(path) = opts.frames_file(&args.dir).filter(|_| writes)
-        && let Some(warning) = clv::store::run::short_of_space(&path, backward::frame_file_bytes(meta, opts))
+        && let Some(warning) = clv::store::run::short_of_space(&path, backward::frame_file_bytes(dir, meta, opts))
     {
         clv::note!("clv: {warning} (--save-every m keeps one frame in m)");
     }

@@ -503,16 +503,25 @@ pub enum Destination<'a> {
     Nowhere,
 }
 
-/// About how many bytes the frame file of a sweep with `opts` takes (nothing without one):
-/// 8 (D + k) a frame, and 8 D k more for V_n, and again for G_n, where they are formed.
-pub fn frame_file_bytes(meta: &RunMeta, opts: &BackwardOptions) -> u64 {
+/// About how many bytes the frame file of a sweep with `opts` over the run in `dir` takes
+/// (nothing without one): a frame's phase point and two sets of local exponents, 8 (D + 2k),
+/// and 8 D k more for V_n, and again for G_n, where they are formed; its keys, record and
+/// index entry; and the file's copies of the run's descriptions (frames are not compressed).
+pub fn frame_file_bytes(dir: &RunDir, meta: &RunMeta, opts: &BackwardOptions) -> u64 {
     let Ok(window) = Window::of(meta, opts) else { return 0 };
     if !matches!(opts.destination(), Destination::File { .. }) {
         return 0;
     }
+    const PER_MESSAGE: u64 = 160;
+    const PER_FILE: u64 = 4096;
     let (d, k) = (meta.config.system.dim() as u64, meta.config.vectors as u64);
     let vectors = 8 * d * k * (1 + u64::from(opts.with_gs));
-    (window.first..=window.last).filter(|&n| on_stride(n, opts.save_every)).map(|n| 8 * (d + k) + if on_stride(n, opts.vectors_every) { vectors } else { 0 }).sum()
+    let frames: u64 = (window.first..=window.last)
+        .filter(|&n| on_stride(n, opts.save_every))
+        .map(|n| 8 * (d + 2 * k) + PER_MESSAGE + if on_stride(n, opts.vectors_every) { vectors } else { 0 })
+        .sum();
+    let descriptions: usize = stream_info(dir, meta, opts).metadata().values().map(String::len).sum();
+    frames + descriptions as u64 + crate::store::schema::FRAME.text.len() as u64 + PER_FILE
 }
 
 /// The progress of the sweep `opts` describes when it is to be continued (`resume`), after
