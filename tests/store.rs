@@ -582,3 +582,42 @@ fn the_disk_estimate_covers_the_finished_run() {
         assert!((0.95..1.5).contains(&ratio), "{name}: estimated {estimate} bytes, the run keeps {kept} (ratio {ratio:.3})");
     }
 }
+
+/// Flip one bit of the seed in a segment's copy of run.json (a metadata record, outside any
+/// chunk and its CRC; the data section's CRC still catches it).
+fn flip_embedded_seed(path: &Path) {
+    let mut bytes = std::fs::read(path).unwrap();
+    let at = bytes.windows(9).position(|w| w == b"\"seed\":1,").expect("the copy of run.json names seed 1");
+    bytes[at + 7] ^= 2;
+    std::fs::write(path, bytes).unwrap();
+}
+
+/// A flipped bit in a segment's copy of run.json makes the segment damaged, not run.json
+/// suspect: `clv forward --resume` recomputes the segment to the same numbers, whether
+/// other segments agree with run.json (the newest and a middle one of the reference run)
+/// or it is the run's only segment. (Before, the only segment's copy was offered as the
+/// run.json to restore, and following that continued another seed's run; with other
+/// segments, resume refused the segment as another run's.)
+#[test]
+fn a_damaged_copy_of_run_json_in_a_segment_is_repaired_not_believed() {
+    for pick in ["newest", "middle"] {
+        let (copy, want) = reference_copy(&format!("flipped-copy-{pick}"));
+        let segs = RunDir { path: copy.clone() }.segments().unwrap();
+        let seg = if pick == "newest" { segs.last() } else { segs.get(segs.len() / 2) }.unwrap();
+        flip_embedded_seed(&seg.path);
+        let out = clv(&["forward", "--resume", copy.to_str().unwrap()]);
+        assert!(out.status.success(), "{pick}: {}", common::stderr(&out));
+        assert!(contents(&copy) == *want, "{pick}: the repaired run differs");
+        assert!(seg.path.with_extension("mcap.corrupt").exists() && !copy.join("run.json.from-segments").exists());
+    }
+    let dir = scratch("flipped-copy-only").join("run");
+    let args = ["forward", "--n", "10", "--steps", "200", "--relax-steps", "20", "--checkpoint-every", "20", "--segment-checkpoints", "100", "--quiet", "--out", dir.to_str().unwrap()];
+    ok(clv(&args));
+    let want = contents(&dir);
+    let only = RunDir { path: dir.clone() }.segments().unwrap();
+    assert_eq!(only.len(), 1);
+    flip_embedded_seed(&only[0].path);
+    let out = clv(&["forward", "--resume", dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    assert!(contents(&dir) == want, "the repaired run differs");
+}

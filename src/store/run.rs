@@ -228,6 +228,12 @@ pub fn short_of_space(path: &Path, needed: u64) -> Option<ShortOfSpace> {
     (free < needed).then(|| ShortOfSpace { path: path.to_path_buf(), needed, free })
 }
 
+/// Whether a finished segment reads whole with every CRC checked. Read only where a
+/// segment's copy of run.json is about to be believed against run.json.
+fn reads_whole(path: &Path) -> bool {
+    segment::read_segment(path, segment::ReadMode::Strict, |_| Ok(())).is_ok()
+}
+
 pub fn human(bytes: u64) -> String {
     let b = bytes as f64;
     if b >= 1e12 {
@@ -564,9 +570,12 @@ impl RunDir {
         Ok((dir, meta))
     }
 
-    /// The run.json the newest segment with a readable copy was written with.
+    /// The run.json the newest intact segment with a readable copy was written with.
     fn newest_segment_meta(&self) -> Option<RunMeta> {
-        self.segments().ok()?.iter().rev().find_map(|s| serde_json::from_str::<RunMeta>(&segment::embedded_run_json(&s.path)?).ok())
+        self.segments().ok()?.iter().rev().find_map(|s| {
+            let theirs = serde_json::from_str::<RunMeta>(&segment::embedded_run_json(&s.path)?).ok()?;
+            reads_whole(&s.path).then_some(theirs)
+        })
     }
 
     /// A run.json that does not parse (cut short, damaged): the newest segment's copy is put
@@ -590,7 +599,9 @@ impl RunDir {
     /// The copy of the newest one that disagrees is put beside it, to restore it from.
     ///
     /// Where other segments agree with run.json, the ones that disagree are the odd ones
-    /// out (copied in from another run), and they are named instead.
+    /// out (copied in from another run), and they are named instead. A segment that
+    /// disagrees is evidence only if it reads whole: a flipped bit in its copy fails its
+    /// CRC, and it is then a damaged segment, which `clv forward --resume` recomputes.
     pub fn check_meta(&self, meta: &RunMeta) -> Result<()> {
         let mut agreeing = 0;
         let mut foreign = Vec::new();
@@ -599,7 +610,7 @@ impl RunDir {
             let Ok(theirs) = serde_json::from_str::<RunMeta>(&json) else { continue };
             if meta.same_trajectory(&theirs) {
                 agreeing += 1;
-            } else {
+            } else if reads_whole(&seg.path) {
                 foreign.push((seg.clone(), theirs));
             }
         }
