@@ -222,6 +222,11 @@ fn clv_run_takes_settings_that_change_the_preset() {
         let err = String::from_utf8_lossy(&r.stderr);
         assert!(!r.status.success() && err.contains(named), "{args:?}: {err}");
     }
+    // A run without a CLV window is refused before its forward stage, which `clv run` could
+    // not then finish.
+    let none = scratch("run-no-window");
+    let r = clv(&["run", "--out", none.to_str().unwrap(), "--quiet", "--n", "8", "--steps", "300", "--relax-steps", "20", "--clv-steps", "0"]);
+    assert!(!r.status.success() && common::stderr(&r).contains("invalid --clv-steps") && !none.join("run").exists(), "{}", common::stderr(&r));
 }
 
 /// A stream continued with `backward --resume` lacks the frames the interrupted stream's

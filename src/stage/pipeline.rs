@@ -28,6 +28,14 @@ pub struct PipelineResult {
 pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut Feedback, say: &mut dyn FnMut(String)) -> Result<PipelineResult> {
     let run_dir = out.join("run");
     let report_dir = out.join("report");
+    if store.clv_steps == 0 {
+        return Err(Error::param(
+            "clv-steps",
+            "0 keeps no window of the run for covariant vectors, and `clv run` computes them and analyses them: give at least 1, or leave it out \
+             for the default (a tenth of --relax-steps + --steps, at most 2/3 of --steps); for the Gram-Schmidt spectrum alone, `clv forward --clv-steps 0` runs the forward stage only"
+                .to_string(),
+        ));
+    }
     if out.join("run.json").exists() {
         return Err(Error::param(
             "out",
