@@ -1400,6 +1400,11 @@ fn a_cut_frame_file_is_named_and_written_whole_again() {
     ok(clv(&["analyze", d, "--out", every_fifth.to_str().unwrap(), "--only", "local_exponents", "--quiet"]));
     let summary: serde_json::Value = serde_json::from_slice(&std::fs::read(every_fifth.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["options"]["deltas"], serde_json::json!([]), "{summary}");
+    assert!(summary["left_out"].as_array().unwrap().iter().any(|l| l.as_str().unwrap().contains("finite-time exponents")), "{summary}");
+    // Lengths asked for there are refused before anything is written.
+    let asked = dir.parent().unwrap().join("every-fifth-deltas");
+    let out = clv(&["analyze", d, "--out", asked.to_str().unwrap(), "--deltas", "5", "--quiet"]);
+    assert!(!out.status.success() && stderr(&out).contains("invalid --deltas") && stderr(&out).contains("multiples of 5") && !asked.exists(), "{}", stderr(&out));
     // Damaged from its start (no complete frame, or no MCAP at all): the same command.
     for bytes in [&b""[..], b"hello\n"] {
         std::fs::write(&file, bytes).unwrap();

@@ -184,8 +184,17 @@ impl Context {
             return Err(Error::param("deltas", "window lengths must be at least 1 step"));
         }
         // A file of every m-th step has no windows of consecutive frames: none are measured,
-        // and summary.json's options say so.
+        // and summary.json's options say so; lengths asked for are refused.
         if saved_every > 1 {
+            if given_deltas {
+                return Err(Error::param(
+                    "deltas",
+                    format!(
+                        "{source} holds the frames of the steps that are multiples of {saved_every} only (--save-every {saved_every}), with no windows of consecutive frames for the finite-time analyses: \
+                         leave --deltas out (the other analyses run), or analyse the whole stream (`clv backward RUN_DIR --out - | clv analyze -`)"
+                    ),
+                ));
+            }
             deltas.clear();
         }
         let frame_steps = backward.as_ref().and_then(|o| Window::of(&run, o).ok()?.frame_steps(o));
@@ -560,6 +569,12 @@ impl Analyzer {
         let partial = (self.ctx.k < self.ctx.d && self.frames > 0).then(|| {
             format!("The frames carry the k = {} leading of D = {} vectors: what needs all of them{} is left out.", self.ctx.k, self.ctx.d, listed(Missing::AllVectors))
         });
+        let strided = (self.ctx.saved_every > 1 && self.frames > 0).then(|| {
+            format!(
+                "The frame file holds the frames of the steps that are multiples of {} only (--save-every): the finite-time exponents and the domination test, which need consecutive steps, are left out; analyse the whole stream (`clv backward RUN_DIR --out - | clv analyze -`) for them.",
+                self.ctx.saved_every
+            )
+        });
         let warnings: Vec<String> = forward.chain(damaged).chain(coverage).chain(unsampled).collect();
         let ctx = &self.ctx;
         let head = Head {
@@ -572,7 +587,7 @@ impl Analyzer {
             disks: ctx.is_disks(),
             options: serde_json::to_value(&ctx.options).unwrap_or_default(),
             whole: damage.is_none(),
-            left_out: without_gs.into_iter().chain(partial).collect(),
+            left_out: without_gs.into_iter().chain(partial).chain(strided).collect(),
         };
         write_index(&head, &self.out, &produced, &warnings, &errors, self.frames, self.first_step, self.last_step)?;
         if let Some(e) = full_disk {
