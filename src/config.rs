@@ -143,6 +143,9 @@ impl RunConfig {
         // The box as its N, density and aspect make it (a run.json may say otherwise only by
         // an edit); sides too large for that to be computed are the system's to refuse.
         if let SystemConfig::Disks { n, density, aspect, lx, ly } = self.system {
+            if !(lx > 0.0 && lx.is_finite() && ly > 0.0 && ly.is_finite()) {
+                return Err(Error::param("lx", format!("the box sides (--lx and --ly) must be positive numbers, got {lx} x {ly}")));
+            }
             let (x, y) = box_sides(n, density, aspect);
             if x.is_finite() && y.is_finite() && !((lx - x).abs() <= 1e-9 * x.abs() && (ly - y).abs() <= 1e-9 * y.abs()) {
                 return Err(Error::param("density", format!("the box {lx} x {ly} is not that of {n} disks at density {density} and aspect {aspect} ({x} x {y})")));
@@ -289,6 +292,19 @@ impl RunConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A box given by its sides must have positive, finite ones, and the error names them
+    /// (it used to blame --density, which had not been given).
+    #[test]
+    fn box_sides_must_be_positive() {
+        for (lx, ly) in [(-5.0, -5.0), (-1.0, 5.0), (0.0, 5.0), (5.0, f64::INFINITY), (f64::NAN, 5.0)] {
+            let config = RunConfig { system: SystemConfig::disks_in_box(8, lx, ly), vectors: 32, ..RunConfig::preset("default").unwrap() };
+            let err = config.validate().unwrap_err().to_string();
+            assert!(err.contains("--lx") && err.contains("must be positive"), "{lx} x {ly}: {err}");
+        }
+        let fine = RunConfig { system: SystemConfig::disks_in_box(8, 5.0, 5.0), vectors: 32, ..RunConfig::preset("default").unwrap() };
+        fine.validate().unwrap();
+    }
 
     /// The configuration knows D before a system is built (to size stores and check
     /// memory); it must be the D the system's own implementation reports.

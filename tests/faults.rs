@@ -1388,6 +1388,8 @@ fn a_cut_frame_file_is_named_and_written_whole_again() {
     assert!(command.starts_with(&format!("clv backward {d} --out {} --save-every 5", file.display())) && command.contains("--transient 100"), "{command}");
     let resumed = ok(clv(&["backward", d, "--resume"]));
     assert!(stderr(&resumed).contains("finished earlier: nothing was recomputed"), "{}", stderr(&resumed));
+    let table = String::from_utf8_lossy(&resumed.stdout);
+    assert!(table.contains("segments by the sweep that finished earlier"), "the statistics are the earlier sweep's: {table}");
     assert_eq!(std::fs::metadata(&file).unwrap().len(), len / 2);
     std::fs::rename(&file, dir.join("frames.cut.mcap")).unwrap();
     let args: Vec<&str> = command.split_whitespace().skip(1).chain(["--quiet"]).collect();

@@ -195,6 +195,7 @@ pub fn backward_table(report: &crate::stage::backward::BackwardReport) -> String
         let _ = writeln!(table, "warning (of the forward stage): {w}");
     }
     let st = &report.statistics;
-    let _ = writeln!(table, "{} frames (steps {}..{}), {} steps recomputed in {} segments, {:.1} s", st.frames, st.first_frame_step, st.last_frame_step, st.recomputed_steps, st.segments, st.wall_seconds);
+    let when = if report.earlier { " by the sweep that finished earlier" } else { "" };
+    let _ = writeln!(table, "{} frames (steps {}..{}), {} steps recomputed in {} segments{when}, {:.1} s", st.frames, st.first_frame_step, st.last_frame_step, st.recomputed_steps, st.segments, st.wall_seconds);
     table
 }

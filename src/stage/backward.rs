@@ -212,6 +212,10 @@ pub struct BackwardReport {
     /// What the stage did that a person should know (not stored).
     #[serde(skip)]
     pub notes: Vec<String>,
+    /// Read back from the sweep that finished earlier (`--resume`): its statistics are that
+    /// sweep's, not work done now (not stored).
+    #[serde(skip)]
+    pub earlier: bool,
 }
 
 /// A spectrum over the frames' window, with its batch-means errors and h_KS.
@@ -726,6 +730,7 @@ pub fn run(
         options: opts.clone(),
         statistics: stats.clone(),
         notes,
+        earlier: false,
     };
     if stopped {
         return Ok(report);
@@ -859,6 +864,7 @@ fn finished_earlier(dir: &RunDir, opts: &BackwardOptions) -> Result<BackwardRepo
     let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
     let (mut report, _): (BackwardReport, _) = checked_json::from_slice(&path, text.as_bytes()).map_err(|e| Error::Other(format!("{e}; `clv inspect {}` says how to compute it again", dir.path.display())))?;
     let run = dir.path.display();
+    report.earlier = true;
     report.notes = vec![if opts.streams() {
         format!("the backward sweep of {run} finished earlier and its frames went to the reader of that stream: this stream carries none; start it again without --resume for the frames")
     } else {
