@@ -528,6 +528,11 @@ fn configuration_files_round_trip_and_flags_override_them() {
     assert_eq!(v["config"]["steps"], 300);
     assert_eq!(v["config"]["system"]["density"], 0.7, "the file provides what the flags do not");
     assert_eq!(v["config"]["blocks"], 20);
+    // A boolean for a setting that takes a value is named as such, with its line.
+    let boolean = base.join("boolean.toml");
+    std::fs::write(&boolean, "steps = 100\nn = true\n").unwrap();
+    let err = common::stderr(&clv(&["forward", "--config", boolean.to_str().unwrap(), "--out", base.join("b").to_str().unwrap(), "--quiet"]));
+    assert!(err.contains("boolean.toml:2: n takes a value, not true or false"), "{err}");
     // The box given by its sides on the command line replaces the file's density and aspect.
     let out = ok(clv(&["forward", "--config", f, "--n", "8", "--lx", "4", "--ly", "4", "--steps", "100", "--json", "--quiet"]));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();

@@ -3,7 +3,9 @@
 //! Why flags: one vocabulary for the command line and files. A file is expanded into
 //! `--key value` arguments placed before the command line's own, so flags given on the
 //! command line override the file. Supported TOML: `[section]` headers (for readability
-//! only, and only those `clv config` writes: [system], [run], [store]), `key = value` with numbers, "strings" and booleans, and `#` comments.
+//! only, and only those `clv config` writes: [system], [run], [store]), `key = value` with
+//! bare or quoted keys, numbers (with `_` between digits), "basic" and 'literal' strings
+//! without escapes, booleans for switches, and `#` comments.
 
 use clv::config::{RunConfig, SystemConfig};
 use clv::error::{Error, Result};
@@ -33,7 +35,7 @@ pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
             continue;
         }
         let (key, value) = line.split_once('=').ok_or_else(|| bad(format!("expected `key = value`, found {line:?}")))?;
-        let key = key.trim().replace('_', "-");
+        let key = unquoted(key.trim()).unwrap_or(key.trim()).replace('_', "-");
         if !known.contains(&key) {
             return Err(bad(format!("unknown setting {key:?}; valid settings: {}", known.join(", "))));
         }
@@ -42,11 +44,11 @@ pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
         }
         seen.push((key.clone(), no + 1));
         let value = value.trim();
-        let value = match value.strip_prefix('"').and_then(|v| v.strip_suffix('"')) {
+        let value = match unquoted(value) {
+            Some(s) if s.contains('\\') && value.starts_with('"') => return Err(bad(format!("the value of {key} has an escape sequence, which these files do not read; write it as a 'literal string'"))),
             Some(s) => s.to_string(),
             None if value == "true" || value == "false" => value.to_string(),
-            None if value.parse::<f64>().is_ok() => value.to_string(),
-            None => return Err(bad(format!("the value of {key} must be a number, a \"string\" or true/false, found {value:?}"))),
+            None => number(value).ok_or_else(|| bad(format!("the value of {key} must be a number, a \"string\" or true/false, found {value:?}")))?,
         };
         match value.as_str() {
             "true" => args.push(format!("--{key}")),
@@ -61,19 +63,36 @@ pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
 /// The line (1-based) of `path` that sets `key`, for an error about its value.
 pub fn line_of(path: &Path, key: &str) -> Option<usize> {
     let text = std::fs::read_to_string(path).ok()?;
-    text.lines().position(|raw| strip_comment(raw).split_once('=').is_some_and(|(k, _)| k.trim().replace('_', "-") == key)).map(|i| i + 1)
+    text.lines().position(|raw| strip_comment(raw).split_once('=').is_some_and(|(k, _)| unquoted(k.trim()).unwrap_or(k.trim()).replace('_', "-") == key)).map(|i| i + 1)
 }
 
 fn strip_comment(line: &str) -> &str {
-    let mut in_string = false;
+    let mut quote = None;
     for (i, c) in line.char_indices() {
-        match c {
-            '"' => in_string = !in_string,
-            '#' if !in_string => return &line[..i],
+        match (c, quote) {
+            ('"' | '\'', None) => quote = Some(c),
+            (c, Some(q)) if c == q => quote = None,
+            ('#', None) => return &line[..i],
             _ => {}
         }
     }
     line
+}
+
+/// The text inside "..." or '...', if `s` is quoted.
+fn unquoted(s: &str) -> Option<&str> {
+    ['"', '\''].into_iter().find_map(|q| s.strip_prefix(q)?.strip_suffix(q))
+}
+
+/// A TOML number as the command line takes it: underscores between digits dropped.
+fn number(s: &str) -> Option<String> {
+    let b = s.as_bytes();
+    let between_digits = |i: usize| i > 0 && i + 1 < b.len() && b[i - 1].is_ascii_digit() && b[i + 1].is_ascii_digit();
+    if (0..b.len()).any(|i| b[i] == b'_' && !between_digits(i)) {
+        return None;
+    }
+    let plain = s.replace('_', "");
+    plain.parse::<f64>().is_ok().then_some(plain)
 }
 
 /// A configuration file for a run (what `clv config --preset NAME` prints).
@@ -157,6 +176,13 @@ mod tests {
         // A negative number is the value, not a flag of its own.
         std::fs::write(&path, "n = -8\n").unwrap();
         assert_eq!(expand(&path, &known).unwrap(), ["--n=-8"]);
+        // Quoted keys, literal strings and underscores between digits are TOML too.
+        std::fs::write(&path, "\"n\" = 1_000\n'system' = 'disks' # a comment\ntau = 0.6\n").unwrap();
+        assert_eq!(expand(&path, &known).unwrap(), ["--n=1000", "--system=disks", "--tau=0.6"]);
+        for bad in ["n = 1__0\n", "n = _10\n", "n = 10_\n", "system = \"dis\\\"ks\"\n"] {
+            std::fs::write(&path, bad).unwrap();
+            assert!(expand(&path, &known).is_err(), "{bad:?}");
+        }
         std::fs::write(&path, "steps = ten\n").unwrap();
         assert!(expand(&path, &known).unwrap_err().to_string().contains("must be a number"));
         // A setting given twice is refused (TOML forbids it; which one wins would be a guess).
