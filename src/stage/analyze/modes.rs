@@ -857,7 +857,7 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
         for (which, points, fits, y_label) in [("L", &l_points, &l_fits, format!("δ{c}")), ("P", &p_points, &p_fits, format!("(δ{c}·p)/p²"))] {
             // dividing by p^2 blows up the nearly resting disks: they would flatten the sinusoid
             let range = robust_range(points.iter().flat_map(|p| p.y.iter().copied()));
-            let title = format!("{name}: pure {which} ({pattern} pattern) from the {what} perturbations, step {}{}", frame.step, range.map(|(_, _, off)| format!(" ({off} points off scale)")).unwrap_or_default());
+            let title = format!("{name}: pure {which} ({pattern} pattern) from the {what} perturbations, step {}{}", frame.step, range.map(|(_, _, off)| format!(" ({off} {} off scale)", if off == 1 { "point" } else { "points" })).unwrap_or_default());
             let fstem = format!("fig{fig_no}_{stem}_{which}");
             let mut fig = pattern_figure(&title, &y_label, &axes, &x, points, fits);
             if let Some((lo, hi, off)) = range {

@@ -381,7 +381,7 @@ impl Overlaps {
             caption: format!(
                 "Time average of |v^j · v^i| against i (i != j) for the selected covariant vectors j = {}{}, {}.{}",
                 list(&self.js),
-                if self.conjugate_js.is_empty() { String::new() } else { format!(", and in the second plot for their conjugate partners j = {} (4N+1-j, as the paper's lower panel)", list(&self.conjugate_js)) },
+                if self.conjugate_js.is_empty() { String::new() } else { format!(", and in the second plot for their conjugate partners j = {} (4N+1-j, as the paper's right-hand panels)", list(&self.conjugate_js)) },
                 shared.avg,
                 // A map's or Lorenz's stable and unstable subspaces are one vector each.
                 if ctx.is_disks() { " The null space 2N-2..2N+3 is orthogonal to all other covariant vectors. Vectors of the same (stable or unstable) subspace are not orthogonal." } else { "" }
@@ -473,7 +473,18 @@ fn mode_overlaps(d: usize, steps: &[Step], mean_of: impl Fn(usize) -> Option<Vec
         let max_over = |keep: &dyn Fn(usize) -> bool| (0..d).filter(|&i| i != j && keep(i)).map(|i| m[i]).fold(f64::NAN, f64::max);
         let (same, conj, rest) = (max_over(&|i| own.contains(&i)), max_over(&|i| conjugate.contains(&i)), max_over(&|i| !own.contains(&i) && !conjugate.contains(&i)));
         rows.push(format!("j = {}: {same:.3}, {conj:.3}, {rest:.3}", j + 1));
-        if same > conj && conj > rest { as_paper.push(j) } else { not.push(j) }
+        if same > conj && conj > rest {
+            as_paper.push(j);
+        } else {
+            let how = if !(same > conj) {
+                "its conjugate step more than its own, unlike the paper, where the own step's overlap is the larger"
+            } else if !(same > rest) {
+                "another index more than its own step, unlike the paper"
+            } else {
+                "no conjugate peak above the rest (as the paper's LP(3,0))"
+            };
+            not.push(format!("j = {} ({how})", j + 1));
+        }
     }
     if rows.is_empty() {
         return String::new();
@@ -481,8 +492,8 @@ fn mode_overlaps(d: usize, steps: &[Step], mean_of: impl Fn(usize) -> Option<Vec
     let mut s = format!(" Largest average overlap of each j inside its own step, inside the conjugate step and anywhere else: {}.", rows.join("; "));
     match (as_paper.is_empty(), not.is_empty()) {
         (_, true) => s += " In that order for every j, as the paper finds.",
-        (true, false) => s += " In the paper's order (own step, then conjugate step, then the rest) for no j.",
-        (false, false) => s += &format!(" In the paper's order (own step, then conjugate step, then the rest) for j = {}, not for j = {} (the paper has an exception too, LP(3,0) without a conjugate peak).", list(&as_paper), list(&not)),
+        (true, false) => s += &format!(" In the paper's order (own step, then conjugate step, then the rest) for no j: {}.", not.join("; ")),
+        (false, false) => s += &format!(" In the paper's order (own step, then conjugate step, then the rest) for j = {}, not for {}.", list(&as_paper), not.join("; ")),
     }
     s
 }
@@ -588,7 +599,10 @@ mod tests {
         means[1][6] = 0.4; // its conjugate step, larger: not the paper's order
         let caption = mode_overlaps(d, &steps, |j| Some(means[usize::from(j == 5)].clone()));
         assert!(caption.contains("j = 4: 0.500, 0.300, 0.050; j = 6: 0.200, 0.400, 0.050."), "{caption}");
-        assert!(caption.contains("for j = 4, not for j = 6"), "{caption}");
+        assert!(caption.contains("for j = 4, not for j = 6 (its conjugate step more than its own, unlike the paper"), "{caption}");
+        means[1][6] = 0.04; // no conjugate peak
+        let caption = mode_overlaps(d, &steps, |j| Some(means[usize::from(j == 5)].clone()));
+        assert!(caption.contains("not for j = 6 (no conjugate peak above the rest (as the paper's LP(3,0)))"), "{caption}");
         means[1][6] = 0.1;
         let caption = mode_overlaps(d, &steps, |j| Some(means[usize::from(j == 5)].clone()));
         assert!(caption.contains("In that order for every j, as the paper finds."), "{caption}");

@@ -168,7 +168,7 @@ impl Analysis for Projections {
         let figures = fig9(&idx, &curves, central.zip(ctx.null_space()), out)?;
         let insets = match (central, ctx.null_space()) {
             (Some((a, b)), Some(null)) => format!(
-                "; the second plot magnifies the mode-carrying region on either side of the null space, as the paper's insets, each panel on its own scale: i = {}..{} and {}..{} (the null space, where cos Θ is -1 or undefined, is in the first)",
+                "; the second plot magnifies the mode-carrying region on either side of the null space, as the paper's insets, each panel on its own scale: i = {}..{} and {}..{} (the null space, where cos Θ is -1 or undefined, is only in the first plot, of every i)",
                 a + 1,
                 null.start,
                 null.end + 1,

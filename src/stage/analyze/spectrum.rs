@@ -182,6 +182,7 @@ impl Analysis for Spectrum {
             let first = ctx.central_range().map_or(0, |(first, _)| first);
             let idx: Vec<f64> = (first..=last).map(|i| (i + 1) as f64).collect();
             let pick = |v: &[f64], conj: bool| -> Vec<f64> { (first..=last).map(|i| if conj { -v[ctx.d - 1 - i] } else { v[i] }).collect() };
+            let plotted = |err: &[f64]| plotted_errors(err, first..=last);
             // The paper's symbols: open for GS, filled for CLV; the lines join the λ_i.
             let mut fig = Figure::new("Mode region: λ_i and -λ_(4N+1-i)").x_label("i").y_label("λ");
             fig.series("CLV λ_i", &idx, &pick(&clv, false), Marker::LinePoints).color(CLV_COLOR).open_markers(false);
@@ -196,7 +197,7 @@ impl Analysis for Spectrum {
                     first + 1,
                     last + 1,
                     if same_steps { "the frames' steps, as the CLV ones" } else { "the whole run" },
-                    typical_error(&gs_err[first..=last], &clv_err[first..=last])
+                    typical_error(&plotted(&gs_err), &plotted(&clv_err))
                 ),
                 figures: vec!["fig8_mode_region".into()],
                 tables: vec![],
@@ -240,6 +241,13 @@ fn exact_sum(system: &SystemConfig, tau: f64, lambda: &[f64], err: &[f64]) -> St
     s
 }
 
+/// The errors of the exponents Fig. 8 plots: λ_i for i in `shown` (0-based) and their
+/// conjugates λ_(D+1-i).
+fn plotted_errors(err: &[f64], shown: std::ops::RangeInclusive<usize>) -> Vec<f64> {
+    let d = err.len();
+    shown.flat_map(|i| [err[i], err[d - 1 - i]]).collect()
+}
+
 /// The median standard errors of the plotted exponents, in words: the figure has no error
 /// bars, and whether two neighbours differ is a question of them.
 fn typical_error(gs: &[f64], clv: &[f64]) -> String {
@@ -258,6 +266,16 @@ fn typical_error(gs: &[f64], clv: &[f64]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Fig. 8's quoted error is the median over the plotted exponents, the negated
+    /// conjugates' included (it was over the positive ones only).
+    #[test]
+    fn the_mode_regions_error_covers_the_conjugates_too() {
+        // D = 8, showing i = 1..2 (0-based 1..=2) and their conjugates 6, 5.
+        let err = [9.0, 1.0, 2.0, 9.0, 9.0, 4.0, 3.0, 9.0];
+        assert_eq!(plotted_errors(&err, 1..=2), [1.0, 3.0, 2.0, 4.0]);
+        assert!(typical_error(&plotted_errors(&err, 1..=2), &[1.0]).contains("3.0e0 (GS)"));
+    }
     use crate::stage::analyze::testing::{context, frame, out_dir, spectrum};
 
     #[test]
