@@ -346,6 +346,15 @@ impl Figure {
         self
     }
 
+    /// The series added last is drawn in grey: a reference (a bound, a guide to the eye)
+    /// rather than data, so that it takes none of the colours that name quantities.
+    pub fn grey(&mut self) -> &mut Self {
+        if let Some(s) = self.series.last_mut() {
+            s.color = GREY;
+        }
+        self
+    }
+
     /// The point markers of the series added last are open rings (`true`) or filled dots
     /// (`false`), whatever its place (by default the first three series draw dots and later
     /// ones rings, [`pen`]): for a distinction the reader is told of, such as the paper's

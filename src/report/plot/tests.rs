@@ -772,6 +772,10 @@ fn colours_and_open_or_filled_markers_are_set_per_series() {
     fig.series("open", &xs, &ys, Marker::Points).color(0).open_markers(true);
     let pens = fig.pens();
     assert_eq!(fig.series[1].color, PALETTE[5]);
+    // A reference curve is grey, whatever its place, and takes no palette colour.
+    let mut bands = Figure::new("bands");
+    bands.series("bound", &xs, &ys, Marker::Line).grey();
+    assert!(bands.series[0].color == GREY && !PALETTE.contains(&bands.series[0].color));
     assert_eq!((fig.series[3].color, fig.series[4].color), (PALETTE[1], PALETTE[0]));
     // Dots by their place among the series set or left to draw dots (3, 2, then 1.5 px),
     // rings from 4.5 px on.

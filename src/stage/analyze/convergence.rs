@@ -66,8 +66,8 @@ impl Analysis for Convergence {
             // sqrt(T/t - 1) (independent blocks): twice that bounds 95 % of it.
             let t_end = t.last().copied().unwrap_or(1.0);
             let envelope: Vec<f64> = t.iter().map(|&t| 2.0 * (t_end / t - 1.0).sqrt()).collect();
-            fig.series("+2 sqrt(T/t - 1)", &t, &envelope, Marker::Line);
-            fig.series("-2 sqrt(T/t - 1)", &t, &envelope.iter().map(|e| -e).collect::<Vec<_>>(), Marker::Line);
+            fig.series("+2 sqrt(T/t - 1)", &t, &envelope, Marker::Line).grey();
+            fig.series("-2 sqrt(T/t - 1)", &t, &envelope.iter().map(|e| -e).collect::<Vec<_>>(), Marker::Line).grey();
             for i in selected(&last) {
                 let y: Vec<f64> = run.iter().map(|r| (r[i] - last[i]) / sigma[i]).collect();
                 fig.series(&format!("i = {}", i + 1), &t, &y, Marker::LinePoints);

@@ -272,13 +272,21 @@ impl LocalExponents {
         write_csv(&out.join("finite_time_exponents.csv"), &["i", "delta", "windows", "mean", "std", "min", "max"], rows)?;
         // The finite-time exponents of the largest Delta with at least 10 windows.
         let show = self.deltas.iter().copied().filter(|&dl| frames_n / dl >= 10).max().unwrap_or(self.deltas[0]);
-        let mut fig = Figure::new(&format!("Finite-time exponents, Δ = {show} steps")).x_label("t (window start)").y_label("Λ_i averaged over Δ");
+        let mut fig = Figure::new(&format!("Finite-time exponents, Δ = {show} steps")).x_label("t").y_label("Λ_i averaged over Δ");
         let windows = frames_n / show;
         // Window w covers arrival positions w*Delta..(w+1)*Delta; its earliest time is the last.
-        let starts: Vec<f64> = (0..windows).rev().map(|w| self.times[(w + 1) * show - 1]).collect();
+        let mut starts: Vec<f64> = (0..windows).rev().map(|w| self.times[(w + 1) * show - 1]).collect();
+        // A step curve ends at its last point: the newest window's end closes it, one window
+        // length after its start, so that its value is drawn as the others are.
+        let end = match starts.as_slice() {
+            [.., before, last] => 2.0 * last - before,
+            _ => self.times[0],
+        };
+        starts.push(end);
         for (s, name) in self.series.iter().zip(names) {
             let mut y = finite_time_exponents(s, show);
             y.reverse();
+            y.extend(y.last().copied());
             fig.series(&format!("i = {name}"), &starts, &y, Marker::Steps);
         }
         fig.hline(0.0);

@@ -575,20 +575,21 @@ fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Prod
     let mut fits = Vec::new();
     let mut lines = Vec::new();
     // The points first: the first series get the largest markers.
-    for kind in kinds {
+    for (colour, kind) in kinds.into_iter().enumerate() {
         let of_kind: Vec<&&ModeRow> = modes.iter().filter(|r| r.kind == kind).collect();
         let k: Vec<f64> = of_kind.iter().map(|r| wave_number(r)).collect();
         let lambda: Vec<f64> = of_kind.iter().map(|r| r.lambda).collect();
         let (c, se) = fit_through_origin(&k, &lambda);
-        fig.series(&format!("{kind} modes"), &k, &lambda, Marker::Points);
+        fig.series(&format!("{kind} modes"), &k, &lambda, Marker::Points).color(colour);
         let k_max = k.iter().copied().fold(0.0, f64::max);
-        lines.push((format!("{kind}: λ = {c:.4} k"), k_max, c));
+        lines.push((format!("{kind}: λ = {c:.4} k"), k_max, c, colour));
         let ratios: Vec<String> = of_kind.iter().map(|r| format!("{:.4}", r.lambda / wave_number(r))).collect();
         let error = if se.is_finite() { format!(" ± {se:.1e}") } else { String::new() };
         fits.push(format!("{kind}: c = {c:.4}{error} from {} step(s), λ/k = {} for {}", k.len(), ratios.join(", "), of_kind.iter().map(|r| r.name.as_str()).collect::<Vec<_>>().join(", ")));
     }
-    for (label, k_max, c) in lines {
-        fig.series(&label, &[0.0, k_max], &[0.0, c * k_max], Marker::Line);
+    // Each fit in the colour of its points.
+    for (label, k_max, c, colour) in lines {
+        fig.series(&label, &[0.0, k_max], &[0.0, c * k_max], Marker::Line).color(colour);
     }
     save_figure(&fig, out, "modes_dispersion")?;
     Ok(Some(Produced {

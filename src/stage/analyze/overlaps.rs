@@ -476,9 +476,10 @@ fn mode_overlaps(d: usize, steps: &[Step], mean_of: impl Fn(usize) -> Option<Vec
         if same > conj && conj > rest {
             as_paper.push(j);
         } else {
-            let how = if !(same > conj) {
+            let above = |a: f64, b: f64| a.partial_cmp(&b) == Some(std::cmp::Ordering::Greater);
+            let how = if !above(same, conj) {
                 "its conjugate step more than its own, unlike the paper, where the own step's overlap is the larger"
-            } else if !(same > rest) {
+            } else if !above(same, rest) {
                 "another index more than its own step, unlike the paper"
             } else {
                 "no conjugate peak above the rest (as the paper's LP(3,0))"

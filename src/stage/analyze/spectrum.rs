@@ -197,7 +197,7 @@ impl Analysis for Spectrum {
                     first + 1,
                     last + 1,
                     if same_steps { "the frames' steps, as the CLV ones" } else { "the whole run" },
-                    typical_error(&plotted(&gs_err), &plotted(&clv_err))
+                    typical_error(&plotted(gs_err), &plotted(&clv_err))
                 ),
                 figures: vec!["fig8_mode_region".into()],
                 tables: vec![],
