@@ -406,17 +406,21 @@ impl Modes {
             if !is_positive(&acc.step, self.ctx.d) || !matches_degeneracy(&acc.step, kind, family) {
                 continue;
             }
+            // In the paper's order of figures: the T modes (Fig. 10), then the LP modes
+            // (Figs. 11, 12), each by wave vector, whatever the order of their steps.
+            let order = (kind != ModeKind::T, wave.n_x.abs() + wave.n_y.abs(), wave.n_x.abs());
             if kind == ModeKind::T {
                 let (entry, rows) = transverse_figures(cands, frame, &acc.step, wave, out)?;
                 fit_rows.extend(rows);
-                pattern_entries.push(entry);
+                pattern_entries.push((order, entry));
             } else {
                 let (entry, rows) = lp_figures(cands, frame, &acc.step, wave, out)?;
                 lp_rows.extend(rows);
-                pattern_entries.push(entry);
+                pattern_entries.push((order, entry));
             }
         }
-        Ok((pattern_entries, fit_rows, lp_rows))
+        pattern_entries.sort_by_key(|(order, _)| *order);
+        Ok((pattern_entries.into_iter().map(|(_, entry)| entry).collect(), fit_rows, lp_rows))
     }
 
     /// The caption of the mode table: how steps are found and classified and what was found,

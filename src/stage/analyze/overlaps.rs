@@ -482,7 +482,7 @@ fn mode_overlaps(d: usize, steps: &[Step], mean_of: impl Fn(usize) -> Option<Vec
             } else if !above(same, rest) {
                 "another index more than its own step, unlike the paper"
             } else {
-                "no conjugate peak above the rest (as the paper's LP(3,0))"
+                "no conjugate peak above the rest, as the paper's LP(3,0)"
             };
             not.push(format!("j = {} ({how})", j + 1));
         }
@@ -603,7 +603,7 @@ mod tests {
         assert!(caption.contains("for j = 4, not for j = 6 (its conjugate step more than its own, unlike the paper"), "{caption}");
         means[1][6] = 0.04; // no conjugate peak
         let caption = mode_overlaps(d, &steps, |j| Some(means[usize::from(j == 5)].clone()));
-        assert!(caption.contains("not for j = 6 (no conjugate peak above the rest (as the paper's LP(3,0)))"), "{caption}");
+        assert!(caption.contains("not for j = 6 (no conjugate peak above the rest, as the paper's LP(3,0))"), "{caption}");
         means[1][6] = 0.1;
         let caption = mode_overlaps(d, &steps, |j| Some(means[usize::from(j == 5)].clone()));
         assert!(caption.contains("In that order for every j, as the paper finds."), "{caption}");
