@@ -20,7 +20,10 @@ import tempfile
 def peak_rss_kb(cmd):
     """Run cmd in a fresh child (via a tiny wrapper so each measurement has its own maximum)."""
     wrapper = "import resource,subprocess,sys; subprocess.run(sys.argv[1:], check=True, stdout=subprocess.DEVNULL); print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)"
-    out = subprocess.run([sys.executable, "-c", wrapper] + cmd, check=True, capture_output=True, text=True)
+    out = subprocess.run([sys.executable, "-c", wrapper] + cmd, capture_output=True, text=True)
+    if out.returncode != 0:  # clv's own message, not the wrapper's traceback
+        said = [l for l in out.stderr.splitlines() if l.startswith("clv")] or out.stderr.strip().splitlines()[-1:]
+        sys.exit(f"bench_memory.py: {' '.join(cmd[:2])} ... failed: " + " / ".join(said))
     return int(out.stdout.strip())
 
 
@@ -43,7 +46,8 @@ def main():
         for scale in (1, 10):
             clv = a.clv * scale
             out = os.path.join(tmp, f"bwd{scale}")
-            subprocess.run(base + ["--steps", str(4 * clv), "--clv-steps", str(clv), "--transient", str(clv // 2), "--out", out], check=True, stdout=subprocess.DEVNULL)
+            if subprocess.run(base + ["--steps", str(4 * clv), "--clv-steps", str(clv), "--transient", str(clv // 2), "--out", out], stdout=subprocess.DEVNULL).returncode != 0:
+                sys.exit("bench_memory.py: the forward run for the backward stage failed (message above)")
             rss = peak_rss_kb([a.clv_bin, "backward", out, "--quiet", "--save-every", "0"])
             rows.append({"stage": "backward", "clv_steps": clv, "peak_rss_mb": rss / 1024})
     finally:

@@ -7,14 +7,21 @@
 #   scripts/fuzz.sh [TRIALS] [CLV_BINARY]      # default 200 trials of each, target/release/clv
 set -u
 TRIALS=${1:-200}
-C=$(realpath "${2:-$(dirname "$0")/../target/release/clv}")
+[[ $TRIALS =~ ^[1-9][0-9]*$ ]] || { echo "fuzz.sh: TRIALS is a whole number of at least 1, not '$TRIALS'" >&2; exit 2; }
+C=$(realpath -m "${2:-$(dirname "$0")/../target/release/clv}")
+[ -x "$C" ] || { echo "fuzz.sh: $C is not an executable clv (build it with cargo build --release, or give its path)" >&2; exit 2; }
 W=$(mktemp -d)
 trap 'rm -rf "$W"' EXIT
 cd "$W"
+# The undamaged run, frames and report every trial is compared with: a failure here is the
+# setup's, not a finding.
+set -e
 $C forward --n 16 --aspect 1 --steps 600 --relax-steps 100 --clv-steps 100 --out base --quiet >/dev/null
 cp -r base ref && $C backward ref --quiet --json --save-every 0 > ref.json
 $C backward base --quiet --with-gs --out frames.mcap > /dev/null
 $C analyze frames.mcap --out cleanrep --quiet
+[ -s ref.json ] && [ -f cleanrep/spectrum.csv ] || { echo "fuzz.sh: $C made no reference results: is it clv?" >&2; exit 2; }
+set +e
 flip() { python3 -c "import random,sys; f=open(sys.argv[1],'r+b'); f.seek(0,2); n=f.tell(); o=random.randrange(n); f.seek(o); b=f.read(1); f.seek(o); f.write(bytes([b[0]^(1<<random.randrange(8))])); print(o)" "$1"; }
 bad=0; ok=0; failed=0
 check() {  # rc, what, offset

@@ -26,6 +26,7 @@ metadata holds the run's configuration (run.json), its forward spectrum (spectru
 the backward stage's options (backward.json).
 """
 import json
+import os
 import sys
 
 import cbor2
@@ -62,10 +63,19 @@ def metadata(path):
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
-    frames = list(read_frames(sys.argv[1]))
+    path = sys.argv[1]
+    if not os.path.isfile(path):
+        sys.exit(f"read_frames.py: {path} is not a file (give a frame file of `clv backward --out FILE`)")
+    try:
+        frames = list(read_frames(path))
+    except Exception as e:  # not MCAP, or damaged: the reader's own words
+        sys.exit(f"read_frames.py: {path} cannot be read as a frame file: {e}")
+    if not frames:
+        sys.exit(f"read_frames.py: {path} holds no frames (a run segment? frames come from `clv backward --out FILE`)")
     local = np.array([f["local"] for f in frames])
-    worst_norm = max(float(np.abs(np.linalg.norm(f["v"], axis=0) - 1).max()) for f in frames if f["v"] is not None)
-    meta = metadata(sys.argv[1])
+    norms = [float(np.abs(np.linalg.norm(f["v"], axis=0) - 1).max()) for f in frames if f["v"] is not None]
+    worst_norm = max(norms) if norms else None  # None: no frame carries vectors (--vectors-every)
+    meta = metadata(path)
     mean_local = local.mean(axis=0).tolist()
     summary = {
         "frames": len(frames),
@@ -73,7 +83,7 @@ def main():
         "last_step": max(f["step"] for f in frames),
         "mean_local_clv_exponents": mean_local,
         "max_unit_norm_error": worst_norm,
-        "with_gs": frames[0]["g"] is not None,
+        "with_gs": any(f["g"] is not None for f in frames),
         "frames_with_vectors": sum(f["v"] is not None for f in frames),
         "run_seed": meta.get("run.json", {}).get("config", {}).get("seed"),
     }

@@ -17,6 +17,8 @@ N=${1:-60}; STEPS=${2:-20000}; KILLS=${3:-30}
 for v in "$N" "$STEPS" "$KILLS"; do
   [[ $v =~ ^[1-9][0-9]*$ ]] || { echo "soak.sh: N, STEPS and KILLS are whole numbers of at least 1, not '$v'" >&2; exit 2; }
 done
+# The CLV window is a tenth of the run: fewer than 10 steps would keep none.
+[ "$STEPS" -ge 10 ] || { echo "soak.sh: STEPS must be at least 10 (the backward window is STEPS / 10 steps), not $STEPS" >&2; exit 2; }
 python3 -c "import mcap, cbor2, numpy" 2> /dev/null || { echo "soak.sh: the frames are compared with scripts/read_frames.py: python3 -m pip install mcap cbor2 numpy" >&2; exit 1; }
 cargo build --release --quiet
 CLV=${CARGO_TARGET_DIR:-target}/release/clv

@@ -131,6 +131,17 @@ class Study:
         if not os.path.exists(os.path.join(run_dir, "run.json")):
             self.run(["forward"] + args + ["--out", run_dir], stdout=subprocess.DEVNULL)
             return
+        # A larger --steps would make clv extend the run: a study never does (a mistyped
+        # option would change its finished runs), so it compares before it calls clv.
+        if "--steps" in args:
+            asked = args[args.index("--steps") + 1]
+            try:
+                with open(os.path.join(run_dir, "run.json")) as f:
+                    made = json.load(f)["config"]["steps"]
+            except (OSError, ValueError, KeyError, TypeError):
+                made = None
+            if made is not None and str(made) != str(asked):
+                self.fail(f"{run_dir} was made with --steps {made}, not {asked}; give the options the study was started with, or another --out for a new study (a study does not make its runs longer)")
         if not os.path.exists(os.path.join(run_dir, "spectrum.json")):
             self.note(f"resuming the interrupted run {run_dir}")
         try:

@@ -7,7 +7,9 @@
 REPORT_DIR is the --out of `clv analyze FRAMES.mcap`, FRAMES.mcap a frame file of
 `clv backward --with-gs --out FRAMES.mcap` (without GS vectors the GS columns are skipped).
 Each quantity is recomputed here with numpy from the frames alone (read by read_frames.py)
-and compared with the report's CSV files:
+and compared with the report's CSV files. The tables compared column by column must hold
+exactly the expected rows (i = 1..k; one per frame; each chosen i with each Delta), none
+deleted, repeated or renumbered, and no column that nothing here recomputes:
 
   spectrum.csv         lambda_clv = mean over all frames of the local CLV exponents,
                        lambda_gs_window = mean over all frames of the local GS exponents, and
@@ -390,6 +392,25 @@ class Checker:
             if not ok:
                 self.bad.append(f"disagreement: {table} {column} {int(idx)} mine {float(x)!r} report {float(y)!r}")
         self.checked[table] = float(worst)
+
+    def expect_keys(self, table, got, expected):
+        """The table's rows, named by their key cells (`got`, in file order), must be
+        `expected` exactly: a row deleted, repeated or renumbered is a disagreement."""
+        got, expected = [tuple(np.atleast_1d(k).tolist()) for k in got], [tuple(np.atleast_1d(k).tolist()) for k in expected]
+        if got == expected:
+            return
+        missing = [k for k in expected if k not in got]
+        extra = [k for k in got if k not in expected]
+        repeated = sorted({k for k in got if got.count(k) > 1})
+        what = "; ".join(f"{name} {ks[:5]}" for name, ks in (("missing", missing), ("not expected", extra), ("repeated", repeated)) if ks) or "out of order"
+        self.bad.append(f"disagreement: {table} rows: {what} ({len(got)} rows, {len(expected)} expected)")
+
+    def expect_columns(self, table, header, keys):
+        """Every column of the table is a key or was compared: one nothing here recomputes
+        is a disagreement."""
+        for col in header:
+            if col not in keys and col not in self.columns.get(table, []):
+                self.bad.append(f"disagreement: {table} column {col} is not recomputed here")
 
     def compare_rows(self, table, keys, mine, report, label, tol=TOL):
         """Rows of a table with text cells: each report row (numbered from 1 in the file) is
@@ -1591,6 +1612,27 @@ def main():
 
     if not c.checked:
         sys.exit(f"{args.report}: none of the tables this script checks is there")
+    # Every row and column of the tables compared column by column above: the rows are
+    # named by their keys, which the comparisons take from the report itself.
+    k = local.shape[1]
+    for table in ("spectrum.csv", "localization.csv", "projections.csv", "overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv"):
+        t = rep(table)
+        if t is None or table not in c.columns:
+            continue
+        c.expect_keys(table, t["i"].astype(int), range(1, k + 1))
+        if "i_over_D" in t and "i_over_D" not in c.columns[table]:
+            i = t["i"].astype(int)
+            c.compare(table, "i_over_D", i, i / d, t["i_over_D"])
+        c.expect_columns(table, t, ("i",))
+    if le is not None and "local_exponents.csv" in c.columns:
+        c.expect_keys("local_exponents.csv", le["step"].astype(np.int64), sorted(f["step"] for f in frames))
+        c.expect_columns("local_exponents.csv", le, ("step",))
+    if ft is not None and le is not None and "finite_time_exponents.csv" in c.columns:
+        # The indices of the local exponents' table (the chosen ones), each with every Delta.
+        js, deltas = [int(col[len("lambda_") :]) for col in le if col.startswith("lambda_")], summary["options"].get("deltas", [])
+        c.expect_keys("finite_time_exponents.csv", zip(ft["i"].astype(int), ft["delta"].astype(int)), [(j, dl) for j in js for dl in deltas])
+        c.expect_columns("finite_time_exponents.csv", ft, ("i", "delta"))
+
     print(json.dumps({"agree": not c.bad, "checked": c.checked, "checked_std": c.checked_std, "columns": c.columns, "frames": len(frames), "sampled": len(sampled), "every": every, "blocks": blocks, "tolerance": TOL, "tolerance_errors": TOL_ERR, "mode_steps": [[st[0] + 1, st[0] + st[1], how] for st, how in steps], "theta_j": j, "theta_at_bin_edges": ambiguous}
                      | ({} if forward_r is None else {"forward_r": {k: forward_r[k] for k in ("steps", "block_steps", "planned_block_steps", "plan_from")} | {"blocks": len(forward_r["block_means"])}})))
     if c.bad:
