@@ -60,6 +60,39 @@ def metadata(path):
     return {}
 
 
+def frames_to_check(path, script, d, gs=True):
+    """The frames of `path` in step order, for a check that needs every step's frame with
+    D = `d` and its vectors (and G_n if `gs`); exits with a message naming what is missing."""
+    if not os.path.isfile(path):
+        sys.exit(f"{script}: {path} is not a file (give a frame file of `clv backward --out FILE`)")
+    try:
+        frames = sorted(read_frames(path), key=lambda f: f["step"])
+    except Exception as e:  # not MCAP, or damaged: the reader's own words
+        sys.exit(f"{script}: {path} cannot be read as a frame file: {e}")
+    if not frames:
+        sys.exit(f"{script}: {path} holds no frames (a run segment? frames come from `clv backward --out FILE`)")
+    if frames[0]["phase"].size != d:
+        sys.exit(f"{script}: {path} holds frames of D = {frames[0]['phase'].size}, the run D = {d}: the frames of another run")
+    steps = [f["step"] for f in frames]
+    if any(b - a != 1 for a, b in zip(steps, steps[1:])):
+        sys.exit(f"{script}: {path} does not hold every step's frame (--save-every?): this check needs consecutive frames")
+    if any(f["v"] is None or (gs and f["g"] is None) for f in frames):
+        sys.exit(f"{script}: {path}: every frame needs V_n" + (" and G_n (clv backward --with-gs" if gs else " (clv backward") + ", without --vectors-every)")
+    return frames
+
+
+def run_json(run_dir, script):
+    """RUN_DIR/run.json, or an exit naming what is wrong."""
+    path = os.path.join(run_dir, "run.json")
+    if not os.path.isfile(path):
+        sys.exit(f"{script}: {run_dir} is not a run directory (no run.json)")
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except (OSError, ValueError) as e:
+        sys.exit(f"{script}: {path} cannot be read: {e}")
+
+
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)

@@ -65,7 +65,11 @@ def read_run(run_dir):
 def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
+    if not os.path.isfile(os.path.join(sys.argv[1], "run.json")):
+        sys.exit(f"read_run.py: {sys.argv[1]} is not a run directory (no run.json; a frame file is read by read_frames.py)")
     run = read_run(sys.argv[1])
+    if not run["checkpoints"]:
+        sys.exit(f"read_run.py: {sys.argv[1]} holds no finished segment yet")
     last = max(run["checkpoints"])
     ortho = max(float(np.abs(c["g"].T @ c["g"] - np.eye(c["g"].shape[1])).max()) for c in run["checkpoints"].values())
     upper = all(np.allclose(np.tril(r, -1), 0) and (np.diag(r) > 0).all() for r in run["r"].values())

@@ -27,7 +27,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from read_frames import read_frames  # noqa: E402
+from read_frames import frames_to_check, run_json  # noqa: E402
 
 
 class Disks:
@@ -88,15 +88,14 @@ def main():
     p.add_argument("--eps", type=float, default=1e-5)
     args = p.parse_args()
 
-    with open(os.path.join(args.run, "run.json")) as f:
-        config = json.load(f)["config"]
+    if args.sample < 1:
+        sys.exit(f"verify_disks.py: --sample must be at least 1, not {args.sample}")
+    config = run_json(args.run, "verify_disks.py")["config"]
     system, tau = config["system"], config["tau"]
     if system["kind"] != "disks":
         sys.exit(f"{args.run}: a run of {system['kind']}, not of hard disks")
     disks = Disks(system["n"], system["lx"], system["ly"])
-    frames = sorted(read_frames(args.frames), key=lambda f: f["step"])
-    if any(f["v"] is None or f["g"] is None for f in frames):
-        sys.exit(f"{args.frames}: every frame needs V_n and G_n (clv backward --with-gs, without --vectors-every)")
+    frames = frames_to_check(args.frames, "verify_disks.py", 4 * system["n"])
 
     dev = {"G_orthonormal": 0.0, "v_unit": 0.0, "GtV_lower": 0.0, "clv_spectrum": 0.0, "covariance": 0.0, "growth": 0.0}
     for f in frames:

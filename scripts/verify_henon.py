@@ -28,7 +28,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from read_frames import read_frames  # noqa: E402
+from read_frames import frames_to_check, run_json  # noqa: E402
 from read_run import read_run  # noqa: E402
 
 
@@ -45,6 +45,7 @@ def main():
     p.add_argument("--tol", type=float, default=1e-11)
     args = p.parse_args()
 
+    run_json(args.run, "verify_henon.py")  # a clear exit where it is not a run directory
     run = read_run(args.run)
     config = run["run"]["config"]
     if config["system"]["kind"] != "henon":
@@ -70,7 +71,7 @@ def main():
     ln_r = np.array([np.log(np.diag(rs[n])) for n in range(1, total + 1)])
     gs_spectrum = ln_r[relax:].mean(axis=0) / config["tau"]
 
-    frames = sorted(read_frames(args.frames), key=lambda f: f["step"])
+    frames = frames_to_check(args.frames, "verify_henon.py", 2)
     first = frames[0]["step"]
     c, cs, local = np.eye(2), {}, {}
     for n in range(total, first, -1):

@@ -302,7 +302,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from read_frames import metadata, read_frames  # noqa: E402
+from read_frames import metadata, read_frames, run_json  # noqa: E402
 from read_run import read_segment  # noqa: E402
 
 TOL = 1e-10
@@ -1231,10 +1231,19 @@ def main():
     args = ap.parse_args()
     rep = lambda name: read_csv(os.path.join(args.report, name))  # noqa: E731
 
+    if not os.path.isfile(os.path.join(args.report, "summary.json")):
+        sys.exit(f"verify_report.py: {args.report} is not a finished report of `clv analyze` (no summary.json)")
+    if args.run is not None:
+        run_json(args.run, "verify_report.py")
     with open(os.path.join(args.report, "summary.json")) as f:
         summary = json.load(f)
     every = int(summary["options"]["every"])
-    frames = sorted(read_frames(args.frames), key=lambda f: f["step"])
+    if not os.path.isfile(args.frames):
+        sys.exit(f"verify_report.py: {args.frames} is not a file (give the frame file the report was made from)")
+    try:
+        frames = sorted(read_frames(args.frames), key=lambda f: f["step"])
+    except Exception as e:  # not MCAP, or damaged: the reader's own words
+        sys.exit(f"verify_report.py: {args.frames} cannot be read as a frame file: {e}")
     if not frames:
         sys.exit(f"{args.frames}: no frames")
     d = frames[0]["phase"].size
