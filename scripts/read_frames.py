@@ -60,9 +60,8 @@ def metadata(path):
     return {}
 
 
-def frames_to_check(path, script, d, gs=True):
-    """The frames of `path` in step order, for a check that needs every step's frame with
-    D = `d` and its vectors (and G_n if `gs`); exits with a message naming what is missing."""
+def load_frames(path, script):
+    """The frames of `path` in step order, or an exit naming why there are none."""
     if not os.path.isfile(path):
         sys.exit(f"{script}: {path} is not a file (give a frame file of `clv backward --out FILE`)")
     try:
@@ -71,6 +70,13 @@ def frames_to_check(path, script, d, gs=True):
         sys.exit(f"{script}: {path} cannot be read as a frame file: {e}")
     if not frames:
         sys.exit(f"{script}: {path} holds no frames (a run segment? frames come from `clv backward --out FILE`)")
+    return frames
+
+
+def frames_to_check(path, script, d, gs=True):
+    """[load_frames] for a check that needs every step's frame with D = `d` and its vectors
+    (and G_n if `gs`); exits with a message naming what is missing."""
+    frames = load_frames(path, script)
     if frames[0]["phase"].size != d:
         sys.exit(f"{script}: {path} holds frames of D = {frames[0]['phase'].size}, the run D = {d}: the frames of another run")
     steps = [f["step"] for f in frames]
@@ -97,14 +103,7 @@ def main():
     if len(sys.argv) < 2:
         sys.exit(__doc__)
     path = sys.argv[1]
-    if not os.path.isfile(path):
-        sys.exit(f"read_frames.py: {path} is not a file (give a frame file of `clv backward --out FILE`)")
-    try:
-        frames = list(read_frames(path))
-    except Exception as e:  # not MCAP, or damaged: the reader's own words
-        sys.exit(f"read_frames.py: {path} cannot be read as a frame file: {e}")
-    if not frames:
-        sys.exit(f"read_frames.py: {path} holds no frames (a run segment? frames come from `clv backward --out FILE`)")
+    frames = load_frames(path, "read_frames.py")
     local = np.array([f["local"] for f in frames])
     norms = [float(np.abs(np.linalg.norm(f["v"], axis=0) - 1).max()) for f in frames if f["v"] is not None]
     worst_norm = max(norms) if norms else None  # None: no frame carries vectors (--vectors-every)

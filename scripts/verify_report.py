@@ -302,7 +302,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from read_frames import metadata, read_frames, run_json  # noqa: E402
+from read_frames import load_frames, metadata, run_json  # noqa: E402
 from read_run import read_segment  # noqa: E402
 
 TOL = 1e-10
@@ -1238,14 +1238,7 @@ def main():
     with open(os.path.join(args.report, "summary.json")) as f:
         summary = json.load(f)
     every = int(summary["options"]["every"])
-    if not os.path.isfile(args.frames):
-        sys.exit(f"verify_report.py: {args.frames} is not a file (give the frame file the report was made from)")
-    try:
-        frames = sorted(read_frames(args.frames), key=lambda f: f["step"])
-    except Exception as e:  # not MCAP, or damaged: the reader's own words
-        sys.exit(f"verify_report.py: {args.frames} cannot be read as a frame file: {e}")
-    if not frames:
-        sys.exit(f"{args.frames}: no frames")
+    frames = load_frames(args.frames, "verify_report.py")
     d = frames[0]["phase"].size
     if d % 4:
         sys.exit(f"{args.frames}: D = {d} is not 4N: not a hard-disk run")
