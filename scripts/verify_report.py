@@ -291,6 +291,7 @@ the walk at 2N-4 indices) are shared with clv; the code is not: the numpy here i
 from those descriptions, not translated from clv's Rust.
 """
 import argparse
+import collections
 import csv
 import glob
 import json
@@ -399,9 +400,10 @@ class Checker:
         got, expected = [tuple(np.atleast_1d(k).tolist()) for k in got], [tuple(np.atleast_1d(k).tolist()) for k in expected]
         if got == expected:
             return
-        missing = [k for k in expected if k not in got]
-        extra = [k for k in got if k not in expected]
-        repeated = sorted({k for k in got if got.count(k) > 1})
+        have, want = collections.Counter(got), set(expected)
+        missing = [k for k in expected if k not in have]
+        extra = [k for k in got if k not in want]
+        repeated = sorted(k for k, count in have.items() if count > 1)
         what = "; ".join(f"{name} {ks[:5]}" for name, ks in (("missing", missing), ("not expected", extra), ("repeated", repeated)) if ks) or "out of order"
         self.bad.append(f"disagreement: {table} rows: {what} ({len(got)} rows, {len(expected)} expected)")
 

@@ -62,6 +62,11 @@ fn smallest_positive(ctx: &Context) -> Option<usize> {
     ctx.gs.as_ref().and_then(|g| (0..g.exponents.len()).rev().find(|&i| g.exponents[i] > 0.0 && !neutral.contains(&i))).filter(|&i| i < ctx.k)
 }
 
+/// See [`super::Missing`].
+pub fn left_out(_: &Context, missing: super::Missing) -> Option<&'static str> {
+    (missing == super::Missing::ConsecutiveFrames).then_some("the finite-time exponents and the domination test of Sec. 6")
+}
+
 pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
     if ctx.k == 0 {
         return None;

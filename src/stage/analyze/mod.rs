@@ -376,6 +376,8 @@ pub enum Missing {
     GsVectors,
     /// The frames carry the k < D leading vectors only.
     AllVectors,
+    /// The frames are those of every m-th step only (`--save-every m`), not consecutive.
+    ConsecutiveFrames,
 }
 
 /// What an analysis leaves out of a report for want of `Missing` in the frames of `ctx`,
@@ -391,7 +393,7 @@ const ANALYSES: &[(Maker, LeftOut)] = &[
     (overlaps::new, overlaps::left_out),
     (projections::new, projections::left_out),
     (nullspace::new, nullspace::left_out),
-    (local_exponents::new, nothing_left_out),
+    (local_exponents::new, local_exponents::left_out),
     (modes::new, modes::left_out),
     (transversality::new, transversality::left_out),
     (henon::new, henon::left_out),
@@ -571,8 +573,9 @@ impl Analyzer {
         });
         let strided = (self.ctx.saved_every > 1 && self.frames > 0).then(|| {
             format!(
-                "The frame file holds the frames of the steps that are multiples of {} only (--save-every): the finite-time exponents and the domination test, which need consecutive steps, are left out; analyse the whole stream (`clv backward RUN_DIR --out - | clv analyze -`) for them.",
-                self.ctx.saved_every
+                "The frame file holds the frames of the steps that are multiples of {} only (--save-every): what needs consecutive steps{} is left out; analyse the whole stream (`clv backward RUN_DIR --out - | clv analyze -`) for it.",
+                self.ctx.saved_every,
+                listed(Missing::ConsecutiveFrames)
             )
         });
         let warnings: Vec<String> = forward.chain(damaged).chain(coverage).chain(unsampled).collect();

@@ -53,6 +53,7 @@ pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> 
     match missing {
         super::Missing::GsVectors => ctx.null_space().is_some().then_some("Table I"),
         super::Missing::AllVectors => (ctx.is_disks() && ctx.null_space().is_none()).then_some("the null space, Tables I and II"),
+        super::Missing::ConsecutiveFrames => None,
     }
 }
 

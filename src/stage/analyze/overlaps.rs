@@ -56,6 +56,7 @@ pub fn left_out(ctx: &Context, missing: super::Missing) -> Option<&'static str> 
     match missing {
         super::Missing::GsVectors => Some("Figs. 3 and 4"),
         super::Missing::AllVectors => ctx.is_disks().then_some("the conjugate partners of Fig. 13, Fig. 14"),
+        super::Missing::ConsecutiveFrames => None,
     }
 }
 
@@ -473,18 +474,19 @@ fn mode_overlaps(d: usize, steps: &[Step], mean_of: impl Fn(usize) -> Option<Vec
         let max_over = |keep: &dyn Fn(usize) -> bool| (0..d).filter(|&i| i != j && keep(i)).map(|i| m[i]).fold(f64::NAN, f64::max);
         let (same, conj, rest) = (max_over(&|i| own.contains(&i)), max_over(&|i| conjugate.contains(&i)), max_over(&|i| !own.contains(&i) && !conjugate.contains(&i)));
         rows.push(format!("j = {}: {same:.3}, {conj:.3}, {rest:.3}", j + 1));
-        if same > conj && conj > rest {
-            as_paper.push(j);
+        let above = |a: f64, b: f64| a.partial_cmp(&b) == Some(std::cmp::Ordering::Greater);
+        let departure = if !above(same, conj) {
+            Some("its conjugate step more than its own, unlike the paper, where the own step's overlap is the larger")
+        } else if !above(same, rest) {
+            Some("another index more than its own step, unlike the paper")
+        } else if !above(conj, rest) {
+            Some("no conjugate peak above the rest, as the paper's LP(3,0)")
         } else {
-            let above = |a: f64, b: f64| a.partial_cmp(&b) == Some(std::cmp::Ordering::Greater);
-            let how = if !above(same, conj) {
-                "its conjugate step more than its own, unlike the paper, where the own step's overlap is the larger"
-            } else if !above(same, rest) {
-                "another index more than its own step, unlike the paper"
-            } else {
-                "no conjugate peak above the rest, as the paper's LP(3,0)"
-            };
-            not.push(format!("j = {} ({how})", j + 1));
+            None
+        };
+        match departure {
+            None => as_paper.push(j),
+            Some(how) => not.push(format!("j = {} ({how})", j + 1)),
         }
     }
     if rows.is_empty() {
