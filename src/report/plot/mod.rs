@@ -39,8 +39,9 @@ use std::path::Path;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Rgb(u8, u8, u8);
 
-/// Okabe-Ito colour-blind-safe palette, its yellow darkened to olive (the original, #F0E442,
-/// all but vanished on white in thin dashed curves).
+/// Okabe-Ito colour-blind-safe palette, its yellow replaced by Paul Tol's wine (the original,
+/// #F0E442, all but vanished on white in thin dashed curves; darkened to olive it looked like
+/// the orange beside it in plots of eight series).
 const PALETTE: [Rgb; 8] = [
     Rgb(0x00, 0x72, 0xB2), // blue
     Rgb(0xD5, 0x5E, 0x00), // vermillion
@@ -49,7 +50,7 @@ const PALETTE: [Rgb; 8] = [
     Rgb(0xE6, 0x9F, 0x00), // orange
     Rgb(0x56, 0xB4, 0xE9), // sky blue
     Rgb(0x00, 0x00, 0x00), // black
-    Rgb(0x9A, 0x8C, 0x00), // olive (a darkened yellow)
+    Rgb(0x88, 0x22, 0x55), // wine
 ];
 const INK: Rgb = Rgb(0x20, 0x20, 0x20);
 const GREY: Rgb = Rgb(0x99, 0x99, 0x99);
@@ -337,7 +338,7 @@ impl Figure {
     }
 
     /// The series added last takes colour `k` of the palette (0 blue, 1 vermillion, 2 bluish
-    /// green, 3 reddish purple, 4 orange, 5 sky blue, 6 black, 7 olive; taken modulo 8)
+    /// green, 3 reddish purple, 4 orange, 5 sky blue, 6 black, 7 wine; taken modulo 8)
     /// instead of the colour of its place: for one quantity in one colour across figures.
     pub fn color(&mut self, k: usize) -> &mut Self {
         if let Some(s) = self.series.last_mut() {
@@ -482,7 +483,13 @@ impl Figure {
     }
 
     fn raster(&self) -> raster::Canvas {
-        let (layout, prims) = self.scene();
+        self.raster_preferring(None)
+    }
+
+    /// [`Figure::raster`] with the legend at inside corner `corner` where it is free
+    /// ([`Figure::layout_preferring`]).
+    fn raster_preferring(&self, corner: Option<usize>) -> raster::Canvas {
+        let (layout, prims) = self.scene_preferring(corner);
         let mut canvas = raster::Canvas::new(self.w, self.h);
         for p in &prims {
             canvas.draw(p, layout.frame());
@@ -521,26 +528,21 @@ impl Figure {
     /// room for the legend right of it (or below it, if the axis box would
     /// lose more than half its width or the legend is taller than it).
     fn layout(&self) -> Layout {
+        self.layout_preferring(None)
+    }
+
+    /// [`Figure::layout`], trying inside corner `corner` (an index into the order there)
+    /// first: sibling panels put their legends in one corner where they can.
+    fn layout_preferring(&self, corner: Option<usize>) -> Layout {
         let mut lay = self.frame_layout(0.0, 0.0);
         let Some((lw, lh)) = self.legend_size(lay.scale) else {
             return lay;
         };
         let [l, t, r, b] = lay.frame();
-        if lw + 20.0 <= r - l && lh + 20.0 <= b - t {
-            let mut data = Vec::new();
-            for (s, pen) in self.series.iter().zip(self.pens()) {
-                series_prims(&lay, s, pen, &mut data);
-            }
-            let (x0, x1, y0, y1) = (l + 10.0, r - 10.0 - lw, t + 10.0, b - 10.0 - lh);
-            let corners = [(x1, y0), (x0, y0), (x1, y1), (x0, y1)];
-            let free = corners
-                .into_iter()
-                .map(|(x, y)| [x, y, x + lw, y + lh])
-                .find(|&bx| !data.iter().any(|p| covers(p, bx)));
-            if free.is_some() {
-                lay.legend = free;
-                return lay;
-            }
+        let free = self.free_corners(&lay, lw, lh);
+        if let Some(bx) = corner.and_then(|c| free[c]).or_else(|| free.into_iter().flatten().next()) {
+            lay.legend = Some(bx);
+            return lay;
         }
         if lw + 12.0 <= (r - l) / 2.0 && lh <= b - t {
             lay = self.frame_layout(lw + 12.0, 0.0);
@@ -553,6 +555,30 @@ impl Figure {
             lay.legend = Some([x0, h - 8.0 - lh, x0 + lw, h - 8.0]);
         }
         lay
+    }
+
+    /// The legend boxes (`lw` x `lh`) at the inside corners top-right, top-left, bottom-right,
+    /// bottom-left of `lay`'s axis box, each where it (plus a small margin) is crossed by no
+    /// line segment and touches no dot of any series; none where the legend does not fit.
+    fn free_corners(&self, lay: &Layout, lw: f64, lh: f64) -> [Option<[f64; 4]>; 4] {
+        let [l, t, r, b] = lay.frame();
+        if lw + 20.0 > r - l || lh + 20.0 > b - t {
+            return [None; 4];
+        }
+        let mut data = Vec::new();
+        for (s, pen) in self.series.iter().zip(self.pens()) {
+            series_prims(lay, s, pen, &mut data);
+        }
+        let (x0, x1, y0, y1) = (l + 10.0, r - 10.0 - lw, t + 10.0, b - 10.0 - lh);
+        [(x1, y0), (x0, y0), (x1, y1), (x0, y1)].map(|(x, y)| Some([x, y, x + lw, y + lh]).filter(|&bx| !data.iter().any(|p| covers(p, bx))))
+    }
+
+    /// Which inside corners ([`Figure::free_corners`]) could hold the legend; none without a
+    /// legend.
+    fn legend_corners(&self) -> Option<[bool; 4]> {
+        let lay = self.frame_layout(0.0, 0.0);
+        let (lw, lh) = self.legend_size(lay.scale)?;
+        Some(self.free_corners(&lay, lw, lh).map(|c| c.is_some()))
     }
 
     /// Frame, ranges and ticks, leaving `right` and `bottom` pixels of the
@@ -695,7 +721,12 @@ impl Figure {
 
     /// Layout plus the primitives to draw, in painting order.
     fn scene(&self) -> (Layout, Vec<Prim>) {
-        let lay = self.layout();
+        self.scene_preferring(None)
+    }
+
+    /// [`Figure::scene`] with the legend at inside corner `corner` where it is free.
+    fn scene_preferring(&self, corner: Option<usize>) -> (Layout, Vec<Prim>) {
+        let lay = self.layout_preferring(corner);
         let (l, t, r, b, sc) = (lay.l, lay.t, lay.r, lay.b, lay.scale);
         let (w, ch) = (f64::from(self.w), f64::from(8 * sc));
         let text = |x, y, s: &str, anchor| Label::new(x, y, s, sc, anchor);
@@ -848,10 +879,18 @@ impl Panels {
         (w, top + rows * cell_h, title, corners)
     }
 
+    /// The first inside corner free for the legend in every panel that has one, so that
+    /// sibling panels keep their legends in one place.
+    fn legend_corner(&self) -> Option<usize> {
+        let free: Vec<[bool; 4]> = self.panels.iter().filter_map(Figure::legend_corners).collect();
+        (0..4).find(|&c| free.iter().all(|f| f[c]))
+    }
+
     /// Render as an SVG 1.1 document, each panel in a group of its own.
     pub fn to_svg(&self) -> String {
         let (w, h, title, corners) = self.layout();
-        let scenes: Vec<(Layout, Vec<Prim>)> = self.panels.iter().map(Figure::scene).collect();
+        let corner = self.legend_corner();
+        let scenes: Vec<(Layout, Vec<Prim>)> = self.panels.iter().map(|f| f.scene_preferring(corner)).collect();
         let mut parts = vec![svg::Part { at: (0.0, 0.0), frame: [0.0, 0.0, f64::from(w), f64::from(h)], prims: &title }];
         for ((lay, prims), &(x, y)) in scenes.iter().zip(&corners) {
             parts.push(svg::Part { at: (f64::from(x), f64::from(y)), frame: lay.frame(), prims });
@@ -871,8 +910,9 @@ impl Panels {
         for p in &title {
             canvas.draw(p, [0.0, 0.0, f64::from(w), f64::from(h)]);
         }
+        let corner = self.legend_corner();
         for (fig, &(x, y)) in self.panels.iter().zip(&corners) {
-            canvas.blit(&fig.raster(), x, y);
+            canvas.blit(&fig.raster_preferring(corner), x, y);
         }
         canvas
     }

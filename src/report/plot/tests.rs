@@ -852,3 +852,34 @@ fn panels_place_whole_figures_in_a_grid_under_a_title() {
     stacked.push(panel(0)).push(panel(1));
     assert_eq!(stacked.layout().3, [(0, 0), (0, 400)]);
 }
+
+/// Sibling panels keep their legends in one inside corner where one is free in all of
+/// them, and each panel alone still takes its own first free corner.
+#[test]
+fn panels_put_their_legends_in_one_corner() {
+    let top_right = corner_figure(&[(0.97, 0.97)]);
+    let free = sine_figure();
+    assert_eq!(free.legend_corners(), Some([true, true, true, true]), "the sine figure's corners are all free");
+    assert_eq!(top_right.legend_corners().map(|c| c[0]), Some(false));
+    let mut p = Panels::new("", 2);
+    p.push(free).push(corner_figure(&[(0.97, 0.97)]));
+    let corner = p.legend_corner().expect("a corner free in both");
+    assert_eq!(corner, 1, "top-left, the first free in both");
+    let c = p.raster();
+    let (_, _, _, corners) = p.layout();
+    for (k, fig) in p.panels.iter().enumerate() {
+        let lay = fig.layout_preferring(Some(corner));
+        let bx = lay.legend.expect("legend");
+        assert!(bx[0] == lay.l + 10.0 && bx[1] == lay.t + 10.0, "panel {k}'s legend not top-left: {bx:?}");
+        let own = fig.raster_preferring(Some(corner));
+        let (x0, y0) = corners[k];
+        assert!((0..own.h).all(|y| (0..own.w).all(|x| c.get(x0 + x, y0 + y) == own.get(x, y))), "panel {k} drawn with the common corner");
+    }
+    // Alone, the free figure keeps the top-right corner.
+    let lay = sine_figure().layout();
+    assert_eq!(lay.legend.map(|b| b[2]), Some(lay.r - 10.0));
+    // No corner free in both: each its own.
+    let mut q = Panels::new("", 2);
+    q.push(corner_figure(&[(0.97, 0.97), (0.03, 0.97)])).push(corner_figure(&[(0.97, 0.03), (0.03, 0.03)]));
+    assert_eq!(q.legend_corner(), None);
+}

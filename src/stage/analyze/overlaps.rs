@@ -408,7 +408,12 @@ impl Overlaps {
         for &j in self.mode_js.iter().rev() {
             if let Some(m) = self.vv_mean(j) {
                 let y = without_self(&m, j);
-                let mut fig = Figure::new(&format!("j = {}", j + 1)).size(PANEL.0, PANEL.1).x_label("i").y_label("<|v^j · v^i|>");
+                // The step's range names its row in the mode table, which says what it is.
+                let title = match self.mode_steps.iter().find(|s| (s.start..s.start + s.len).contains(&j)) {
+                    Some(s) => format!("j = {} (step i = {}..{})", j + 1, s.start + 1, s.start + s.len),
+                    None => format!("j = {}", j + 1),
+                };
+                let mut fig = Figure::new(&title).size(PANEL.0, PANEL.1).x_label("i").y_label("<|v^j · v^i|>");
                 fig.series("", &shared.idx[a..=b], &y[a..=b], Marker::LinePoints);
                 panels.push(fig);
             }
@@ -417,10 +422,10 @@ impl Overlaps {
         Ok(Produced {
             title: "Scalar products of mode vectors (Fig. 14)".into(),
             caption: format!(
-                "Time average of |v^j · v^i| for j = {} ({}) against i = {}..{} (i != j), {}, one panel per j, two to a row, from the j nearest the null space (the paper's six panels have T(n,0) left and LP(n,0) right, n = 1, 2, 3 downwards, the order the steps alternate in; the mode table says what each step here is).{}",
+                "Time average of |v^j · v^i| for j = {} ({}) against i = {}..{} (i != j), {}, one panel per j, two to a row, from the j nearest the null space (the paper's six panels have T(n,0) left and LP(n,0) right, n = 1, 2, 3 downwards, the order the steps alternate in).{}",
                 list(&self.mode_js),
                 if !self.mode_steps.is_empty() {
-                    "the last index of each positive mode step, found as the mode table finds them, which says what they are"
+                    "the last index of each positive mode step, found as the mode table finds them; each panel's title gives its step's first and last index, its row in the mode table, which says what the step is"
                 } else {
                     "2N-5 and 2N-3, the positive indices next to the null space, where the slowest modes sit if the system has any; fewer than two mode steps were found to choose by"
                 },
@@ -539,6 +544,9 @@ mod tests {
         assert!(fig14.caption.contains("found as the mode table finds them"), "{}", fig14.caption);
         let header = std::fs::read_to_string(out.join("overlap_clv_clv.csv")).unwrap();
         assert!(header.lines().next().unwrap().contains(&format!("abs_v{}_mean", at + 4)), "Fig. 14 takes the LP block's last index: {header:.200}");
+        let svg = std::fs::read_to_string(out.join("fig14_mode_overlap.svg")).unwrap();
+        let title = format!("j = {} (step i = {}..{})", at + 4, at + 1, at + 4);
+        assert!(svg.contains(&title), "the panel names its step's row in the mode table, {title}");
     }
 
     #[test]
