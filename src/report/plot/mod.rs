@@ -520,6 +520,12 @@ impl Figure {
         (lo <= hi).then_some((lo, hi))
     }
 
+    /// [`Figure::layout_preferring`] a figure alone uses.
+    #[cfg(test)]
+    fn layout(&self) -> Layout {
+        self.layout_preferring(None)
+    }
+
     /// Layout with the legend placed where it hides no data: the first of
     /// the inside corners top-right, top-left, bottom-right, bottom-left of
     /// the axis box whose legend box (plus a small margin) is crossed by no
@@ -527,12 +533,8 @@ impl Figure {
     /// data, or the legend does not fit inside, the axis box shrinks to make
     /// room for the legend right of it (or below it, if the axis box would
     /// lose more than half its width or the legend is taller than it).
-    fn layout(&self) -> Layout {
-        self.layout_preferring(None)
-    }
-
-    /// [`Figure::layout`], trying inside corner `corner` (an index into the order there)
-    /// first: sibling panels put their legends in one corner where they can.
+    /// Inside corner `corner` (an index into that order), if free, goes first: sibling
+    /// panels put their legends in one corner where they can ([`Panels::legend_corner`]).
     fn layout_preferring(&self, corner: Option<usize>) -> Layout {
         let mut lay = self.frame_layout(0.0, 0.0);
         let Some((lw, lh)) = self.legend_size(lay.scale) else {
