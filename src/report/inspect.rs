@@ -45,7 +45,7 @@ pub struct Inspection {
     /// Spectrum at the newest intact checkpoint (none while the run relaxes).
     pub exponents: Vec<f64>,
     pub stderr: Vec<f64>,
-    /// What makes that spectrum less precise than its errors say ([`crate::linalg::precision_warning`]).
+    /// What makes that spectrum less trustworthy than its errors say ([`crate::report::warnings`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
     /// Every finished segment reads back whole (an interrupted one is not counted as damage).
@@ -161,7 +161,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     // During the relaxation nothing is accumulated: its zeros are no spectrum.
     let accumulating = newest.as_ref().filter(|(s, _)| s.step > meta.config.relax_steps);
     let (exponents, stderr) = accumulating.map(|(s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
-    let warnings = crate::linalg::precision_warning(&exponents, meta.config.tau).into_iter().collect();
+    let warnings = crate::report::warnings(&meta.config, &exponents);
     let convergence = newest.as_ref().and_then(|(_, acc)| {
         let blocks = acc.as_ref()?.block_averages(meta.config.tau);
         let d = crate::stage::analyze::kernels::convergence::diagnose(&blocks.exponents, meta.config.system.neutral())?;

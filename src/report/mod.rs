@@ -24,6 +24,12 @@ pub struct Statistics {
     /// has none, and its JSON leaves the field out).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub collisions: Option<u64>,
+    /// The collision frequency of a disk, 2 collisions / (N t) over the same time, relaxation
+    /// included (each collision counts for both its disks, as in Enskog's theory): one
+    /// computed from `collisions` and `simulated_time` would be too high by
+    /// (relax + steps) / steps.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub collision_frequency: Option<f64>,
     pub wall_seconds: f64,
     pub energy_initial: f64,
     pub energy_final: f64,
@@ -39,6 +45,10 @@ impl Statistics {
             relax_steps: config.relax_steps,
             simulated_time: config.steps as f64 * config.tau,
             collisions: matches!(config.system, crate::config::SystemConfig::Disks { .. }).then_some(end.events),
+            collision_frequency: match config.system {
+                crate::config::SystemConfig::Disks { n, .. } => Some(2.0 * end.events as f64 / (n as f64 * (config.relax_steps + config.steps) as f64 * config.tau)),
+                _ => None,
+            },
             wall_seconds,
             energy_initial: start.energy,
             energy_final: end.energy,
@@ -46,6 +56,45 @@ impl Statistics {
             momentum_final: end.momentum,
         }
     }
+}
+
+/// What makes a forward spectrum `exponents` (lambda_1 first) of `config`'s run less
+/// trustworthy than its errors say: a tau too long for a double's digits
+/// ([`crate::linalg::precision_warning`]) or a hard-disk null space not yet settled
+/// ([`null_space_warning`]).
+pub fn warnings(config: &RunConfig, exponents: &[f64]) -> Vec<String> {
+    crate::linalg::precision_warning(exponents, config.tau).into_iter().chain(null_space_warning(config, exponents)).collect()
+}
+
+/// Above this fraction of lambda_1, a null-space exponent of hard disks is not round-off.
+/// Settled runs have 1e-15 .. 1e-13 of it; a gas at density 0.05 after the default 100
+/// relaxation steps had 2e-4 (a stress hunt; 1e-14 after 3000).
+pub const NULL_SPACE_TOLERANCE: f64 = 1e-6;
+
+/// Why the hard disks' six null-space exponents (i = 2N-2..2N+3), zero by symmetry, are
+/// not zero to round-off, if they are not: the GS vectors settle into the null space only as
+/// fast as the exponents beside it separate from zero, which is slow in a dilute gas or a
+/// long thin box; until they have, the exponents next to the null space, h_KS and the mode
+/// analyses carry the remainder.
+pub fn null_space_warning(config: &RunConfig, exponents: &[f64]) -> Option<String> {
+    let crate::config::SystemConfig::Disks { .. } = config.system else {
+        return None;
+    };
+    let null = config.system.neutral();
+    let lambda_1 = *exponents.first()?;
+    let (i, worst) = exponents.get(null.clone())?.iter().enumerate().map(|(i, l)| (null.start + i, l.abs())).max_by(|a, b| a.1.total_cmp(&b.1))?;
+    (lambda_1 > 0.0 && worst > NULL_SPACE_TOLERANCE * lambda_1).then(|| {
+        format!(
+            "the null-space exponents (i = {}..{}), zero by symmetry, are not zero to round-off: |lambda_{}| = {worst:.2e}, {:.1e} of lambda_1 (a settled run has about 1e-14): \
+             the GS vectors had not settled into the null space when the exponents began to accumulate, which is slow where the exponents beside it are small (a dilute gas, a long thin box), \
+             and the exponents next to it, h_KS and the mode analyses carry the rest; give more --relax-steps ({} now; ten times more, say)",
+            null.start + 1,
+            null.end,
+            i + 1,
+            worst / lambda_1,
+            config.relax_steps
+        )
+    })
 }
 
 /// The result of a forward pass, as printed by `clv forward --json`.
@@ -64,8 +113,8 @@ pub struct SpectrumReport {
     pub statistics: Statistics,
     /// The block averages behind `stderr`.
     pub blocks: BlockAverages,
-    /// What makes the exponents less precise than their errors say (a tau too long for a
-    /// double's digits, [`crate::linalg::precision_warning`]); absent when nothing does.
+    /// What makes the exponents less trustworthy than their errors say ([`warnings`]: a tau
+    /// too long for a double's digits, an unsettled null space); absent when nothing does.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
 }
@@ -75,7 +124,7 @@ impl SpectrumReport {
     pub fn new(config: RunConfig, acc: &Accumulator, statistics: Statistics) -> Self {
         let exponents = acc.exponents(config.tau);
         SpectrumReport {
-            warnings: crate::linalg::precision_warning(&exponents, config.tau).into_iter().collect(),
+            warnings: warnings(&config, &exponents),
             stderr: acc.stderr(config.tau),
             ks_entropy: acc.ks_entropy(config.tau, config.system.neutral()),
             kaplan_yorke_dimension: kaplan_yorke_dimension(&exponents, config.system.dim()),
@@ -125,13 +174,14 @@ impl SpectrumReport {
         let time = |t: f64| if t != 0.0 && !(1e-3..1e9).contains(&t.abs()) { format!("{t:e}") } else { format!("{t:.6}").trim_end_matches('0').trim_end_matches('.').to_string() };
         let t = time(st.simulated_time);
         let _ = write!(s, "{} steps (t = {t}), ", st.steps);
+        let each = st.collision_frequency.map(|f| format!(" ({f:.4} per disk and unit time)")).unwrap_or_default();
         match st.collisions {
             Some(c) if st.relax_steps > 0 => {
                 let all = time((st.relax_steps + st.steps) as f64 * self.config.tau);
-                let _ = writeln!(s, "{c} collisions in t = {all} with the {} relaxation steps, {:.1} s wall, energy drift {:.1e}", st.relax_steps, st.wall_seconds, st.energy_drift);
+                let _ = writeln!(s, "{c} collisions{each} in t = {all} with the {} relaxation steps, {:.1} s wall, energy drift {:.1e}", st.relax_steps, st.wall_seconds, st.energy_drift);
             }
             Some(c) => {
-                let _ = writeln!(s, "{c} collisions, {:.1} s wall, energy drift {:.1e}", st.wall_seconds, st.energy_drift);
+                let _ = writeln!(s, "{c} collisions{each}, {:.1} s wall, energy drift {:.1e}", st.wall_seconds, st.energy_drift);
             }
             None => {
                 let _ = writeln!(s, "{:.1} s wall", st.wall_seconds);
@@ -198,4 +248,38 @@ pub fn backward_table(report: &crate::stage::backward::BackwardReport) -> String
     let when = if report.earlier { " by the sweep that finished earlier" } else { "" };
     let _ = writeln!(table, "{} frames (steps {}..{}), {} steps recomputed in {} segments{when}, {:.1} s", st.frames, st.first_frame_step, st.last_frame_step, st.recomputed_steps, st.segments, st.wall_seconds);
     table
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The null-space warning: for hard disks only, from the largest |lambda| of i =
+    /// 2N-2..2N+3 against lambda_1, naming it and the relaxation to lengthen.
+    #[test]
+    fn an_unsettled_null_space_is_named() {
+        let mut config = RunConfig::preset("default").unwrap();
+        config.system = crate::config::SystemConfig::disks(4, 0.7, 1.0).unwrap();
+        let mut l = vec![2.0, 1.5, 1.0, 0.5, 0.25, 3e-15, -1e-14, 2e-15, 0.0, -1e-15, 1e-15, -0.25, -0.5, -1.0, -1.5, -2.0];
+        assert!(null_space_warning(&config, &l).is_none(), "round-off is settled");
+        l[6] = -4e-5;
+        let w = null_space_warning(&config, &l).expect("2e-5 of lambda_1");
+        assert!(w.contains("(i = 6..11)") && w.contains("|lambda_7| = 4.00e-5") && w.contains("2.0e-5 of lambda_1") && w.contains("--relax-steps (1000 now"), "{w}");
+        assert_eq!(warnings(&config, &l), vec![w]);
+        assert!(null_space_warning(&config, &l[..5]).is_none(), "k < 2N+3: the null space is not among the exponents");
+        config.system = crate::config::SystemConfig::Lorenz { sigma: 10.0, rho: 28.0, beta: 8.0 / 3.0 };
+        assert!(null_space_warning(&config, &[0.9, 1e-3, -14.5]).is_none(), "a flow's zero exponent converges like 1/T");
+    }
+
+    /// The collision frequency counts each collision for both disks, over the relaxation too.
+    #[test]
+    fn collision_frequency_is_per_disk_over_the_whole_run() {
+        let config = RunConfig::preset("default").unwrap();
+        let (start, end) = (Invariants { energy: 40.0, momentum: [0.0; 2], events: 0 }, Invariants { energy: 40.0, momentum: [0.0; 2], events: 66_000 });
+        let st = Statistics::new(&config, &start, &end, 1.0);
+        let t = (config.relax_steps + config.steps) as f64 * config.tau;
+        assert_eq!(st.collision_frequency, Some(2.0 * 66_000.0 / (40.0 * t)));
+        let henon = RunConfig::preset("henon").unwrap();
+        assert_eq!(Statistics::new(&henon, &start, &end, 1.0).collision_frequency, None);
+    }
 }

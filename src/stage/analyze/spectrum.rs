@@ -144,11 +144,10 @@ impl Analysis for Spectrum {
                 ctx.run.config.steps
             )
         };
-        // Agreement of two spectra both off by the same lost digits proves nothing.
-        let caption = match ctx.gs.iter().flat_map(|g| &g.warnings).next() {
-            Some(w) => format!("Not to be trusted beyond the leading exponents: the forward stage warned that {w}. {caption}"),
-            None => caption,
-        };
+        // Agreement of two spectra both off by the same lost digits (or the same unsettled
+        // null space) proves nothing: the warnings come first.
+        let warned: Vec<String> = ctx.gs.iter().flat_map(|g| &g.warnings).map(|w| format!("The forward stage warned that {w}. ")).collect();
+        let caption = warned.concat() + &caption;
         let mut produced = vec![Produced {
             title: "Lyapunov spectrum (Fig. 2)".into(),
             caption,

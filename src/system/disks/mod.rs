@@ -160,7 +160,7 @@ fn lattice(n: usize, lx: f64, ly: f64, rng: &mut Rng) -> Result<Vec<[f64; 2]>> {
     }
     if spacing < 1.0 + 1e-9 {
         return Err(Error::param("density", format!(
-            "cannot place {n} disks without overlap in a {lx:.4} x {ly:.4} box (the best start lattice, {nx} x {ny}, has a closest pair at {spacing:.4} < 1); \
+            "cannot place {n} disks without overlap in a {lx:.4} x {ly:.4} box (the best start lattice, {nx} x {ny}, has a closest pair at {spacing:.10}, not above 1 + 1e-9); \
              lower --density or change --aspect"
         )));
     }
