@@ -161,6 +161,15 @@ pub fn standard_error(x: &[f64]) -> f64 {
     (sample_variance(x) / x.len() as f64).sqrt()
 }
 
+/// Standard error of the mean of the series `x` by batch means: the standard error of the
+/// means of its consecutive whole blocks of `block_len` values, from the first (NaN with
+/// fewer than two blocks). Blocks longer than the series' correlation time make it honest
+/// where [`standard_error`] of correlated values would be too small.
+pub fn batch_stderr(x: &[f64], block_len: usize) -> f64 {
+    let means: Vec<f64> = x.chunks_exact(block_len.max(1)).map(|b| b.iter().sum::<f64>() / b.len() as f64).collect();
+    standard_error(&means)
+}
+
 /// Sample standard deviation of `x`, with n - 1 (NaN with fewer than two values: one value
 /// shows no spread, it does not show that there is none).
 pub fn sample_std(x: &[f64]) -> f64 {

@@ -49,6 +49,10 @@ pub struct Overlaps {
     vv_js: Vec<usize>,
     /// <|v^j . v^i|> per j of `vv_js` (Figs. 13, 14).
     vv: Vec<Mean>,
+    /// With two vectors (the Henon map), |cos θ| = |v^1 . v^2| and |sin θ| = |g^2 . v^2|
+    /// (NaN without GS vectors) of every frame in stream order, for their errors by batch
+    /// means ([`Overlaps::one_angle`]).
+    angle: Vec<[f64; 2]>,
 }
 
 /// See [`super::Missing`].
@@ -76,6 +80,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
         settled: false,
         conjugate_js: Vec::new(),
         vv_js: Vec::new(),
+        angle: Vec::new(),
     }))
 }
 
@@ -172,6 +177,10 @@ impl Analysis for Overlaps {
         for (acc, &j) in self.vv.iter_mut().zip(&self.vv_js) {
             acc.add(abs_dots_with(frame.v(j), &frame.v));
         }
+        if d == 2 && frame.k == 2 {
+            let sin = frame.g.as_ref().map_or(f64::NAN, |g| abs_dots_pairwise(g, &frame.v, d)[1]);
+            self.angle.push([abs_dots_with(frame.v(1), &frame.v)[0], sin]);
+        }
         Ok(())
     }
 
@@ -249,12 +258,23 @@ impl Overlaps {
     fn one_angle(&self, shared: &Shared) -> Produced {
         let cos = self.vv_mean(0).map(|m| m[1]).or_else(|| self.vv_mean(1).map(|m| m[0]));
         let sin = self.gv.as_ref().map(|gv| gv.mean()[1]);
+        let block = self.ctx.block_len(true) as usize;
+        let error = |c: usize| {
+            let series: Vec<f64> = self.angle.iter().map(|a| a[c]).collect();
+            match crate::statistics::batch_stderr(&series, block) {
+                e if e.is_finite() => format!(" ± {e:.4}"),
+                _ => String::new(),
+            }
+        };
         let mut numbers = Vec::new();
         if let Some(c) = cos {
-            numbers.push(format!("<|v^1 · v^2|> = <|cos θ|> = {c:.4} (Fig. 13; Fig. 4's <|v^2 · g^1|> is the same, as v^1 = ±g^1)"));
+            numbers.push(format!("<|v^1 · v^2|> = <|cos θ|> = {c:.4}{} (Fig. 13; Fig. 4's <|v^2 · g^1|> is the same, as v^1 = ±g^1)", error(0)));
         }
         if let Some(s) = sin {
-            numbers.push(format!("<|g^2 · v^2|> = <|sin θ|> = {s:.4} (Fig. 3 at i = 2, and Fig. 4's <|v^2 · g^2|>; Fig. 3 is 1 at i = 1)"));
+            numbers.push(format!("<|g^2 · v^2|> = <|sin θ|> = {s:.4}{} (Fig. 3 at i = 2, and Fig. 4's <|v^2 · g^2|>; Fig. 3 is 1 at i = 1)", error(1)));
+        }
+        if self.angle.len() >= 2 * block {
+            numbers.push(format!("standard errors from blocks of {block} frames"));
         }
         let tables = [(self.gv.is_some(), "overlap_gs_clv.csv"), (self.vg.is_some() && !self.fig4_js.is_empty(), "overlap_clv_gs.csv"), (!self.vv_js.is_empty(), "overlap_clv_clv.csv")];
         Produced {
@@ -650,6 +670,32 @@ mod tests {
         assert!(p.figures.is_empty() && p.tables == ["overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv"], "{p:?}");
         assert!(p.caption.contains(&format!("<|cos θ|> = {:.4}", mean(f64::cos))) && p.caption.contains(&format!("<|sin θ|> = {:.4}", mean(f64::sin))), "{}", p.caption);
         assert!(!std::fs::read_dir(&*out).unwrap().any(|e| e.unwrap().file_name().to_string_lossy().ends_with(".png")));
+    }
+
+    /// The angle's averages carry errors by batch means: blocks of the context's 50 frames
+    /// (1000 steps in 20 blocks), over the frames in stream order.
+    #[test]
+    fn the_angle_has_batch_means_errors() {
+        let d = 2;
+        let ctx = context("henon", 0, d, true, vec![1]);
+        let mut a = new(&ctx).unwrap();
+        let mut rng = crate::rng::Rng::new(5);
+        let angles: Vec<f64> = (0..230).map(|_| 3.0 * rng.uniform()).collect();
+        for (s, x) in angles.iter().enumerate() {
+            a.consume(&frame(s as u64, d, vec![1.0, 0.0, x.cos(), x.sin()], Some(identity(2)))).unwrap();
+        }
+        let out = scratch("angle-errors");
+        let p = a.finish(&out, 230).unwrap().remove(0);
+        for f in [f64::cos, f64::sin] {
+            let series: Vec<f64> = angles.iter().map(|&x| f(x).abs()).collect();
+            let means: Vec<f64> = series.chunks_exact(50).map(|b| b.iter().sum::<f64>() / 50.0).collect();
+            assert_eq!(means.len(), 4, "the last 30 frames make no whole block");
+            let m = means.iter().sum::<f64>() / 4.0;
+            let e = (means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / 3.0 / 4.0).sqrt();
+            let mean = series.iter().sum::<f64>() / 230.0;
+            assert!(p.caption.contains(&format!("{mean:.4} ± {e:.4}")), "{e} in {}", p.caption);
+        }
+        assert!(p.caption.contains("standard errors from blocks of 50 frames"), "{}", p.caption);
     }
 
     #[test]
