@@ -21,7 +21,9 @@ As a library:
         f["gs_local"] # (k,) local GS exponents over [t_n, t_n+1], or None (files before 2026-11-25)
         f["phase"]    # (D,) phase point (q_x1, q_y1, ..., p_yN)
 
-Frames are stored newest first (the backward pass runs backward in time). The file's
+Frames are written newest first (the backward pass runs backward in time); read_frames
+yields them oldest first, as the mcap reader sorts messages by their log time (the frame's
+time). The file's
 metadata holds the run's configuration (run.json), its forward spectrum (spectrum.json) and
 the backward stage's options (backward.json).
 """

@@ -141,12 +141,18 @@ impl StoreConfig {
         (8.0 * (d * k + d + k * (3.0 + blocks)) + 4.0 * k * (k + 1.0) + 8.0 * 3.0 * k + 600.0) as u64
     }
 
-    /// Estimated disk footprint of the finished run.
+    /// Estimated disk footprint of the finished run: pruning removes whole segments, so the
+    /// segment holding the window's first step is kept whole, from the start of its span of
+    /// `segment_checkpoints` checkpoints (up to that many - 1 more than the window needs),
+    /// and `keep_segments` whole segments before it.
     pub fn footprint(&self, config: &RunConfig) -> Footprint {
         let per_checkpoint = self.checkpoint_bytes(config);
         let window = self.clv_steps + self.transient;
-        let kept = window.div_ceil(self.checkpoint_every) + 1 + self.keep_segments * self.segment_checkpoints;
-        let total_cps = (config.relax_steps + config.steps).div_ceil(self.checkpoint_every) + 1;
+        let total = config.relax_steps + config.steps;
+        let span = self.checkpoint_every.saturating_mul(self.segment_checkpoints).max(1);
+        let first_kept = total.saturating_sub(window) / span * span;
+        let kept = (total - first_kept).div_ceil(self.checkpoint_every) + 1 + self.keep_segments * self.segment_checkpoints;
+        let total_cps = total.div_ceil(self.checkpoint_every) + 1;
         let checkpoints = kept.min(total_cps);
         let k = config.vectors as u64;
         let r_all = if self.store_r == StoreR::All { window.saturating_mul(4 * k).saturating_mul(k + 1) } else { 0 };
