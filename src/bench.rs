@@ -141,11 +141,12 @@ pub struct BenchReport {
     pub forward_peak_rss: Vec<Rss>,
     pub backward_peak_rss: Vec<Rss>,
     /// Projected hours for the paper's run (2.5e5 forward steps, 2.5e4 backward steps with
-    /// frames and 1.25e4 before them).
-    pub paper_forward_hours: f64,
-    pub paper_backward_hours: f64,
+    /// frames and 1.25e4 before them); null unless the bench ran the paper's system (steps
+    /// of another size say nothing about it).
+    pub paper_forward_hours: Option<f64>,
+    pub paper_backward_hours: Option<f64>,
     /// The same with V_n every `sampled_every` steps, as the paper's pipeline runs.
-    pub paper_backward_sampled_hours: f64,
+    pub paper_backward_sampled_hours: Option<f64>,
 }
 
 /// CLV steps of the paper's run (section 5: the last 2.5e4 steps).
@@ -309,6 +310,7 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
     let _ = std::fs::remove_dir_all(&tmp);
 
     let Stages { forward_step_ms, backward_step_ms, backward_over_forward, sampled_every, backward_sampled_step_ms, backward_sampled_over_forward, forward_step_over_qr } = stages;
+    let paper = n == PAPER_N && k == 4 * PAPER_N;
     Ok(BenchReport {
         n,
         d,
@@ -340,10 +342,10 @@ pub fn run(o: &BenchOptions, say: &mut dyn FnMut(&str)) -> Result<BenchReport> {
         collision_rate_spread,
         forward_peak_rss,
         backward_peak_rss,
-        paper_forward_hours: 250_000.0 * forward_step_ms.median / 3.6e6,
+        paper_forward_hours: paper.then(|| 250_000.0 * forward_step_ms.median / 3.6e6),
         // The 12500 transient steps emit no frames, so they form no V either.
-        paper_backward_hours: (25_000.0 * backward_step_ms.median + 12_500.0 * backward_sampled_step_ms.median) / 3.6e6,
-        paper_backward_sampled_hours: 37_500.0 * backward_sampled_step_ms.median / 3.6e6,
+        paper_backward_hours: paper.then(|| (25_000.0 * backward_step_ms.median + 12_500.0 * backward_sampled_step_ms.median) / 3.6e6),
+        paper_backward_sampled_hours: paper.then(|| 37_500.0 * backward_sampled_step_ms.median / 3.6e6),
     })
 }
 
@@ -354,6 +356,7 @@ fn check_options(o: &BenchOptions) -> Result<()> {
             return Err(Error::param(name, "must be at least 1"));
         }
     }
+    crate::config::check_threads(o.threads)?;
     let d = 4 * o.n;
     if o.k.is_some_and(|k| k == 0 || k > d) {
         return Err(Error::param("vectors", format!("must be between 1 and D = {d}")));
@@ -635,17 +638,13 @@ impl BenchReport {
         for r in &self.backward_peak_rss {
             let _ = writeln!(s, "  backward peak RSS, window {:>5}: {:.1} MB (largest of {} runs)", r.steps, r.peak_mb, r.runs);
         }
-        // Steps measured at another size say nothing about the paper's (D = 792, k = D).
-        if self.n == PAPER_N && self.k == 4 * PAPER_N {
+        if let (Some(fwd), Some(bwd), Some(sampled)) = (self.paper_forward_hours, self.paper_backward_hours, self.paper_backward_sampled_hours) {
             let _ = writeln!(
                 s,
-                "  paper run projection: forward {:.2} h + backward {:.2} h = {:.2} h (V every {} steps: backward {:.2} h, {:.2} h in all)",
-                self.paper_forward_hours,
-                self.paper_backward_hours,
-                self.paper_forward_hours + self.paper_backward_hours,
+                "  paper run projection: forward {fwd:.2} h + backward {bwd:.2} h = {:.2} h (V every {} steps: backward {sampled:.2} h, {:.2} h in all)",
+                fwd + bwd,
                 self.sampled_every,
-                self.paper_backward_sampled_hours,
-                self.paper_forward_hours + self.paper_backward_sampled_hours
+                fwd + sampled
             );
         } else {
             let _ = writeln!(s, "  paper run projection: none (it needs N = {PAPER_N} with all {} vectors; this bench ran N = {}, k = {})", 4 * PAPER_N, self.n, self.k);

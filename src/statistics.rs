@@ -45,6 +45,13 @@ impl Accumulator {
         Accumulator { sum: vec![0.0; k], steps: 0, block_len: block_len.max(1), blocks: Vec::new(), current: vec![0.0; k] }
     }
 
+    /// The mean of ln [R_n]_11 - ln [R_n]_kk over the steps so far, (lambda_1 - lambda_k) tau;
+    /// None before the first step or with one vector.
+    pub fn mean_spread(&self) -> Option<f64> {
+        let (first, last) = (self.sum.first()?, self.sum.last()?);
+        (self.sum.len() >= 2 && self.steps > 0).then(|| (first - last) / self.steps as f64)
+    }
+
     /// Accumulate ln [R_n]_ii of one step.
     pub fn add(&mut self, r: &Mat<f64>) {
         self.add_logs((0..self.sum.len()).map(|i| r[(i, i)].ln()));

@@ -222,6 +222,12 @@ fn clv_run_takes_settings_that_change_the_preset() {
         let err = String::from_utf8_lossy(&r.stderr);
         assert!(!r.status.success() && err.contains(named), "{args:?}: {err}");
     }
+    // A configuration file's disk keys for the Henon map too (they were ignored).
+    let file = out.join("henon.toml");
+    std::fs::write(&file, "system = \"henon\"\nn = 40\nsteps = 100\n").unwrap();
+    let henon = scratch("run-henon-disk-key");
+    let r = clv(&["run", "--config", file.to_str().unwrap(), "--out", henon.to_str().unwrap(), "--quiet"]);
+    assert!(!r.status.success() && common::stderr(&r).contains("henon.toml:2: invalid setting n: sets up hard disks") && !henon.join("run").exists(), "{}", common::stderr(&r));
     // A run without a CLV window is refused before its forward stage, which `clv run` could
     // not then finish.
     let none = scratch("run-no-window");

@@ -469,11 +469,12 @@ fn henon_runs_through_the_same_store() {
     // The text adds what the spectrum implies: h_KS = lambda_1 and D_KY = 1 + lambda_1 / |lambda_2|.
     let l: Vec<f64> = serde_json::from_value(v["exponents"].clone()).unwrap();
     let text = String::from_utf8(clv(&["inspect", d]).stdout).unwrap();
-    let want = format!("so far: h_KS = {:.5}, D_KY = {:.5}", l[0], 1.0 + l[0] / l[1].abs());
+    let want = format!("whole run: h_KS = {:.5}, D_KY = {:.5}", l[0], 1.0 + l[0] / l[1].abs());
+    assert!(text.contains(&format!("spectrum: lambda_1.. = {:.5}, {:.5}\n", l[0], l[1])), "a finished run's, each exponent once: {text}");
     assert!(text.contains(&want), "{text} lacks {want}");
     // And the convergence tests over the 20 blocks of 250 steps (two exponents, both vary).
     assert_eq!((&v["convergence"]["blocks"], &v["convergence"]["block_steps"]), (&serde_json::json!(20), &serde_json::json!(250)));
-    assert!(text.contains("convergence so far (20 blocks of 250 steps): ") && text.contains(" of 2 exponents have |z| > 2"), "{text}");
+    assert!(text.contains("convergence (20 blocks of 250 steps): ") && text.contains(" of 2 exponents have |z| > 2"), "{text}");
 }
 
 /// A segment missing between two others (moved out, deleted) is a gap the backward stage

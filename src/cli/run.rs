@@ -62,10 +62,10 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
         if let Some(flag) = setting.strip_prefix("--") {
             let key = flag.split('=').next().unwrap_or_default();
             if !keys.iter().any(|k| k == key) {
-                return Err(Error::param(
-                    "settings",
-                    format!("--{key} is not a setting of a run; `clv run` takes --preset, --config, --out and --quiet of its own, and the settings --{}", keys.join(", --")),
-                ));
+                return Err(Error::Other(format!(
+                    "--{key} is not a setting of a run; `clv run` takes --preset, --config, --out and --quiet of its own, and the settings --{}",
+                    keys.join(", --")
+                )));
             }
         }
     }
@@ -75,10 +75,10 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
         return Err(Error::Other("settings: not the flags of a run".into()));
     };
     let in_settings = |name: &str| super::names_flag(&args.settings, name);
-    no_disk_flags_for_henon(forward.system, in_settings)?;
-    let in_file = |name: &str| {
-        matches.subcommand_matches("forward").and_then(|m| m.value_source(name)) == Some(clap::parser::ValueSource::CommandLine) && !in_settings(name)
-    };
+    let given = |name: &str| matches.subcommand_matches("forward").and_then(|m| m.value_source(name)) == Some(clap::parser::ValueSource::CommandLine);
+    // The file's keys too: a Henon run would ignore them.
+    no_disk_flags_for_henon(forward.system, given).map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))?;
+    let in_file = |name: &str| given(name) && !in_settings(name);
     forward.box_from_command_line(in_settings, in_file).and_then(|f| f.meta()).map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))
 }
 

@@ -20,12 +20,37 @@ pub const RESOLVED_SPREAD: f64 = 36.04;
 /// 40 (against lambda_1 = 5).
 pub const PRECISE_SPREAD: f64 = 18.0;
 
+/// A mean spread (lambda_1 - lambda_k) tau measured this close to [`RESOLVED_SPREAD`] is
+/// rounding's own: where the most contracting vectors shrink to rounding between two QR
+/// steps, R_kk is rounding, and the spread it gives stays near ln(1 / eps) whatever the
+/// dynamics (Lorenz at tau = 6, 10, 20: 37.9, 37.4, 37.0, with lambda_3 = -5.3, -2.8, -1.0
+/// instead of -14.57; faer's rank test caught such columns at some tau, not at others).
+pub const UNRESOLVED_SPREAD: f64 = 34.0;
+
+/// Why QR steps `tau` apart whose mean spread (lambda_1 - lambda_k) tau is `spread` measure
+/// rounding instead of the stable exponents, if they do ([`UNRESOLVED_SPREAD`]).
+pub fn unresolved(spread: f64, tau: f64) -> Option<String> {
+    (spread > UNRESOLVED_SPREAD).then(|| {
+        format!(
+            "the QR steps measure (lambda_1 - lambda_k) tau = {spread:.1}, at the limit of what the 16 digits of a double resolve (about {RESOLVED_SPREAD:.0}): \
+             between two QR steps the most contracting tangent vectors shrink to rounding, so their exponents measure rounding, not the dynamics; \
+             give a smaller --tau (below {:.3} keeps half of the digits: a spread of {PRECISE_SPREAD:.0}, if the exponents were as measured, which they are not: \
+             take less)",
+            PRECISE_SPREAD * tau / spread
+        )
+    })
+}
+
 /// Why the exponents `lambda` (lambda_1 first) measured with QR steps `tau` apart are less
 /// precise than the run's statistics say, if they are: a spread (lambda_1 - lambda_k) tau
-/// above [`PRECISE_SPREAD`].
+/// above [`PRECISE_SPREAD`], or past [`UNRESOLVED_SPREAD`] not measured at all.
 pub fn precision_warning(lambda: &[f64], tau: f64) -> Option<String> {
     let range = lambda.first()? - lambda.last()?;
     let spread = range * tau;
+    // A run written before such runs stopped (inspect reads them).
+    if let Some(why) = unresolved(spread, tau) {
+        return Some(why);
+    }
     (spread > PRECISE_SPREAD).then(|| {
         format!(
             "(lambda_1 - lambda_k) tau = {spread:.1}: between two QR steps the tangent vectors spread by e^{spread:.0}, so that the most contracting of them keep \
@@ -150,8 +175,10 @@ mod tests {
     #[test]
     fn precision_warning_names_the_spread_and_a_tau() {
         assert!(precision_warning(&[5.0, 0.0, -5.0], 0.6).is_none() && precision_warning(&[], 0.6).is_none());
+        let w = precision_warning(&[5.0, 0.0, -5.0], 2.5).unwrap();
+        assert!(w.contains("tau = 25.0") && w.contains("give a --tau below 1.800"), "{w}");
         let w = precision_warning(&[5.0, 0.0, -5.0], 4.0).unwrap();
-        assert!(w.contains("tau = 40.0") && w.contains("give a --tau below 1.800"), "{w}");
+        assert!(w.contains("tau = 40.0, at the limit") && w.contains("measure rounding"), "past UNRESOLVED_SPREAD: {w}");
     }
 
     fn random_upper(k: usize, rng: &mut Rng) -> Mat<f64> {

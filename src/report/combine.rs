@@ -48,7 +48,9 @@ pub struct Combined {
     /// chi^2 per degree of freedom of the runs' exponents about the combined one, with
     /// their own errors (NaN where an exponent does not vary).
     pub chi2_per_dof: Vec<f64>,
-    /// Mean of `chi2_per_dof` over the exponents that vary.
+    /// Mean of `chi2_per_dof` over the exponents that vary, those that vanish by symmetry left
+    /// out (a flow's zero exponent telescopes: its batch-means errors are far too large, and
+    /// Lorenz's chi^2/dof of 0.02 pulled the mean from 0.75 to 0.51).
     pub mean_chi2_per_dof: f64,
     /// h_KS of the combined exponents, its error from the runs' h_KS.
     pub ks_entropy: Option<Estimate>,
@@ -97,10 +99,10 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
         stderr.push(err);
         chi2.push(chi2_per_dof(&x, &s, mean, scale));
     }
-    let varying: Vec<f64> = chi2.iter().copied().filter(|c| c.is_finite()).collect();
+    let neutral = first.system.neutral();
+    let varying: Vec<f64> = chi2.iter().enumerate().filter(|(i, c)| c.is_finite() && !neutral.contains(i)).map(|(_, c)| *c).collect();
     // NaN (null in --json) where no exponent has errors in every run (a run of one block).
     let mean_chi2_per_dof = varying.iter().sum::<f64>() / varying.len() as f64;
-    let neutral = first.system.neutral();
     let ks = ks_entropy(&exponents, neutral.clone()).map(|value| {
         // Each run's sum over the exponents counted in the combined spectrum.
         let counted = |i: usize, c: f64| c > 0.0 && !neutral.contains(&i);
@@ -125,6 +127,9 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
 fn read(path: &Path) -> Result<RunSpectrum> {
     let file = if path.is_dir() { path.join("spectrum.json") } else { path.to_path_buf() };
     let bytes = std::fs::read(&file).map_err(|e| match (path.is_dir(), e.kind()) {
+        (true, std::io::ErrorKind::NotFound) if crate::store::run::RunDir { path: path.to_path_buf() }.is_being_written() => {
+            Error::Other(format!("{} has no spectrum.json yet: another clv process is writing the run; combine it when that has finished", path.display()))
+        }
         (true, std::io::ErrorKind::NotFound) if path.join("run.json").exists() => {
             Error::Other(format!("{} has no spectrum.json: the run is not finished; finish it with `clv forward --resume {}`", path.display(), path.display()))
         }
@@ -141,7 +146,12 @@ fn read(path: &Path) -> Result<RunSpectrum> {
         )));
     }
     let (run, _): (RunSpectrum, _) = crate::store::checked_json::from_slice(&file, &bytes).map_err(|e| {
-        Error::Other(format!("{e}; a spectrum.json written by `clv forward --out` is expected (a damaged one is rewritten by `clv forward --resume RUN_DIR`)"))
+        // Another of clv's files is intact, only not a spectrum.
+        let other = ["clv_spectrum", "summary", "run", "backward", "progress"].into_iter().find(|stem| file.file_name().is_some_and(|n| n.to_string_lossy().starts_with(stem)));
+        match other {
+            Some(stem) => Error::Other(format!("{} is clv's {stem}.json, not a run's spectrum.json; give the run directory, or its spectrum.json", file.display())),
+            None => Error::Other(format!("{e}; a spectrum.json written by `clv forward --out` is expected (a damaged one is rewritten by `clv forward --resume RUN_DIR`)")),
+        }
     })?;
     if run.exponents.len() != run.stderr.len() || run.exponents.len() != run.config.vectors {
         return Err(Error::corrupt(&file, format!("{} exponents and {} errors for k = {}", run.exponents.len(), run.stderr.len(), run.config.vectors)));
@@ -206,7 +216,7 @@ impl Combined {
         } else {
             let _ = writeln!(
                 s,
-                "mean chi2/dof of the runs about the combined spectrum, with their own errors: {:.2} (about 1 when each run's batch-means errors are right)",
+                "mean chi2/dof of the runs about the combined spectrum, with their own errors, over the exponents that do not vanish by symmetry: {:.2} (about 1 when each run's batch-means errors are right)",
                 self.mean_chi2_per_dof
             );
         }

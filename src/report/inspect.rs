@@ -329,8 +329,14 @@ impl Inspection {
             let _ = writeln!(s, "relaxing: step {step} of the {} relaxation steps, no exponent accumulated yet", self.run.config.relax_steps);
         }
         if !self.exponents.is_empty() {
+            // The whole run's numbers once it is finished, else those of the steps so far.
+            let so_far = if self.finished { "" } else { " so far" };
             let show: Vec<String> = self.exponents.iter().take(4).map(|x| format!("{x:.5}")).collect();
-            let _ = writeln!(s, "spectrum so far: lambda_1.. = {} ... lambda_k = {:.5}", show.join(", "), self.exponents.last().unwrap_or(&f64::NAN));
+            let last = match self.exponents.len() {
+                k if k > 4 => format!(" ... lambda_k = {:.5}", self.exponents[k - 1]),
+                _ => String::new(),
+            };
+            let _ = writeln!(s, "spectrum{so_far}: lambda_1.. = {}{last}", show.join(", "));
             let mut sums = Vec::new();
             if let Some(h) = crate::statistics::ks_entropy(&self.exponents, self.run.config.system.neutral()) {
                 sums.push(format!("h_KS = {h:.5}"));
@@ -339,13 +345,13 @@ impl Inspection {
                 sums.push(format!("D_KY = {d:.5}"));
             }
             if !sums.is_empty() {
-                let _ = writeln!(s, "so far: {}", sums.join(", "));
+                let _ = writeln!(s, "{}: {}", if self.finished { "whole run" } else { "so far" }, sums.join(", "));
             }
             for w in &self.warnings {
                 let _ = writeln!(s, "warning: {w}");
             }
             if let Some(c) = &self.convergence {
-                let _ = writeln!(s, "convergence so far ({} blocks of {} steps): {}; {}", c.blocks, c.block_steps, c.tests, c.verdict);
+                let _ = writeln!(s, "convergence{so_far} ({} blocks of {} steps): {}; {}", c.blocks, c.block_steps, c.tests, c.verdict);
             }
         }
         if let Some(b) = &self.backward_sweep {

@@ -121,6 +121,10 @@ impl Forward {
             )));
         }
         if self.step >= self.relax_steps {
+            // Twenty steps average out a single step's spread.
+            if let Some(why) = self.acc.mean_spread().filter(|_| self.acc.steps >= 20).and_then(|s| crate::linalg::unresolved(s, self.system.tau())) {
+                return Err(Error::param("tau", format!("step {}: {why}; no exponent is accumulated from it", self.step + 1)));
+            }
             self.acc.add(&self.r);
             self.acc.limit_blocks(self.blocks);
         }
@@ -168,7 +172,9 @@ impl Forward {
     /// before the table at the end ([`crate::linalg::precision_warning`]).
     pub fn early_precision_warning(&self, steps: u64) -> Option<String> {
         let tau = self.system.tau();
-        (self.step == self.relax_steps + steps.min(20)).then(|| crate::linalg::precision_warning(&self.acc.exponents(tau), tau)).flatten()
+        // Past UNRESOLVED_SPREAD the next step stops the run with the same words.
+        let unresolved = self.acc.mean_spread().and_then(|s| crate::linalg::unresolved(s, tau)).is_some();
+        (self.step == self.relax_steps + steps.min(20) && !unresolved).then(|| crate::linalg::precision_warning(&self.acc.exponents(tau), tau)).flatten()
     }
 
     pub fn time(&self) -> f64 {
@@ -189,6 +195,29 @@ mod tests {
         let config = RunConfig { system: SystemConfig::disks(16, 0.7, 1.0).unwrap(), tau: 6.0, relax_steps: 0, steps: 4, vectors: 64, seed: 3, threads: 1, blocks: 2 };
         let err = Forward::new(&config).unwrap().step().unwrap_err().to_string();
         assert!(err.contains("step 1: the QR step found the first") && err.contains("(lambda_1 - lambda_k) tau above about 36"), "{err}");
+    }
+
+    /// Where the QR's rank test does not notice (Lorenz at tau = 10: lambda_3 came out -2.85
+    /// instead of -14.57, the spread at the rounding's 37), the mean spread past
+    /// UNRESOLVED_SPREAD stops the run after 20 accumulated steps; tau = 1 (a spread of 15)
+    /// runs on.
+    #[test]
+    fn a_spread_at_the_rounding_limit_stops_the_run() {
+        let lorenz = |tau: f64| RunConfig { system: SystemConfig::lorenz(), tau, relax_steps: 10, steps: 200, vectors: 3, seed: 1, threads: 1, blocks: 2 };
+        let mut f = Forward::new(&lorenz(10.0)).unwrap();
+        let err = loop {
+            if let Err(e) = f.step() {
+                break e.to_string();
+            }
+        };
+        assert!(err.contains("step 31: the QR steps measure (lambda_1 - lambda_k) tau = 3") && err.contains("give a smaller --tau"), "{err}");
+        assert!(f.early_precision_warning(200).is_none(), "the error, not a warning with a --tau from rounding");
+        let mut f = Forward::new(&lorenz(1.0)).unwrap();
+        for _ in 0..210 {
+            f.step().unwrap();
+        }
+        assert!(crate::linalg::unresolved(f.acc.mean_spread().unwrap(), 1.0).is_none());
+        assert!(crate::linalg::precision_warning(&[0.9, 0.0, -14.57], 10.0).is_some_and(|w| w.contains("at the limit")), "inspect of an older run");
     }
 
     /// A used pass restored to a saved state continues exactly as a fresh pass resumed from it.

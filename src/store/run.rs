@@ -548,6 +548,9 @@ impl RunDir {
                     path.display()
                 )));
             }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound && !path.exists() => {
+                return Err(Error::Other(format!("{} does not exist; give a run directory written by `clv forward --out`", path.display())));
+            }
             Err(e) => return Err(Error::Other(format!("{}: {e}; is {} a run directory written by `clv forward --out`?", meta_path.display(), path.display()))),
         };
         // Damaged or edited (its checksum), a run.json can no longer be trusted with any

@@ -196,7 +196,7 @@ impl Analysis for Overlaps {
         };
         // Two vectors (the Henon map): every curve would have two points, and all would give
         // one angle; its numbers instead of the figures.
-        let two = ctx.d == 2 && ctx.k == 2;
+        let two = ctx.d == 2;
         let mut produced = Vec::new();
         if let Some(gv) = &self.gv {
             write_csv(
@@ -256,8 +256,8 @@ impl Overlaps {
     /// have two points each and all give the angle θ between v^1 and v^2, since v^1 = ±g^1
     /// and g^2 is normal to it: |v^1 · v^2| = |v^2 · g^1| = |cos θ|, |g^2 · v^2| = |sin θ|.
     fn one_angle(&self, shared: &Shared) -> Produced {
-        let cos = self.vv_mean(0).map(|m| m[1]).or_else(|| self.vv_mean(1).map(|m| m[0]));
-        let sin = self.gv.as_ref().map(|gv| gv.mean()[1]);
+        let cos = self.vv_mean(0).and_then(|m| m.get(1).copied()).or_else(|| self.vv_mean(1).map(|m| m[0]));
+        let sin = self.gv.as_ref().and_then(|gv| gv.mean().get(1).copied());
         let block = self.ctx.block_len(true) as usize;
         let error = |c: usize| {
             let series: Vec<f64> = self.angle.iter().map(|a| a[c]).collect();
@@ -279,12 +279,16 @@ impl Overlaps {
         let tables = [(self.gv.is_some(), "overlap_gs_clv.csv"), (self.vg.is_some() && !self.fig4_js.is_empty(), "overlap_clv_gs.csv"), (!self.vv_js.is_empty(), "overlap_clv_clv.csv")];
         Produced {
             title: "Angle between the two covariant vectors (Figs. 3, 4 and 13 for D = 2)".into(),
-            caption: format!(
-                "With D = 2 the curves of Figs. 3, 4 and 13 would have two points each, and all give one number, the angle θ between the unstable covariant vector v^1 and the stable one v^2 (g^1 = ±v^1, g^2 normal to it), so they are left out: {}, {}.{}",
-                numbers.join("; "),
-                shared.avg,
-                if self.ctx.system == "henon" { " Fig. 1 draws both vectors at a point of the attractor." } else { "" }
-            ),
+            caption: if self.ctx.k < 2 {
+                "With D = 2 and one vector (k = 1) the curves of Figs. 3, 4 and 13 would have one point each, |g^1 · v^1| = 1 (v^1 = ±g^1), so they are left out; the angle θ between the unstable and the stable covariant vector needs both (--vectors 2).".into()
+            } else {
+                format!(
+                    "With D = 2 the curves of Figs. 3, 4 and 13 would have two points each, and all give one number, the angle θ between the unstable covariant vector v^1 and the stable one v^2 (g^1 = ±v^1, g^2 normal to it), so they are left out: {}, {}.{}",
+                    numbers.join("; "),
+                    shared.avg,
+                    if self.ctx.system == "henon" { " Fig. 1 draws both vectors at a point of the attractor." } else { "" }
+                )
+            },
             figures: Vec::new(),
             tables: tables.into_iter().filter(|(has, _)| *has).map(|(_, t)| t.to_string()).collect(),
         }
@@ -670,6 +674,21 @@ mod tests {
         assert!(p.figures.is_empty() && p.tables == ["overlap_gs_clv.csv", "overlap_clv_gs.csv", "overlap_clv_clv.csv"], "{p:?}");
         assert!(p.caption.contains(&format!("<|cos θ|> = {:.4}", mean(f64::cos))) && p.caption.contains(&format!("<|sin θ|> = {:.4}", mean(f64::sin))), "{}", p.caption);
         assert!(!std::fs::read_dir(&*out).unwrap().any(|e| e.unwrap().file_name().to_string_lossy().ends_with(".png")));
+    }
+
+    /// With one of the Henon map's two vectors there is no angle: no one-point figures, a
+    /// caption that says what is missing (it indexed a second vector that is not there).
+    #[test]
+    fn one_vector_of_two_gives_no_figures_and_no_angle() {
+        let mut ctx = context("henon", 0, 2, true, vec![1]);
+        ctx.k = 1;
+        let mut a = new(&ctx).unwrap();
+        for step in 0..3 {
+            a.consume(&frame(step, 2, vec![1.0, 0.0], Some(vec![1.0, 0.0]))).unwrap();
+        }
+        let out = scratch("one-vector");
+        let produced = a.finish(&out, 3).unwrap();
+        assert!(produced.len() == 1 && produced[0].figures.is_empty() && produced[0].caption.contains("needs both (--vectors 2)"), "{produced:?}");
     }
 
     /// The angle's averages carry errors by batch means: blocks of the context's 50 frames
