@@ -199,6 +199,10 @@ fn approaching(b: f64, r2: f64, v2: f64) -> bool {
 /// pair that overlaps by rounding and approaches collides at once.
 pub fn contact_time(r: [f64; 2], v: [f64; 2]) -> Option<f64> {
     let b = r[0] * v[0] + r[1] * v[1];
+    // Receding, the common case, decided before anything else is computed.
+    if b >= 0.0 {
+        return None;
+    }
     let r2 = r[0] * r[0] + r[1] * r[1];
     let v2 = v[0] * v[0] + v[1] * v[1];
     if !approaching(b, r2, v2) {
