@@ -217,6 +217,7 @@ fn clv_run_takes_settings_that_change_the_preset() {
         (vec!["run", "--out", o, "--steps", "300", "--resume", o], "--resume is not a setting of a run"),
         (vec!["run", "--out", o, "--preset", "henon", "--n", "5"], "--n: sets up hard disks"),
         (vec!["run", "--out", o, "--steps", "many"], "'many'"),
+        (vec!["run", "--out", o, "--preset", "lorenz", "--system", "henon"], "tau must be 1 (--tau comes from the preset lorenz; give --tau among the settings)"),
     ] {
         let r = clv(&args);
         let err = String::from_utf8_lossy(&r.stderr);

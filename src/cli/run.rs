@@ -79,7 +79,11 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
     // The file's keys too: a Henon run would ignore them.
     no_disk_flags_for_henon(forward.system, given).map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))?;
     let in_file = |name: &str| given(name) && !in_settings(name);
-    forward.box_from_command_line(in_settings, in_file).and_then(|f| f.meta()).map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))
+    forward.box_from_command_line(in_settings, in_file).and_then(|f| f.meta()).map_err(|e| match (e, &args.config) {
+        // A preset's value that the settings made wrong (its tau for another --system).
+        (Error::Param { name, msg }, None) if !in_settings(name) => Error::Param { name, msg: format!("{msg} (--{name} comes from the preset {}; give --{name} among the settings)", args.preset) },
+        (e, _) => super::blame_file(e, args.config.as_deref(), in_settings),
+    })
 }
 
 /// `args` with `clv run`'s own options that were given among the settings (`clv run --steps
