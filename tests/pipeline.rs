@@ -223,6 +223,9 @@ fn clv_run_takes_settings_that_change_the_preset() {
         let err = String::from_utf8_lossy(&r.stderr);
         assert!(!r.status.success() && err.contains(named), "{args:?}: {err}");
     }
+    // The default preset's own disk settings do not stand in the way of another system.
+    let lorenz = scratch("run-lorenz-from-default");
+    ok(clv(&["run", "--preset", "default", "--system", "lorenz", "--steps", "200", "--relax-steps", "10", "--quiet", "--out", lorenz.to_str().unwrap()]));
     // A configuration file's disk keys for the Henon map too (they were ignored).
     let file = out.join("henon.toml");
     std::fs::write(&file, "system = \"henon\"\nn = 40\nsteps = 100\n").unwrap();

@@ -42,7 +42,7 @@ pub struct ForwardArgs {
     #[arg(long, default_value_t = 0.7, allow_negative_numbers = true)]
     pub density: f64,
     /// Aspect ratio Ly/Lx, as a number or a fraction such as 2/11.
-    #[arg(long, default_value = "2/11", value_parser = parse_ratio, allow_hyphen_values = true)]
+    #[arg(long, default_value = "2/11", value_parser = parse_ratio, allow_negative_numbers = true)]
     pub aspect: f64,
     /// Box side Lx (with --ly, instead of --density and --aspect).
     #[arg(long, requires = "ly", allow_negative_numbers = true)]

@@ -20,22 +20,29 @@ pub const RESOLVED_SPREAD: f64 = 36.04;
 /// 40 (against lambda_1 = 5).
 pub const PRECISE_SPREAD: f64 = 18.0;
 
-/// A mean spread (lambda_1 - lambda_k) tau measured this close to [`RESOLVED_SPREAD`] is
-/// rounding's own: where the most contracting vectors shrink to rounding between two QR
-/// steps, R_kk is rounding, and the spread it gives stays near ln(1 / eps) whatever the
-/// dynamics (Lorenz at tau = 6, 10, 20: 37.9, 37.4, 37.0, with lambda_3 = -5.3, -2.8, -1.0
-/// instead of -14.57; faer's rank test caught such columns at some tau, not at others).
-pub const UNRESOLVED_SPREAD: f64 = 34.0;
+/// The mean spread (lambda_1 - lambda_k) tau of k vectors above which it is rounding's own:
+/// where the most contracting vectors shrink to rounding between two QR steps, R_kk is
+/// rounding, and the spread it gives stays near ln(1 / eps) = 36 whatever the dynamics
+/// (Lorenz, k = 3, at tau = 6, 10, 20: 37.9, 37.4, 37.0, with lambda_3 = -5.3, -2.8, -1.0
+/// instead of -14.57; faer's rank test caught such columns at some tau, not at others). The
+/// rounding of a column grows with the columns before it, so the floor falls with k: N = 16
+/// disks (k = 64) at tau = 3.5 measured 33.8 for a spread of about 35, lambda_k 7 % off.
+/// Hence 36 - 2 - ln k: 32.9 for Lorenz, 29.9 for k = 64, 27.3 for the paper's 792.
+pub fn unresolved_spread(k: usize) -> f64 {
+    RESOLVED_SPREAD - 2.0 - (k.max(1) as f64).ln()
+}
 
-/// Why QR steps `tau` apart whose mean spread (lambda_1 - lambda_k) tau is `spread` measure
-/// rounding instead of the stable exponents, if they do ([`UNRESOLVED_SPREAD`]).
-pub fn unresolved(spread: f64, tau: f64) -> Option<String> {
-    (spread > UNRESOLVED_SPREAD).then(|| {
+/// Why QR steps `tau` apart whose k vectors have the mean spread (lambda_1 - lambda_k) tau =
+/// `spread` measure rounding instead of the stable exponents, if they do
+/// ([`unresolved_spread`]).
+pub fn unresolved(spread: f64, tau: f64, k: usize) -> Option<String> {
+    (spread > unresolved_spread(k)).then(|| {
         format!(
-            "the QR steps measure (lambda_1 - lambda_k) tau = {spread:.1}, at the limit of what the 16 digits of a double resolve (about {RESOLVED_SPREAD:.0}): \
+            "the QR steps measure (lambda_1 - lambda_k) tau = {spread:.1}, at the limit of what the 16 digits of a double resolve for k = {k} vectors (about {:.0}): \
              between two QR steps the most contracting tangent vectors shrink to rounding, so their exponents measure rounding, not the dynamics; \
              give a smaller --tau (below {:.3} keeps half of the digits: a spread of {PRECISE_SPREAD:.0}, if the exponents were as measured, which they are not: \
              take less)",
+            unresolved_spread(k),
             PRECISE_SPREAD * tau / spread
         )
     })
@@ -43,12 +50,12 @@ pub fn unresolved(spread: f64, tau: f64) -> Option<String> {
 
 /// Why the exponents `lambda` (lambda_1 first) measured with QR steps `tau` apart are less
 /// precise than the run's statistics say, if they are: a spread (lambda_1 - lambda_k) tau
-/// above [`PRECISE_SPREAD`], or past [`UNRESOLVED_SPREAD`] not measured at all.
+/// above [`PRECISE_SPREAD`], or past [`unresolved_spread`] not measured at all.
 pub fn precision_warning(lambda: &[f64], tau: f64) -> Option<String> {
     let range = lambda.first()? - lambda.last()?;
     let spread = range * tau;
     // A run written before such runs stopped (inspect reads them).
-    if let Some(why) = unresolved(spread, tau) {
+    if let Some(why) = unresolved(spread, tau, lambda.len()) {
         return Some(why);
     }
     (spread > PRECISE_SPREAD).then(|| {
@@ -178,7 +185,10 @@ mod tests {
         let w = precision_warning(&[5.0, 0.0, -5.0], 2.5).unwrap();
         assert!(w.contains("tau = 25.0") && w.contains("give a --tau below 1.800"), "{w}");
         let w = precision_warning(&[5.0, 0.0, -5.0], 4.0).unwrap();
-        assert!(w.contains("tau = 40.0, at the limit") && w.contains("measure rounding"), "past UNRESOLVED_SPREAD: {w}");
+        assert!(w.contains("tau = 40.0, at the limit") && w.contains("measure rounding"), "past unresolved_spread: {w}");
+        // The floor falls with k: 31 is rounding for 64 vectors (N = 16 disks at tau = 3.5
+        // measured 33.8), not for Lorenz's 3 (tau = 2 measured 30.9, lambda_3 still -14.56).
+        assert!(unresolved(31.0, 3.5, 64).is_some() && unresolved(31.0, 2.0, 3).is_none());
     }
 
     fn random_upper(k: usize, rng: &mut Rng) -> Mat<f64> {

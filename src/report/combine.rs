@@ -147,10 +147,12 @@ fn read(path: &Path) -> Result<RunSpectrum> {
     }
     let (run, _): (RunSpectrum, _) = crate::store::checked_json::from_slice(&file, &bytes).map_err(|e| {
         // Another of clv's files is intact, only not a spectrum.
-        let other = ["clv_spectrum", "summary", "run", "backward", "progress"].into_iter().find(|stem| file.file_name().is_some_and(|n| n.to_string_lossy().starts_with(stem)));
-        match other {
-            Some(stem) => Error::Other(format!("{} is clv's {stem}.json, not a run's spectrum.json; give the run directory, or its spectrum.json", file.display())),
-            None => Error::Other(format!("{e}; a spectrum.json written by `clv forward --out` is expected (a damaged one is rewritten by `clv forward --resume RUN_DIR`)")),
+        let name = file.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let sweep = name.strip_prefix("clv_spectrum").and_then(|rest| rest.strip_suffix(".json")).is_some_and(|n| n.is_empty() || n.strip_prefix('-').is_some_and(|n| n.parse::<u32>().is_ok()));
+        if ["run.json", "summary.json", "backward.json"].contains(&name.as_str()) || sweep {
+            Error::Other(format!("{} is clv's {name}, not a run's spectrum.json; give the run directory, or its spectrum.json", file.display()))
+        } else {
+            Error::Other(format!("{e}; a spectrum.json written by `clv forward --out` is expected (a damaged one is rewritten by `clv forward --resume RUN_DIR`)"))
         }
     })?;
     if run.exponents.len() != run.stderr.len() || run.exponents.len() != run.config.vectors {

@@ -67,8 +67,8 @@ pub fn warnings(config: &RunConfig, exponents: &[f64]) -> Vec<String> {
 }
 
 /// Above this fraction of lambda_1, a null-space exponent of hard disks is not round-off.
-/// Settled runs have 1e-15 .. 1e-13 of it; a gas at density 0.05 after the default 100
-/// relaxation steps had 2e-4 (a stress hunt; 1e-14 after 3000).
+/// Settled runs have 1e-15 .. 1e-13 of it; 36 disks at density 0.05 after the default 100
+/// relaxation steps had 3e-3 (a stress hunt; 1e-14 after 3000).
 pub const NULL_SPACE_TOLERANCE: f64 = 1e-6;
 
 /// Why the hard disks' six null-space exponents (i = 2N-2..2N+3), zero by symmetry, are

@@ -144,7 +144,9 @@ impl StoreConfig {
     /// Estimated disk footprint of the finished run: pruning removes whole segments, so the
     /// segment holding the window's first step is kept whole, from the start of its span of
     /// `segment_checkpoints` checkpoints (up to that many - 1 more than the window needs),
-    /// and `keep_segments` whole segments before it.
+    /// and `keep_segments` whole segments before it. Segments of a resumed run, or closed
+    /// early by `segment_bytes`, start elsewhere: the estimate is then off by less than a
+    /// segment.
     pub fn footprint(&self, config: &RunConfig) -> Footprint {
         let per_checkpoint = self.checkpoint_bytes(config);
         let window = self.clv_steps + self.transient;

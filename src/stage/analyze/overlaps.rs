@@ -260,7 +260,8 @@ impl Overlaps {
         let sin = self.gv.as_ref().and_then(|gv| gv.mean().get(1).copied());
         let block = self.ctx.block_len(true) as usize;
         let error = |c: usize| {
-            let series: Vec<f64> = self.angle.iter().map(|a| a[c]).collect();
+            // Frames without G (a file of both kinds) give no sine: blocks over those with one.
+            let series: Vec<f64> = self.angle.iter().map(|a| a[c]).filter(|x| !x.is_nan()).collect();
             match crate::statistics::batch_stderr(&series, block) {
                 e if e.is_finite() => format!(" ± {e:.4}"),
                 _ => String::new(),

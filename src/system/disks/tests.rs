@@ -469,4 +469,10 @@ fn near_close_packing_runs_at_its_collision_rate() {
     assert!(s.collisions > 100_000, "{} collisions", s.collisions);
     assert!(s.min_separation() > 1.0 - 1e-6);
     assert!(((s.invariants().energy - start.energy) / start.energy).abs() < 1e-9);
+    // Gaps of 5e-8 diameters (36 disks at number density 1.1547, the crystal's 1.15470):
+    // refused within a second by the rate, where the stall test let it run 4 minutes.
+    let (lx, ly) = box_sides(36, 1.1547, 0.866025);
+    let mut s = HardDisks::new(36, lx, ly, 0.6, 1).unwrap();
+    let err = s.advance(&mut Tangent::zeros(144, 0)).unwrap_err().to_string();
+    assert!(err.contains("events per disk and unit time") && err.contains("lower --density"), "{err}");
 }

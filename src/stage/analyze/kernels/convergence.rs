@@ -44,7 +44,7 @@ pub struct Diagnostics {
     /// Blocks used.
     pub blocks: usize,
     /// The block averages of all k exponents sum to a constant (k = D with a constant
-    /// Jacobian determinant: ln b for Henon, -(sigma + 1 + beta) tau for Lorenz, 0 for hard
+    /// Jacobian determinant: ln b for Henon, -(sigma + 1 + beta) for Lorenz, 0 for hard
     /// disks), so one tested exponent follows from the others: Henon's two have z_2 = -z_1,
     /// and counted as two they made "both drift" a 6 % event that the count took for 0.4 %
     /// (11 alarms in 200 stationary runs, found by an outside check).
