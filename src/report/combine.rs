@@ -88,6 +88,12 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
             )));
         }
     }
+    // In the order of their seeds (all differ), so that the sums' rounding and the combined
+    // configuration's seed do not depend on the order the runs were named in.
+    let mut named: Vec<(RunSpectrum, PathBuf)> = runs.into_iter().zip(paths.iter().cloned()).collect();
+    named.sort_by_key(|(run, _)| run.config.seed);
+    let (runs, paths): (Vec<RunSpectrum>, Vec<PathBuf>) = named.into_iter().unzip();
+    let first = &runs[0].config;
     let weights: Vec<f64> = runs.iter().map(|r| r.config.steps as f64).collect();
     let (mut exponents, mut stderr, mut chi2) = (Vec::new(), Vec::new(), Vec::new());
     let scale = runs.iter().flat_map(|r| &r.exponents).map(|l| l.abs()).fold(0.0, f64::max);
@@ -110,7 +116,7 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
         Estimate { value, stderr: weighted_mean(&per_run, &weights).1 }
     });
     Ok(Combined {
-        runs: paths.to_vec(),
+        runs: paths,
         config: RunConfig { steps: runs.iter().map(|r| r.config.steps).sum(), ..first.clone() },
         seeds: runs.iter().map(|r| r.config.seed).collect(),
         steps: runs.iter().map(|r| r.config.steps).collect(),
