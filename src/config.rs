@@ -24,12 +24,69 @@ pub enum SystemConfig {
 }
 
 impl SystemConfig {
+    /// The Henon map at the paper's a = 1.4, b = 0.3.
     pub fn henon() -> Self {
         SystemConfig::Henon { a: Henon::A, b: Henon::B }
     }
 
+    /// The Lorenz flow at the classic sigma = 10, rho = 28, beta = 8/3.
     pub fn lorenz() -> Self {
         SystemConfig::Lorenz { sigma: Lorenz::SIGMA, rho: Lorenz::RHO, beta: Lorenz::BETA }
+    }
+
+    /// The Henon map with parameters a and b, checked ([`SystemConfig::check_parameters`]).
+    pub fn henon_with(a: f64, b: f64) -> Result<Self> {
+        let system = SystemConfig::Henon { a, b };
+        system.check_parameters()?;
+        Ok(system)
+    }
+
+    /// The Lorenz flow with parameters sigma, rho and beta, checked.
+    pub fn lorenz_with(sigma: f64, rho: f64, beta: f64) -> Result<Self> {
+        let system = SystemConfig::Lorenz { sigma, rho, beta };
+        system.check_parameters()?;
+        Ok(system)
+    }
+
+    /// Refuse parameters of the Henon map or the Lorenz flow for which the exponents are not
+    /// defined or the orbit cannot stay bounded (the disks' box is checked where it is made).
+    /// Whether the orbit is chaotic is left to the run: the report warns if no exponent is
+    /// positive.
+    pub fn check_parameters(&self) -> Result<()> {
+        match *self {
+            SystemConfig::Henon { a, b } => {
+                if !a.is_finite() {
+                    return Err(Error::param("henon-a", format!("must be a finite number, got {a}")));
+                }
+                // det J = -b at every point: lambda_1 + lambda_2 = ln |b|.
+                if !(b.is_finite() && b != 0.0) {
+                    return Err(Error::param("henon-b", format!("must be a finite number other than 0 (det J = -b, so with b = 0 the map folds the plane onto a line and lambda_2 = -infinity), got {b}")));
+                }
+            }
+            SystemConfig::Lorenz { sigma, rho, beta } => {
+                // With sigma, beta > 0 every orbit enters a bounded ellipsoid; otherwise the
+                // flow's divergence -(sigma + 1 + beta) need not contract phase space.
+                for (flag, value, what) in [("lorenz-sigma", sigma, "the Prandtl number"), ("lorenz-beta", beta, "the geometric factor")] {
+                    if !(value > 0.0 && value.is_finite()) {
+                        return Err(Error::param(flag, format!("must be a positive finite number ({what}; with it at or below 0 the orbits need not stay bounded), got {value}")));
+                    }
+                }
+                if !rho.is_finite() {
+                    return Err(Error::param("lorenz-rho", format!("must be a finite number, got {rho}")));
+                }
+                let per_unit = Lorenz::steps_per_unit(sigma, rho, beta);
+                if per_unit > crate::system::lorenz::MAX_STEPS_PER_UNIT {
+                    let rotation = (sigma * rho.abs()).sqrt() + (beta * rho.abs()).sqrt();
+                    let flag = if rotation >= sigma.max(beta) { "lorenz-rho" } else if sigma >= beta { "lorenz-sigma" } else { "lorenz-beta" };
+                    return Err(Error::param(
+                        flag,
+                        format!("sigma = {sigma}, rho = {rho}, beta = {beta} make a field so fast that the integrator would need {per_unit:.1e} Runge-Kutta steps per unit time (at most {:.0e}); choose smaller parameters", crate::system::lorenz::MAX_STEPS_PER_UNIT),
+                    ));
+                }
+            }
+            SystemConfig::Disks { .. } => {}
+        }
+        Ok(())
     }
 
     /// Disks from N, density and aspect ratio Ly/Lx.
@@ -137,6 +194,7 @@ impl RunConfig {
     }
 
     pub fn validate(&self) -> Result<()> {
+        self.system.check_parameters()?;
         if matches!(self.system, SystemConfig::Disks { n: 0 | 1, .. }) {
             return Err(Error::param("n", "must be at least 2 disks (one disk alone never collides)"));
         }
@@ -292,6 +350,30 @@ impl RunConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Henon and Lorenz parameters that leave the exponents undefined or the orbit unbounded
+    /// are refused, naming the flag; a run.json edited to hold them is refused too.
+    #[test]
+    fn system_parameters_are_checked() {
+        assert_eq!(SystemConfig::henon_with(1.2, -0.3).unwrap(), SystemConfig::Henon { a: 1.2, b: -0.3 });
+        assert!(SystemConfig::lorenz_with(10.0, 0.5, 1.0).is_ok(), "a stable origin is a system too (the report warns)");
+        let flag = |r: Result<SystemConfig>| match r {
+            Err(Error::Param { name, .. }) => name,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(flag(SystemConfig::henon_with(f64::NAN, 0.3)), "henon-a");
+        assert_eq!(flag(SystemConfig::henon_with(1.4, 0.0)), "henon-b");
+        assert_eq!(flag(SystemConfig::henon_with(1.4, f64::INFINITY)), "henon-b");
+        assert_eq!(flag(SystemConfig::lorenz_with(0.0, 28.0, 1.0)), "lorenz-sigma");
+        assert_eq!(flag(SystemConfig::lorenz_with(10.0, f64::NAN, 1.0)), "lorenz-rho");
+        assert_eq!(flag(SystemConfig::lorenz_with(10.0, 28.0, -1.0)), "lorenz-beta");
+        // Too fast for the integrator's step count: named by what makes it so.
+        assert_eq!(flag(SystemConfig::lorenz_with(10.0, 1e13, 1.0)), "lorenz-rho");
+        assert_eq!(flag(SystemConfig::lorenz_with(1e7, 28.0, 1.0)), "lorenz-sigma");
+        let mut config = RunConfig::preset("lorenz").unwrap();
+        config.system = SystemConfig::Lorenz { sigma: -10.0, rho: 28.0, beta: 1.0 };
+        assert!(config.validate().unwrap_err().to_string().contains("--lorenz-sigma"));
+    }
 
     /// A box given by its sides must have positive, finite ones, and the error names them
     /// (it used to blame --density, which had not been given).

@@ -315,3 +315,74 @@ fn combine_leaves_a_flows_zero_exponent_out_of_chi2() {
     assert_eq!(v["mean_chi2_per_dof"].as_f64().unwrap(), (chi2[0] + chi2[2]) / 2.0, "{chi2:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The Henon map's a, b and the Lorenz flow's sigma, rho, beta are settings: they reach the
+/// dynamics (the exponents of a Lorenz fixed point are the eigenvalues of its Jacobian; the
+/// Henon exponents sum to ln |b|), a configuration file and a resumed run; a spectrum
+/// without chaos is warned of; another system's flags and a changed parameter on resume are
+/// refused.
+#[test]
+fn henon_and_lorenz_parameters_are_settings() {
+    let json = |args: &[&str]| -> serde_json::Value {
+        let out = clv(&[&["forward", "--json", "--quiet"][..], args].concat());
+        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let lambda = |v: &serde_json::Value, i: usize| v["exponents"][i].as_f64().unwrap();
+    let v = json(&["--system", "henon", "--henon-a", "1.2", "--henon-b", "3/10", "--steps", "5000"]);
+    assert_eq!((&v["config"]["system"]["a"], &v["config"]["system"]["b"]), (&serde_json::json!(1.2), &serde_json::json!(0.3)));
+    assert!((lambda(&v, 0) + lambda(&v, 1) - 0.3f64.ln()).abs() < 1e-9 && lambda(&v, 0) > 0.1 && v.get("warnings").is_none(), "{v}");
+    let v = json(&["--system", "henon", "--henon-a", "1.0", "--steps", "2000"]);
+    assert!(v["warnings"][0].as_str().is_some_and(|w| w.contains("not clearly positive") && w.contains("periodic orbit")), "{v}");
+
+    // rho = 20 < 24.74: the orbit settles on a fixed point C = (c, c, rho - 1), c^2 = beta
+    // (rho - 1), whose Jacobian has the characteristic polynomial below.
+    let (sigma, rho, beta) = (10.0f64, 20.0f64, 8.0f64 / 3.0);
+    let v = json(&["--system", "lorenz", "--lorenz-rho", "20", "--lorenz-beta", "8/3", "--steps", "3000"]);
+    assert_eq!(v["config"]["system"]["beta"].as_f64(), Some(beta));
+    let p = |l: f64| l.powi(3) + (sigma + beta + 1.0) * l * l + beta * (sigma + rho) * l + 2.0 * sigma * beta * (rho - 1.0);
+    let dp = |l: f64| 3.0 * l * l + 2.0 * (sigma + beta + 1.0) * l + beta * (sigma + rho);
+    let real_root = (0..50).fold(-sigma - beta - 1.0, |l, _| l - p(l) / dp(l));
+    let pair = (-(sigma + beta + 1.0) - real_root) / 2.0;
+    assert!((lambda(&v, 2) - real_root).abs() < 1e-3 && (lambda(&v, 0) - pair).abs() < 2e-3 && (lambda(&v, 1) - pair).abs() < 2e-3, "{v} against {pair}, {pair}, {real_root}");
+    assert!(v["warnings"][0].as_str().is_some_and(|w| w.contains("fixed point")), "{v}");
+
+    // A configuration file carries them.
+    let dir = std::env::temp_dir().join(format!("clv-parameters-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = clv(&["config", "--preset", "lorenz"]);
+    let text = String::from_utf8(config.stdout).unwrap().replace("lorenz-rho = 28", "lorenz-rho = 20");
+    let file = dir.join("lorenz.toml");
+    std::fs::write(&file, text).unwrap();
+    let v = json(&["--config", file.to_str().unwrap(), "--steps", "300", "--relax-steps", "10"]);
+    assert_eq!(v["config"]["system"], serde_json::json!({"kind": "lorenz", "sigma": 10.0, "rho": 20.0, "beta": beta}));
+
+    // A resumed run keeps them: a different one is refused, the same one accepted.
+    let run = dir.join("henon");
+    let r = run.to_str().unwrap();
+    let o = clv(&["forward", "--system", "henon", "--henon-a", "1.3", "--steps", "500", "--out", r, "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = clv(&["forward", "--resume", r, "--henon-a", "1.2"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("--henon-a 1.2 conflicts with the run") && err.contains("made with --henon-a 1.3"), "{err}");
+    let o = clv(&["forward", "--resume", r, "--henon-a", "1.3", "--steps", "600", "--quiet"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = clv(&["forward", "--resume", r, "--n", "5"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("--n: sets up hard disks (--system disks); the Henon map (--system henon) has no such setting"), "{err}");
+
+    for (args, needle) in [
+        (vec!["forward", "--henon-a", "1.2"], "--henon-a: sets up the Henon map (--system henon); hard disks (--system disks) have no such setting"),
+        (vec!["forward", "--system", "henon", "--lorenz-rho", "20"], "--lorenz-rho: sets up the Lorenz flow"),
+        (vec!["forward", "--system", "henon", "--henon-b", "0"], "--henon-b: must be a finite number other than 0"),
+        (vec!["forward", "--system", "lorenz", "--lorenz-beta", "-1"], "--lorenz-beta: must be a positive finite number"),
+        (vec!["forward", "--system", "lorenz", "--lorenz-sigma", "1/0"], "--lorenz-sigma"),
+        (vec!["run", "--preset", "lorenz", "--out", dir.join("x").to_str().unwrap(), "--henon-a", "1"], "--henon-a: sets up the Henon map"),
+    ] {
+        let out = clv(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(needle) && !err.contains("panicked"), "{args:?}: {err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

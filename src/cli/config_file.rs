@@ -99,11 +99,11 @@ fn number(s: &str) -> Option<String> {
 pub fn render(name: &str, config: &RunConfig, store: &StoreConfig) -> String {
     let mut s = format!("# clv configuration: preset {name:?}. Keys are the flags of `clv forward`;\n# use with `clv forward --config FILE --out DIR` or `clv run --config FILE`.\n\n[system]\n");
     match &config.system {
-        SystemConfig::Henon { .. } => {
-            let _ = writeln!(s, "system = \"henon\"");
+        SystemConfig::Henon { a, b } => {
+            let _ = writeln!(s, "system = \"henon\"\nhenon-a = {a}\nhenon-b = {b}    # x' = a - x^2 + b y, y' = x");
         }
-        SystemConfig::Lorenz { .. } => {
-            let _ = writeln!(s, "system = \"lorenz\"");
+        SystemConfig::Lorenz { sigma, rho, beta } => {
+            let _ = writeln!(s, "system = \"lorenz\"\nlorenz-sigma = {sigma}\nlorenz-rho = {rho}\nlorenz-beta = {beta}    # x' = sigma (y - x), y' = x (rho - z) - y, z' = x y - beta z");
         }
         SystemConfig::Disks { n, density, aspect, .. } => {
             let _ = writeln!(s, "system = \"disks\"\nn = {n}\ndensity = {density}\naspect = {aspect}    # Ly/Lx");

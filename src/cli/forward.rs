@@ -5,6 +5,8 @@ use super::{emit, print_json, progress};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, ValueEnum};
 use clv::config::{RunConfig, SystemConfig};
+use clv::system::henon::Henon;
+use clv::system::lorenz::Lorenz;
 use clv::report::{SpectrumReport, Statistics};
 use clv::stage::forward::Forward;
 use clv::stage::forward_run::{self, Extension, Feedback};
@@ -50,6 +52,22 @@ pub struct ForwardArgs {
     /// Box side Ly (with --lx).
     #[arg(long, requires = "lx", allow_negative_numbers = true)]
     pub ly: Option<f64>,
+    /// The Henon map's a in x' = a - x^2 + b y (default 1.4, the paper's).
+    #[arg(long, value_parser = parse_number, allow_negative_numbers = true)]
+    pub henon_a: Option<f64>,
+    /// The Henon map's b, its Jacobian's determinant up to sign (default 0.3, the paper's).
+    #[arg(long, value_parser = parse_number, allow_negative_numbers = true)]
+    pub henon_b: Option<f64>,
+    /// The Lorenz flow's sigma in x' = sigma (y - x) (default 10).
+    #[arg(long, value_parser = parse_number, allow_negative_numbers = true)]
+    pub lorenz_sigma: Option<f64>,
+    /// The Lorenz flow's rho in y' = x (rho - z) - y (default 28; chaotic above about 24.74
+    /// with the other two at their defaults).
+    #[arg(long, value_parser = parse_number, allow_negative_numbers = true)]
+    pub lorenz_rho: Option<f64>,
+    /// The Lorenz flow's beta in z' = x y - beta z, as a number or a fraction (default 8/3).
+    #[arg(long, value_parser = parse_number, allow_negative_numbers = true)]
+    pub lorenz_beta: Option<f64>,
     /// Time between re-orthonormalisations (default 0.6 for disks, 1 for Henon, 0.1 for Lorenz).
     #[arg(long, allow_negative_numbers = true)]
     pub tau: Option<f64>,
@@ -105,13 +123,22 @@ pub struct ForwardArgs {
     pub quiet: bool,
 }
 
-fn parse_ratio(s: &str) -> std::result::Result<f64, String> {
+/// A finite number, or a fraction such as 8/3.
+fn parse_number(s: &str) -> std::result::Result<f64, String> {
     let num = |x: &str| x.trim().parse::<f64>().map_err(|e| format!("{x:?}: {e}"));
     let value = match s.split_once('/') {
         Some((a, b)) => num(a)? / num(b)?,
         None => num(s)?,
     };
-    if value.is_finite() && value > 0.0 { Ok(value) } else { Err(format!("must be a positive number or fraction, got {s}")) }
+    if value.is_finite() { Ok(value) } else { Err(format!("must be a finite number or fraction, got {s}")) }
+}
+
+/// A positive number or fraction.
+fn parse_ratio(s: &str) -> std::result::Result<f64, String> {
+    match parse_number(s) {
+        Ok(value) if value > 0.0 => Ok(value),
+        _ => Err(format!("must be a positive number or fraction, got {s}")),
+    }
 }
 
 impl ForwardArgs {
@@ -145,8 +172,14 @@ impl ForwardArgs {
 
     pub fn config(&self) -> Result<RunConfig> {
         let (system, tau) = match self.system {
-            SystemKind::Henon => (SystemConfig::henon(), self.tau.unwrap_or(1.0)),
-            SystemKind::Lorenz => (SystemConfig::lorenz(), self.tau.unwrap_or(0.1)),
+            SystemKind::Henon => {
+                let a = self.henon_a.unwrap_or(Henon::A);
+                (SystemConfig::henon_with(a, self.henon_b.unwrap_or(Henon::B))?, self.tau.unwrap_or(1.0))
+            }
+            SystemKind::Lorenz => {
+                let (sigma, rho, beta) = (self.lorenz_sigma.unwrap_or(Lorenz::SIGMA), self.lorenz_rho.unwrap_or(Lorenz::RHO), self.lorenz_beta.unwrap_or(Lorenz::BETA));
+                (SystemConfig::lorenz_with(sigma, rho, beta)?, self.tau.unwrap_or(0.1))
+            }
             SystemKind::Disks => {
                 let system = match (self.lx, self.ly) {
                     (Some(lx), Some(ly)) => SystemConfig::disks_in_box(self.n, lx, ly),
@@ -213,8 +246,13 @@ pub fn flag_values(m: &RunMeta) -> Vec<(&'static str, String)> {
         ("transient", m.store.transient.to_string()),
     ];
     match &c.system {
-        SystemConfig::Henon { .. } => v.push(("system", "henon".into())),
-        SystemConfig::Lorenz { .. } => v.push(("system", "lorenz".into())),
+        SystemConfig::Henon { a, b } => v.extend([("system", "henon".into()), ("henon_a", a.to_string()), ("henon_b", b.to_string())]),
+        SystemConfig::Lorenz { sigma, rho, beta } => v.extend([
+            ("system", "lorenz".into()),
+            ("lorenz_sigma", sigma.to_string()),
+            ("lorenz_rho", rho.to_string()),
+            ("lorenz_beta", beta.to_string()),
+        ]),
         SystemConfig::Disks { n, lx, ly, density, aspect } => v.extend([
             ("system", "disks".into()),
             ("n", n.to_string()),
@@ -231,6 +269,13 @@ pub fn flag_values(m: &RunMeta) -> Vec<(&'static str, String)> {
 /// --steps (with a new --clv-steps or --transient): that extends the run.
 fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path::Path) -> Result<Option<Extension>> {
     let (_, stored) = clv::store::RunDir::open(dir)?;
+    // The stored run's system, unless --system names another (then refused below): the
+    // flags given are checked against it.
+    let mut args = args.clone();
+    if !from_command_line(matches, "system") {
+        args.system = SystemKind::of(&stored.config.system);
+    }
+    no_flags_of_other_systems(args.system, |flag| from_command_line(matches, flag))?;
     let given: Vec<&str> = flag_values(&stored)
         .iter()
         .map(|(id, _)| *id)
@@ -272,13 +317,54 @@ fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path:
     Ok(extending.then_some(Extension { steps: args.steps, clv_steps: args.clv_steps, transient }))
 }
 
-/// Refuse a flag that sets up hard disks (`given` tells which were given) for the Henon map,
-/// which would otherwise ignore it.
-pub fn no_disk_flags_for_henon(system: SystemKind, given: impl Fn(&str) -> bool) -> Result<()> {
-    match ["n", "density", "aspect", "lx", "ly"].into_iter().find(|id| given(id)) {
-        Some(flag) if system != SystemKind::Disks => Err(Error::param(flag, "sets up hard disks; the Henon map and the Lorenz flow (--system henon, lorenz) have no such setting")),
-        _ => Ok(()),
+/// The flags that set up one system, and that system.
+const SYSTEM_FLAGS: [(&str, SystemKind); 10] = [
+    ("n", SystemKind::Disks),
+    ("density", SystemKind::Disks),
+    ("aspect", SystemKind::Disks),
+    ("lx", SystemKind::Disks),
+    ("ly", SystemKind::Disks),
+    ("henon-a", SystemKind::Henon),
+    ("henon-b", SystemKind::Henon),
+    ("lorenz-sigma", SystemKind::Lorenz),
+    ("lorenz-rho", SystemKind::Lorenz),
+    ("lorenz-beta", SystemKind::Lorenz),
+];
+
+impl SystemKind {
+    fn of(system: &SystemConfig) -> SystemKind {
+        match system {
+            SystemConfig::Henon { .. } => SystemKind::Henon,
+            SystemConfig::Lorenz { .. } => SystemKind::Lorenz,
+            SystemConfig::Disks { .. } => SystemKind::Disks,
+        }
     }
+
+    fn described(self) -> &'static str {
+        match self {
+            SystemKind::Henon => "the Henon map (--system henon)",
+            SystemKind::Lorenz => "the Lorenz flow (--system lorenz)",
+            SystemKind::Disks => "hard disks (--system disks)",
+        }
+    }
+}
+
+/// Refuse a flag that sets up another system than `system` (`given` tells which flags were
+/// given, by their names on the command line), which would otherwise ignore it.
+pub fn no_flags_of_other_systems(system: SystemKind, given: impl Fn(&str) -> bool) -> Result<()> {
+    match SYSTEM_FLAGS.into_iter().find(|&(flag, owner)| owner != system && given(flag)) {
+        Some((flag, owner)) => {
+            let has = if system == SystemKind::Disks { "have" } else { "has" };
+            Err(Error::param(flag, format!("sets up {}; {} {has} no such setting", owner.described(), system.described())))
+        }
+        None => Ok(()),
+    }
+}
+
+/// Whether `matches` has --`flag` from the command line (or a configuration file expanded
+/// into it); clap names the flag --a-b by the id a_b.
+fn from_command_line(matches: &ArgMatches, flag: &str) -> bool {
+    matches.value_source(&flag.replace('-', "_")) == Some(ValueSource::CommandLine)
 }
 
 pub fn forward(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
@@ -293,7 +379,6 @@ fn on_command_line(name: &str) -> bool {
 fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
     let in_file = |name: &str| matches.value_source(name) == Some(ValueSource::CommandLine) && !on_command_line(name);
     let args = &args.box_from_command_line(on_command_line, in_file)?;
-    no_disk_flags_for_henon(args.system, |id| matches.value_source(id) == Some(ValueSource::CommandLine))?;
     if let Some(dir) = &args.resume {
         let mut feedback = Feedback { bar: progress("forward", args.quiet), notices: Vec::new() };
         forward_run::complete_creation(dir, &mut feedback)?;
@@ -314,6 +399,7 @@ fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
         }
         return print_report(&outcome.report, args.json);
     }
+    no_flags_of_other_systems(args.system, |flag| from_command_line(matches, flag))?;
     if let Some(dir) = &args.out {
         super::no_stdout_directory(dir, "a run directory")?;
         if dir.is_file() {

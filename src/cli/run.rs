@@ -1,7 +1,7 @@
 //! `clv run`: the whole pipeline on a preset or a configuration file, changed by settings
 //! given as `clv forward` flags.
 
-use super::forward::{flag_values, no_disk_flags_for_henon};
+use super::forward::{flag_values, no_flags_of_other_systems};
 use super::{config_keys, first_line, progress, Cli, Command};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, CommandFactory, FromArgMatches};
@@ -75,10 +75,10 @@ fn run_meta(args: &RunArgs) -> Result<RunMeta> {
         return Err(Error::Other("settings: not the flags of a run".into()));
     };
     let in_settings = |name: &str| super::names_flag(&args.settings, name);
-    let given = |name: &str| matches.subcommand_matches("forward").and_then(|m| m.value_source(name)) == Some(clap::parser::ValueSource::CommandLine);
+    let given = |name: &str| matches.subcommand_matches("forward").and_then(|m| m.value_source(&name.replace('-', "_"))) == Some(clap::parser::ValueSource::CommandLine);
     // The file's keys too (a Henon run would ignore them), not the preset's own.
     let asked = |name: &str| given(name) && (args.config.is_some() || in_settings(name));
-    no_disk_flags_for_henon(forward.system, asked).map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))?;
+    no_flags_of_other_systems(forward.system, asked).map_err(|e| super::blame_file(e, args.config.as_deref(), in_settings))?;
     let in_file = |name: &str| given(name) && !in_settings(name);
     forward.box_from_command_line(in_settings, in_file).and_then(|f| f.meta()).map_err(|e| match (e, &args.config) {
         // A preset's value that the settings made wrong (its tau for another --system).

@@ -60,10 +60,37 @@ impl Statistics {
 
 /// What makes a forward spectrum `exponents` (lambda_1 first) of `config`'s run less
 /// trustworthy than its errors say: a tau too long for a double's digits
-/// ([`crate::linalg::precision_warning`]) or a hard-disk null space not yet settled
-/// ([`null_space_warning`]).
+/// ([`crate::linalg::precision_warning`]), a hard-disk null space not yet settled
+/// ([`null_space_warning`]), or no sign of chaos at all ([`chaos_warning`]).
 pub fn warnings(config: &RunConfig, exponents: &[f64]) -> Vec<String> {
-    crate::linalg::precision_warning(exponents, config.tau).into_iter().chain(null_space_warning(config, exponents)).collect()
+    crate::linalg::precision_warning(exponents, config.tau).into_iter().chain(null_space_warning(config, exponents)).chain(chaos_warning(config, exponents)).collect()
+}
+
+/// At or below this fraction of the largest |lambda_i|, lambda_1 is not taken for positive.
+pub const CHAOS_TOLERANCE: f64 = 1e-3;
+
+/// Why a spectrum without a clearly positive exponent is not that of chaos: with other
+/// parameters the Henon map and the Lorenz flow settle on a stable fixed point or periodic
+/// orbit, whose exponents these then are. For a flow the zero exponent of the flow direction
+/// is then lambda_1 (a periodic orbit) or none (a fixed point), not the lambda_2 the
+/// analyses take it for.
+pub fn chaos_warning(config: &RunConfig, exponents: &[f64]) -> Option<String> {
+    use crate::config::SystemConfig;
+    let lambda_1 = *exponents.first()?;
+    let scale = exponents.iter().fold(0.0f64, |m, l| m.max(l.abs()));
+    if !(scale > 0.0 && lambda_1 <= CHAOS_TOLERANCE * scale) {
+        return None;
+    }
+    let what = match config.system {
+        SystemConfig::Henon { .. } => {
+            "with these parameters the orbit is not chaotic: it has settled on a stable periodic orbit (all exponents negative) or, with |b| = 1, a quasi-periodic one (both zero), whose exponents these are; the paper's chaotic attractor has a = 1.4, b = 0.3"
+        }
+        SystemConfig::Lorenz { .. } => {
+            "with these parameters the orbit is not chaotic: it has settled on a stable fixed point (all exponents negative) or periodic orbit (lambda_1 = 0, along the flow), whose exponents these are, and the analyses that take lambda_2 for the flow direction's zero exponent do not apply; the classic chaotic parameters are sigma = 10, rho = 28, beta = 8/3"
+        }
+        SystemConfig::Disks { .. } => "hard disks are chaotic at every density, so the run is far too short for its exponents",
+    };
+    Some(format!("lambda_1 = {lambda_1:.3e} is not clearly positive (at most {CHAOS_TOLERANCE:.0e} of the largest |lambda_i|, {scale:.3e}): {what}"))
 }
 
 /// Above this fraction of lambda_1, a null-space exponent of hard disks is not round-off.
@@ -269,6 +296,23 @@ mod tests {
         assert!(null_space_warning(&config, &l[..5]).is_none(), "k < 2N+3: the null space is not among the exponents");
         config.system = crate::config::SystemConfig::Lorenz { sigma: 10.0, rho: 28.0, beta: 8.0 / 3.0 };
         assert!(null_space_warning(&config, &[0.9, 1e-3, -14.5]).is_none(), "a flow's zero exponent converges like 1/T");
+    }
+
+    /// No clearly positive exponent: a warning that names lambda_1 and, for each system,
+    /// what the orbit settled on; chaos (lambda_1 well above 1e-3 of the largest |lambda|)
+    /// passes.
+    #[test]
+    fn a_spectrum_without_chaos_is_named() {
+        let henon = RunConfig::preset("henon").unwrap();
+        assert!(chaos_warning(&henon, &[0.42, -1.62]).is_none());
+        let w = chaos_warning(&henon, &[-0.161, -1.043]).expect("a periodic orbit");
+        assert!(w.contains("lambda_1 = -1.610e-1") && w.contains("periodic orbit") && w.contains("a = 1.4, b = 0.3"), "{w}");
+        assert_eq!(warnings(&henon, &[-0.161, -1.043]), vec![w]);
+        let lorenz = RunConfig::preset("lorenz").unwrap();
+        assert!(chaos_warning(&lorenz, &[0.906, 1e-4, -14.57]).is_none());
+        let w = chaos_warning(&lorenz, &[1e-4, -2.0, -14.57]).expect("a limit cycle: its lambda_1 is the flow's zero");
+        assert!(w.contains("fixed point") && w.contains("lambda_2 for the flow direction"), "{w}");
+        assert!(chaos_warning(&lorenz, &[]).is_none() && chaos_warning(&lorenz, &[0.0, 0.0, 0.0]).is_none(), "nothing measured yet");
     }
 
     /// The collision frequency counts each collision for both disks, over the relaxation too.

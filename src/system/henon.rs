@@ -65,8 +65,11 @@ impl DynamicalSystem for Henon {
         self.iterations += 1;
         if !x.is_finite() || x.abs() > 1e6 {
             return Err(Error::Dynamics(format!(
-                "the Henon orbit escaped to infinity after {} iterations; start from another seed",
-                self.iterations
+                "the Henon orbit (a = {}, b = {}) escaped to infinity after {} iterations; start from another seed{}",
+                self.a,
+                self.b,
+                self.iterations,
+                if (self.a, self.b) == (Self::A, Self::B) { "" } else { ", or choose a and b with a bounded attractor (the classic a = 1.4, b = 0.3 has one)" }
             )));
         }
         Ok(())

@@ -12,10 +12,13 @@
 use super::{DynamicalSystem, Invariants, Snapshot, Tangent};
 use crate::error::{Error, Result};
 
-/// Runge-Kutta steps per unit time: h = 0.0025 keeps the divergence of the discrete map
-/// within about 1e-6 of -(sigma + 1 + beta) per unit time (the GS exponents sum to it to
-/// that), at about 3 us a step.
+/// Runge-Kutta steps per unit time at the classic parameters: h = 0.0025 keeps the
+/// divergence of the discrete map within about 1e-6 of -(sigma + 1 + beta) per unit time
+/// (the GS exponents sum to it to that), at about 3 us a step.
 const STEPS_PER_UNIT: f64 = 400.0;
+/// The most Runge-Kutta steps per unit time that other parameters may ask for (a field ten
+/// thousand times as fast as the classic one).
+pub const MAX_STEPS_PER_UNIT: f64 = 1e4 * STEPS_PER_UNIT;
 
 #[derive(Clone, Debug)]
 pub struct Lorenz {
@@ -50,10 +53,29 @@ impl Lorenz {
         [[-self.sigma, self.sigma, 0.0], [self.rho - x[2], -1.0, -x[0]], [x[1], x[0], -self.beta]]
     }
 
+    /// How fast the field turns near its attractor, up to a factor: the Jacobian's entries
+    /// sigma, 1, beta and |x|, |y| ~ sqrt(beta |rho|), and the rotation rate sqrt(sigma |rho|).
+    fn rate(sigma: f64, rho: f64, beta: f64) -> f64 {
+        sigma + 1.0 + beta + (sigma * rho.abs()).sqrt() + (beta * rho.abs()).sqrt()
+    }
+
+    /// Runge-Kutta steps per unit time: [`STEPS_PER_UNIT`] at the classic parameters, and
+    /// as many more as the field is faster, so that other parameters get the same accuracy
+    /// per turn of the orbit.
+    pub fn steps_per_unit(sigma: f64, rho: f64, beta: f64) -> f64 {
+        STEPS_PER_UNIT * (Self::rate(sigma, rho, beta) / Self::rate(Self::SIGMA, Self::RHO, Self::BETA)).max(1.0)
+    }
+
     /// Substeps of one tau and their length.
     fn substeps(&self) -> (usize, f64) {
-        let n = (self.tau * STEPS_PER_UNIT).ceil().max(1.0) as usize;
+        let n = (self.tau * Self::steps_per_unit(self.sigma, self.rho, self.beta)).ceil().max(1.0) as usize;
         (n, self.tau / n as f64)
+    }
+
+    /// Beyond this the orbit has left the attractor: far outside the ellipsoid that traps
+    /// every orbit (its size grows like rho + sigma).
+    fn escape_bound(&self) -> f64 {
+        1e6f64.max(1e3 * (1.0 + self.rho.abs() + self.sigma + self.beta))
     }
 }
 
@@ -104,8 +126,11 @@ impl DynamicalSystem for Lorenz {
             self.x = [0, 1, 2].map(|r| x[r] + h / 6.0 * (k1[r] + 2.0 * k2[r] + 2.0 * k3[r] + k4[r]));
         }
         self.steps += 1;
-        if self.x.iter().any(|v| !v.is_finite() || v.abs() > 1e6) {
-            return Err(Error::Dynamics(format!("the Lorenz orbit left every bounded region after {} steps (a tau too large for the integrator?)", self.steps)));
+        if self.x.iter().any(|v| !v.is_finite() || v.abs() > self.escape_bound()) {
+            return Err(Error::Dynamics(format!(
+                "the Lorenz orbit (sigma = {}, rho = {}, beta = {}) left every bounded region after {} steps: the Runge-Kutta step h = {h:e} was too long for the field there; report this with the run's configuration",
+                self.sigma, self.rho, self.beta, self.steps
+            )));
         }
         Ok(())
     }
@@ -175,6 +200,30 @@ mod tests {
             let m = |r: usize, c: usize| j.get(r, c);
             let det = m(0, 0) * (m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1)) - m(0, 1) * (m(1, 0) * m(2, 2) - m(1, 2) * m(2, 0)) + m(0, 2) * (m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0));
             let want = -(Lorenz::SIGMA + 1.0 + Lorenz::BETA) * 0.1;
+            assert!((det.ln() - want).abs() < 3e-7, "ln det = {} against {want}", det.ln());
+        }
+    }
+
+    /// Other parameters get as many more Runge-Kutta steps as their field is faster, so that
+    /// the volume still contracts at the divergence to the classic accuracy; the classic
+    /// parameters keep their 400 steps per unit time (and their runs' bits).
+    #[test]
+    fn faster_fields_get_shorter_steps() {
+        assert_eq!(Lorenz::steps_per_unit(Lorenz::SIGMA, Lorenz::RHO, Lorenz::BETA), STEPS_PER_UNIT);
+        assert_eq!(Lorenz::steps_per_unit(10.0, 0.5, 8.0 / 3.0), STEPS_PER_UNIT, "slower fields keep the classic step");
+        let (sigma, rho, beta) = (16.0, 1500.0, 4.0);
+        let mut s = Lorenz::new(sigma, rho, beta, 0.1, [1.0, 1.0, rho]);
+        assert!(s.substeps().0 > 200, "{:?}", s.substeps());
+        let mut t = Tangent::zeros(3, 0);
+        for _ in 0..50 {
+            s.advance(&mut t).unwrap();
+        }
+        for _ in 0..20 {
+            let mut j = Tangent::identity(&s, 3);
+            s.advance(&mut j).unwrap();
+            let m = |r: usize, c: usize| j.get(r, c);
+            let det = m(0, 0) * (m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1)) - m(0, 1) * (m(1, 0) * m(2, 2) - m(1, 2) * m(2, 0)) + m(0, 2) * (m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0));
+            let want = -(sigma + 1.0 + beta) * 0.1;
             assert!((det.ln() - want).abs() < 3e-7, "ln det = {} against {want}", det.ln());
         }
     }

@@ -98,16 +98,18 @@ impl Diagnostics {
 
     /// The numbers of both tests, for a report line.
     pub fn numbers(&self) -> String {
+        let sum = if self.sum_z.is_finite() {
+            format!("{}: z = {:+.1} (as large by chance: {:.1} %)", if self.sum_is_h_ks { "h_KS" } else { "sum of the k (all positive) exponents" }, self.sum_z, 100.0 * self.sum_chance())
+        } else {
+            "h_KS: no positive exponent to test".to_string()
+        };
         format!(
-            "{:.0} % of {} exponents have |z| > 2 (by chance {:.0} %; largest |z| = {:.1}, i = {}); {}: z = {:+.1} (as large by chance: {:.1} %); r_1 = {:+.3} (limit {:+.3})",
+            "{:.0} % of {} exponents have |z| > 2 (by chance {:.0} %; largest |z| = {:.1}, i = {}); {sum}; r_1 = {:+.3} (limit {:+.3})",
             100.0 * self.drifting,
             self.tested,
             100.0 * self.chance(),
             self.max_z,
             self.max_z_index + 1,
-            if self.sum_is_h_ks { "h_KS" } else { "sum of the k (all positive) exponents" },
-            self.sum_z,
-            100.0 * self.sum_chance(),
             self.r1,
             self.r1_limit()
         )
