@@ -51,10 +51,8 @@ impl Stat {
         if xs.is_empty() {
             return Stat { median: f64::NAN, min: f64::NAN, max: f64::NAN };
         }
-        xs.sort_by(f64::total_cmp);
-        let m = xs.len();
-        let median = if m % 2 == 1 { xs[m / 2] } else { 0.5 * (xs[m / 2 - 1] + xs[m / 2]) };
-        Stat { median, min: xs[0], max: xs[m - 1] }
+        let (min, max) = xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+        Stat { median: crate::statistics::median(&xs), min, max }
     }
 }
 

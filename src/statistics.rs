@@ -177,6 +177,18 @@ pub fn batch_stderr(x: &[f64], block_len: usize) -> f64 {
     standard_error(&means)
 }
 
+/// The median of the finite values of `x` (the mean of the middle two of an even count;
+/// NaN if there are none).
+pub fn median(x: &[f64]) -> f64 {
+    let mut v: Vec<f64> = x.iter().copied().filter(|x| x.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        m if m % 2 == 1 => v[m / 2],
+        m => 0.5 * (v[m / 2 - 1] + v[m / 2]),
+    }
+}
+
 /// Sample standard deviation of `x`, with n - 1 (NaN with fewer than two values: one value
 /// shows no spread, it does not show that there is none).
 pub fn sample_std(x: &[f64]) -> f64 {

@@ -45,6 +45,7 @@ impl Analysis for Convergence {
         let mut tables = Vec::new();
         let mut sentences = Vec::new();
         let mut tests = Vec::new();
+        let mut shown = 0;
         let spectra = [("GS", "gs", gs, "the forward run after its relaxation"), ("CLV", "clv", Some(clv), "the CLV window, oldest frames first")];
         for (id, (label, stem, blocks, span)) in spectra.into_iter().enumerate() {
             let Some(blocks) = blocks.filter(|b| !b.exponents.is_empty()) else {
@@ -68,6 +69,7 @@ impl Analysis for Convergence {
             let envelope: Vec<f64> = t.iter().map(|&t| 2.0 * (t_end / t - 1.0).sqrt()).collect();
             fig.series("+2 sqrt(T/t - 1)", &t, &envelope, Marker::Line).grey();
             fig.series("-2 sqrt(T/t - 1)", &t, &envelope.iter().map(|e| -e).collect::<Vec<_>>(), Marker::Line).grey();
+            shown = shown.max(selected(&last).len());
             for i in selected(&last) {
                 let y: Vec<f64> = run.iter().map(|r| (r[i] - last[i]) / sigma[i]).collect();
                 fig.series(&format!("i = {}", i + 1), &t, &y, Marker::LinePoints);
@@ -93,11 +95,16 @@ impl Analysis for Convergence {
         Ok(vec![Produced {
             title: "Convergence of the spectra (beyond the paper)".into(),
             caption: format!(
-                "Running estimates λ_i(t) after each block of the standard error's batch means, as deviations from the final value in units of its standard error σ_i, for the largest, a middle and the smallest positive exponent \
+                "Running estimates λ_i(t) after each block of the standard error's batch means, as deviations from the final value in units of its standard error σ_i, for {} \
                  (all exponents in the tables). A converged run with independent blocks stays within ±2 sqrt(T/t - 1) of it, 95 % of the time. Drift test: z_i compares the newer half of the blocks with the older half; a stationary run with independent blocks has |z| > 2 for the fraction chance gives (a Student t with 2 (h - 1) degrees of freedom for halves of h blocks; about 5 % \
                  of the exponents for many blocks), and the run counts as drifting from four times that on (a margin for the exponents' correlations with each other, which make the count a poor measure), \
                  or where the same z of h_KS, the sum of the positive exponents, is as large by chance in less than 1 % of stationary runs (its own spread holds those correlations; it catches many exponents moving the same way, each within its errors). Independence test: r_1, the lag-1 autocorrelation of consecutive block averages, averaged over the exponents, is about -1/B for independent blocks; \
                  above -1/B + 2/sqrt(B) the blocks are shorter than the correlation time. {} {}",
+                match shown {
+                    0 | 1 => "the largest exponent",
+                    2 => "the largest and the smallest positive exponent",
+                    _ => "the largest, a middle and the smallest positive exponent",
+                },
                 match ctx.run.config.system {
                     SystemConfig::Disks { .. } => "Exponents that vanish by symmetry (the null space, whose last three CLV exponents drift by construction: see Fig. 2) and any constant up to round-off are not tested.",
                     SystemConfig::Lorenz { .. } => "The exponent of the flow direction, zero by symmetry, and any constant up to round-off are not tested.",

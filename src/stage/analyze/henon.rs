@@ -219,13 +219,14 @@ impl Analysis for HenonPicture {
         let ay: Vec<f64> = pts.iter().map(|p| p.x[1]).collect();
         // Equal scales: g^1 and g^2 must be seen orthogonal, as they are.
         let mut fig = Figure::new("Henon attractor, stable manifold, GS and covariant vectors").x_label("x").y_label("y").x_range(bounds.x.0, bounds.x.1).y_range(bounds.y.0, bounds.y.1).size(900, 700).equal_aspect();
-        fig.series("attractor (frames)", &ax, &ay, Marker::Cloud);
+        // The report's colours: GS blue, covariant vermillion (the paper: blue and red).
+        fig.series("attractor (frames)", &ax, &ay, Marker::Cloud).grey();
         if !kept.is_empty() {
-            fig.series("stable manifold through point 0", &mx, &my, Marker::Line);
+            fig.series("stable manifold through point 0", &mx, &my, Marker::Line).color(2);
         }
-        fig.arrows("covariant vectors v^1, v^2", &from(clv.len()), &scaled(&clv, 0.18));
+        fig.arrows("covariant vectors v^1, v^2", &from(clv.len()), &scaled(&clv, 0.18)).color(1);
         if !gs.is_empty() {
-            fig.arrows("GS vectors g^1, g^2", &from(gs.len()), &scaled(&gs, 0.1));
+            fig.arrows("GS vectors g^1, g^2", &from(gs.len()), &scaled(&gs, 0.1)).color(0);
         }
         save_figure(&fig, out, "fig1_henon")?;
         Ok(vec![Produced {

@@ -62,6 +62,9 @@ fn smallest_positive(ctx: &Context) -> Option<usize> {
     ctx.gs.as_ref().and_then(|g| (0..g.exponents.len()).rev().find(|&i| g.exponents[i] > 0.0 && !neutral.contains(&i))).filter(|&i| i < ctx.k)
 }
 
+/// Frames drawn in the figure of the local exponents: the newest this many.
+const MAX_DRAWN: usize = 2000;
+
 /// See [`super::Missing`].
 pub fn left_out(_: &Context, missing: super::Missing) -> Option<&'static str> {
     (missing == super::Missing::ConsecutiveFrames).then_some("the finite-time exponents and the domination test of Sec. 6")
@@ -125,6 +128,21 @@ impl LocalExponents {
         self.series = self.idx.iter().map(|&i| self.pending.iter().map(|local| local[i]).collect()).collect();
         self.pending = Vec::new();
         self.chosen = true;
+    }
+
+    /// What the plotted indices are, for a caption: "the largest exponent, i = 1; the
+    /// selected indices, j = 5; the smallest positive exponent, i = 7".
+    fn roles(&self) -> String {
+        let smallest = smallest_positive(&self.ctx);
+        let mut roles = vec![if smallest == Some(0) { "the largest and smallest positive exponent, i = 1".to_string() } else { "the largest exponent, i = 1".to_string() }];
+        let js: Vec<String> = self.js.iter().map(|j| (j + 1).to_string()).collect();
+        if !js.is_empty() {
+            roles.push(format!("the selected {}, j = {}", if js.len() == 1 { "index" } else { "indices" }, js.join(", ")));
+        }
+        if let Some(i) = smallest.filter(|&i| i > 0) {
+            roles.push(format!("the smallest positive exponent, i = {}", i + 1));
+        }
+        roles.join("; ")
     }
 
     /// The 0-based pairs (i, i+1) with both indices in the null space (disks only).
@@ -226,7 +244,6 @@ impl Analysis for LocalExponents {
 impl LocalExponents {
     /// The time series of the local exponents (in time order) and their figure.
     fn series_entry(&self, out: &Path, frames: u64, names: &[String], caveat: &str) -> Result<Produced> {
-        let ctx = &self.ctx;
         // Time series, in time order.
         let mut order: Vec<usize> = (0..self.steps.len()).collect();
         order.sort_by_key(|&p| self.steps[p]);
@@ -242,10 +259,12 @@ impl LocalExponents {
                 row
             }),
         )?;
-        let t: Vec<f64> = order.iter().map(|&p| self.times[p]).collect();
+        // A longer series drawn whole is a solid band in which one exponent hides the other.
+        let drawn = &order[order.len().saturating_sub(MAX_DRAWN)..];
+        let t: Vec<f64> = drawn.iter().map(|&p| self.times[p]).collect();
         let mut fig = Figure::new("Local covariant exponents Λ_i(t)").x_label("t").y_label("Λ_i");
         for (s, name) in self.series.iter().zip(names) {
-            let y: Vec<f64> = order.iter().map(|&p| s[p]).collect();
+            let y: Vec<f64> = drawn.iter().map(|&p| s[p]).collect();
             fig.series(&format!("i = {name}"), &t, &y, Marker::Line);
         }
         fig.hline(0.0);
@@ -253,9 +272,10 @@ impl LocalExponents {
         Ok(Produced {
             title: "Local exponents (Sec. 6)".into(),
             caption: format!(
-                "Local covariant exponents Λ_i(t_n) = ln |Dφ^τ v^i(t_n)| / τ for i = {} (1, the selected indices{}) over all {frames} frames.{caveat}",
+                "Local covariant exponents Λ_i(t_n) = ln |Dφ^τ v^i(t_n)| / τ for i = {} ({}) over {}.{caveat}",
                 names.join(", "),
-                smallest_positive(ctx).map(|i| format!(" and the smallest positive exponent, i = {}", i + 1)).unwrap_or_default()
+                self.roles(),
+                if drawn.len() < order.len() { format!("the newest {} of the {frames} frames (the table holds all)", drawn.len()) } else { format!("all {frames} frames") }
             ),
             figures: vec!["local_exponents".into()],
             tables: vec!["local_exponents.csv".into()],
@@ -374,8 +394,8 @@ impl LocalExponents {
         Ok(Produced {
             title: "Domination of the Oseledec splitting (Sec. 6)".into(),
             caption: format!(
-                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over all {} adjacent pairs{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0{}. Overall fraction at Δ = {}: {:.3e}{}.{borders_text}{unfilled}{caveat}",
-                ctx.k.saturating_sub(1),
+                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over {}{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0{}. Overall fraction at Δ = {}: {:.3e}{}.{borders_text}{unfilled}{caveat}",
+                if ctx.k == 2 { "the one adjacent pair".to_string() } else { format!("all {} adjacent pairs", ctx.k.saturating_sub(1)) },
                 if ctx.is_disks() { ", averaged over the pairs outside the null space" } else { "" },
                 if ctx.is_disks() { " (degenerate exponents, as in the null space and the modes, swap for every Δ)" } else { "" },
                 self.deltas[0],
@@ -466,6 +486,26 @@ mod tests {
         let t = read_csv(&out.join("local_exponents.csv"));
         assert_eq!(column(&t, "step"), (0..20).map(|s| s as f64).collect::<Vec<_>>());
         assert_eq!(column(&t, "lambda_5"), (0..20).map(|s| s as f64 + 0.01 * 4.0).collect::<Vec<_>>());
+    }
+
+    /// A long series is drawn by its newest MAX_DRAWN frames (the table keeps all), and the
+    /// captions say which indices are drawn and why, with one pair in the singular.
+    #[test]
+    fn a_long_henon_series_is_drawn_by_its_newest_frames() {
+        let mut ctx = testing::context("henon", 0, 2, 5.0, 5.0, None, false);
+        ctx.options = Options { every: 1, j: vec![2], deltas: vec![1, 5] };
+        ctx.gs = Some(crate::report::SpectrumSummary { exponents: vec![0.42, -1.62], stderr: vec![1e-3; 2], ks_entropy: None, blocks: None, warnings: Vec::new() });
+        let mut a = new(&ctx).unwrap();
+        let len = MAX_DRAWN as u64 + 500;
+        for step in (0..len).rev() {
+            a.consume(&frame(step, vec![0.42 + noise(step, 0), -1.62 + noise(step, 1)])).unwrap();
+        }
+        let out = scratch("long-henon");
+        let produced = a.finish(&out, len).unwrap();
+        let caption = &produced[0].caption;
+        assert!(caption.contains(&format!("for i = 1, 2 (the largest and smallest positive exponent, i = 1; the selected index, j = 2) over the newest {MAX_DRAWN} of the {len} frames (the table holds all)")), "{caption}");
+        assert_eq!(read_csv(&out.join("local_exponents.csv")).1.len(), len as usize);
+        assert!(produced[2].caption.contains("pooled over the one adjacent pair"), "{}", produced[2].caption);
     }
 
     #[test]

@@ -173,11 +173,11 @@ impl Analysis for NullSpace {
 
         let fmt_row = |m: &[[f64; 6]], r: usize| m[r].iter().map(|x| format!("{x:.3e}")).collect::<Vec<_>>().join(" ");
         let mut caption = format!(
-            "Projections of the six null-space vectors i = {}..{} (2N-2..2N+3) onto e_1..e_6 at the earliest consumed frame (step {}, t = {:.6}; the paper's t_0): β_(i,k) = v^i · e_k (Table II){}. Row i = {}: β = [{}]{}. The figure shows, for each of the {frames} consumed frames, log10 of the largest principal angle between span{{v^(2N-2)..v^(2N+3)}} and span{{e_1..e_6}}{} and of the largest deviation of a row norm from 1; both vanish up to round-off when the null vectors lie in the null space. The CLV angle sits above round-off because the six null CLVs are nearly linearly dependent: backward iteration turns e_(k+3) into e_(k+3) - T e_k, so the last three collapse onto span{{e_1, e_2, e_3}} like 1/T and the orthonormalisation amplifies round-off by about T. Maxima over time: CLV angle {:.2e}",
+            "Projections of the six null-space vectors i = {}..{} (2N-2..2N+3) onto e_1..e_6 at the earliest consumed frame (step {}, t = {}; the paper's t_0): β_(i,k) = v^i · e_k (Table II){}. Row i = {}: β = [{}]{}. The figure shows, for each of the {frames} consumed frames, log10 of the largest principal angle between span{{v^(2N-2)..v^(2N+3)}} and span{{e_1..e_6}}{} and of the largest deviation of a row norm from 1; both vanish up to round-off when the null vectors lie in the null space. The CLV angle sits above round-off because the six null CLVs are nearly linearly dependent: backward iteration turns e_(k+3) into e_(k+3) - T e_k, so the last three collapse onto span{{e_1, e_2, e_3}} like 1/T and the orthonormalisation amplifies round-off by about T. Maxima over time: CLV angle {:.2e}",
             first + 1,
             first + 6,
             table.step,
-            table.time,
+            format!("{:.6}", table.time).trim_end_matches('0').trim_end_matches('.'),
             if with_gs { " and α_(i,k) = g^i · e_k (Table I)" } else { "" },
             first + 1,
             fmt_row(&table.beta, 0),

@@ -119,7 +119,8 @@ impl Analysis for Projections {
         let second = central.map(|(a, b)| format!("; the second plot enlarges the central part, i = {}..{}", a + 1, b + 1)).unwrap_or_default();
         let tables = vec!["projections.csv".to_string()];
 
-        // One figure and its central enlargement (Figs. 6, 7).
+        // One figure and its central enlargement (Figs. 6, 7), eta_q in green and eta_p in
+        // black as in the paper: blue and vermillion mean GS and CLV in the other figures.
         let plot = |stem: &str, title: &str, ylabel: &str, curves: &[(&str, &[f64])]| -> Result<Vec<String>> {
             let mut stems = Vec::new();
             let mut parts = vec![(stem.to_string(), title.to_string(), 0, k - 1, Marker::Line)];
@@ -128,8 +129,8 @@ impl Analysis for Projections {
             }
             for (s, t, a, b, marker) in parts {
                 let mut fig = Figure::new(&t).x_label("i").y_label(ylabel);
-                for (label, y) in curves {
-                    fig.series(label, &idx[a..=b], &y[a..=b], marker);
+                for ((label, y), color) in curves.iter().zip([2, 6]) {
+                    fig.series(label, &idx[a..=b], &y[a..=b], marker).color(color);
                 }
                 save_figure(&fig, out, &s)?;
                 stems.push(s);
@@ -152,10 +153,20 @@ impl Analysis for Projections {
         }
         let figures = plot("fig7_eta_clv", "Covariant vectors: η_q and η_p", "η", &[("η_q (CLV)", &q_cv), ("η_p (CLV)", &p_cv)])?;
         let sym = if full { format!(" Conjugate symmetry: max_i |η_q(i) - η_q(4N+1-i)| = {:.3e}.", conjugate_asymmetry(&q_cv, &q_cv)) } else { String::new() };
+        // The last three null CLVs are sheared towards the position shifts (Figs. 2, 3).
+        let shear = match self.ctx.null_shear() {
+            Some(r) if r.end <= k => format!(
+                " At i = {}..{} (η_q = {}) those covariant vectors are E_(k+3) - s E_k after a backward time s, turned towards the position shifts E_k as s grows, where the GS vectors are momentum shifts: a property of the finite window, not of the dynamics (see Figs. 2 and 3).",
+                r.start + 1,
+                r.end,
+                r.clone().map(|i| format!("{:.4}", q_cv[i])).collect::<Vec<_>>().join(", ")
+            ),
+            _ => String::new(),
+        };
         produced.push(Produced {
             title: "Position and momentum content of the covariant vectors (Fig. 7)".into(),
             caption: format!(
-                "η_q = <Σ_n |δq_n|^2> and η_p = <Σ_n |δp_n|^2> for the covariant vectors v^i against i, {avg}{second}. For covariant vectors η_q(i) = η_q(4N+1-i).{sym}"
+                "η_q = <Σ_n |δq_n|^2> and η_p = <Σ_n |δp_n|^2> for the covariant vectors v^i against i, {avg}{second}. For covariant vectors η_q(i) = η_q(4N+1-i).{sym}{shear}"
             ),
             figures,
             tables: tables.clone(),

@@ -213,7 +213,7 @@ impl Analysis for Spectrum {
 fn exact_sum(system: &SystemConfig, tau: f64, lambda: &[f64], err: &[f64]) -> String {
     let (exact, why) = match *system {
         SystemConfig::Disks { .. } => (0.0, "phase-space volume is kept".to_string()),
-        SystemConfig::Henon { b, .. } => (b.abs().ln() / tau, format!("ln |b| = ln {b}, det J = -b")),
+        SystemConfig::Henon { b, .. } => (b.abs().ln() / tau, format!("ln |b| = ln {}, det J = -b", b.abs())),
         SystemConfig::Lorenz { sigma, beta, .. } => (-(sigma + 1.0 + beta), format!("-(σ + 1 + β), the flow's divergence, with σ = {sigma}, β = {beta:.6}; the integrator's steps keep it up to their error")),
     };
     let sum: f64 = lambda.iter().sum();
@@ -250,11 +250,7 @@ fn plotted_errors(err: &[f64], shown: std::ops::RangeInclusive<usize>) -> Vec<f6
 /// The median standard errors of the plotted exponents, in words: the figure has no error
 /// bars, and whether two neighbours differ is a question of them.
 fn typical_error(gs: &[f64], clv: &[f64]) -> String {
-    let median = |v: &[f64]| {
-        let mut v: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied()
-    };
+    let median = |v: &[f64]| Some(crate::statistics::median(v)).filter(|m| m.is_finite());
     match (median(gs), median(clv)) {
         (Some(g), Some(c)) => format!("Median standard errors of the plotted exponents: {g:.1e} (GS), {c:.1e} (CLV); all errors are in spectrum.csv."),
         (None, Some(c)) => format!("Median standard error of the plotted CLV exponents: {c:.1e}; all errors are in spectrum.csv."),
@@ -273,7 +269,7 @@ mod tests {
         // D = 8, showing i = 1..2 (0-based 1..=2) and their conjugates 6, 5.
         let err = [9.0, 1.0, 2.0, 9.0, 9.0, 4.0, 3.0, 9.0];
         assert_eq!(plotted_errors(&err, 1..=2), [1.0, 3.0, 2.0, 4.0]);
-        assert!(typical_error(&plotted_errors(&err, 1..=2), &[1.0]).contains("3.0e0 (GS)"));
+        assert!(typical_error(&plotted_errors(&err, 1..=2), &[1.0]).contains("2.5e0 (GS)"));
     }
     use crate::stage::analyze::testing::{context, frame, out_dir, spectrum};
 
