@@ -1093,23 +1093,22 @@ fn ticks(lo: f64, hi: f64, step: f64) -> Vec<(f64, String)> {
     if !(k0.is_finite() && k1.is_finite() && step > 0.0) || k1 < k0 || k1 - k0 > 100.0 {
         return Vec::new();
     }
-    (0..=(k1 - k0) as i64)
-        .map(|i| {
-            let v = (k0 + i as f64) * step;
-            (v, fmt_tick(v, step))
-        })
-        .collect()
+    let values: Vec<f64> = (0..=(k1 - k0) as i64).map(|i| (k0 + i as f64) * step).collect();
+    // One notation for the whole axis: 20000 beside 1e5 reads as two scales.
+    let largest = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let scientific = largest >= 1e5 || largest < 1e-3;
+    values.into_iter().map(|v| (v, fmt_tick(v, step, scientific))).collect()
 }
 
-/// Label for tick value `v` on a grid of spacing `step`: plain decimals with
-/// just enough digits, or scientific notation for very large/small values.
-fn fmt_tick(v: f64, step: f64) -> String {
+/// Label for tick value `v` on a grid of spacing `step`: plain decimals with just enough
+/// digits, or `scientific` notation (for axes of very large or small values).
+fn fmt_tick(v: f64, step: f64, scientific: bool) -> String {
     if v.abs() < step * 1e-6 {
         return "0".to_string();
     }
     let step_exp = step.log10().floor() as i32;
     let v_exp = v.abs().log10().floor() as i32;
-    if v.abs() >= 1e5 || v_exp < -3 {
+    if scientific {
         let digits = (v_exp - step_exp).clamp(0, 10) as usize;
         let s = format!("{v:.digits$e}");
         match s.split_once('e') {

@@ -431,9 +431,16 @@ fn ranges_ticks_and_labels() {
     assert_eq!(labels, ["0", "0.2", "0.4", "0.6", "0.8", "1.0"]);
     let labels: Vec<String> = ticks(-1.5, 1.5, 0.5).into_iter().map(|t| t.1).collect();
     assert_eq!(labels, ["-1.5", "-1.0", "-0.5", "0", "0.5", "1.0", "1.5"]);
-    assert_eq!(fmt_tick(2e-5, 1e-5), "2e-5");
-    assert_eq!(fmt_tick(150_000.0, 50_000.0), "1.5e5");
-    assert_eq!(fmt_tick(250.0, 50.0), "250");
+    assert_eq!(fmt_tick(2e-5, 1e-5, true), "2e-5");
+    assert_eq!(fmt_tick(150_000.0, 50_000.0, true), "1.5e5");
+    assert_eq!(fmt_tick(250.0, 50.0, false), "250");
+    // One notation per axis: the Henon run's 2e4..1e5 was "20000 .. 80000, 1e5".
+    let labels: Vec<String> = ticks(1e4, 1.05e5, 2e4).into_iter().map(|t| t.1).collect();
+    assert_eq!(labels, ["2e4", "4e4", "6e4", "8e4", "1e5"]);
+    let labels: Vec<String> = ticks(0.0, 9e4, 2e4).into_iter().map(|t| t.1).collect();
+    assert_eq!(labels, ["0", "20000", "40000", "60000", "80000"]);
+    let labels: Vec<String> = ticks(0.0, 9e-4, 2e-4).into_iter().map(|t| t.1).collect();
+    assert_eq!(labels, ["0", "2e-4", "4e-4", "6e-4", "8e-4"]);
     // Automatic y ticks on a degenerate series are present and distinct.
     let mut f = Figure::new("flat");
     f.series("", &[0.0, 1.0, 2.0], &[5.0, 5.0, 5.0], Marker::Line);
