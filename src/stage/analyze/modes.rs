@@ -579,7 +579,7 @@ fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Prod
     let mut fits = Vec::new();
     let mut lines = Vec::new();
     // The points first: the first series get the largest markers.
-    for (colour, kind) in kinds.into_iter().enumerate() {
+    for (colour, &kind) in kinds.iter().enumerate() {
         let of_kind: Vec<&&ModeRow> = modes.iter().filter(|r| r.kind == kind).collect();
         let k: Vec<f64> = of_kind.iter().map(|r| wave_number(r)).collect();
         let lambda: Vec<f64> = of_kind.iter().map(|r| r.lambda).collect();
@@ -595,14 +595,27 @@ fn dispersion(ctx: &Context, rows: &[ModeRow], out: &Path) -> Result<Option<Prod
     for (label, k_max, c, colour) in lines {
         fig.series(&label, &[0.0, k_max], &[0.0, c * k_max], Marker::Line).color(colour);
     }
+    // The range of each step's exponents, around the mean the point is.
+    let mut ranged = false;
+    for (colour, &kind) in kinds.iter().enumerate() {
+        for r in modes.iter().filter(|r| r.kind == kind) {
+            let Some(range) = ctx.gs.as_ref().and_then(|g| g.exponents.get(r.first - 1..r.last)) else { continue };
+            let (lo, hi) = range.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &l| (lo.min(l), hi.max(l)));
+            if lo.is_finite() && hi > lo {
+                fig.series("", &[r.k, r.k], &[lo, hi], Marker::Line).color(colour);
+                ranged = true;
+            }
+        }
+    }
     save_figure(&fig, out, "modes_dispersion")?;
     Ok(Some(Produced {
         title: "Dispersion of the Lyapunov modes (beyond the paper)".into(),
         caption: format!(
-            "Exponent λ of each positive mode step of the table above against its wave number |k|, k = 2π (n_x/L_x, n_y/L_y) (L_x = {:.4}, L_y = {:.4}), with a least-squares line λ = c k through the origin for each kind: {}. \
+            "Exponent λ of each positive mode step of the table above against its wave number |k|, k = 2π (n_x/L_x, n_y/L_y) (L_x = {:.4}, L_y = {:.4}), with a least-squares line λ = c k through the origin for each kind{}: {}. \
              The kinetic theory of Lyapunov modes (de Wijn & van Beijeren 2004) gives λ proportional to k for small k; λ/k changing with k shows where that ends.{}",
             ctx.lx,
             ctx.ly,
+            if ranged { " and, as vertical bars, the range of each step's exponents" } else { "" },
             fits.join("; "),
             {
                 let split: Vec<String> = modes.iter().filter(|r| r.detection != "degenerate").map(|r| format!("{} ({:.4})", r.name, r.spread)).collect();
