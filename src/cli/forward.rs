@@ -225,44 +225,9 @@ impl ForwardArgs {
     }
 }
 
-/// The values of the flags that define a run, as they would be given on the command line.
+/// The values of the flags that define a run ([`clv::store::run::flag_values`]).
 pub fn flag_values(m: &RunMeta) -> Vec<(&'static str, String)> {
-    let c = &m.config;
-    let mut v = vec![
-        ("tau", c.tau.to_string()),
-        ("relax_steps", c.relax_steps.to_string()),
-        ("steps", c.steps.to_string()),
-        ("vectors", c.vectors.to_string()),
-        ("seed", c.seed.to_string()),
-        ("blocks", c.blocks.to_string()),
-        ("checkpoint_every", m.store.checkpoint_every.to_string()),
-        ("segment_checkpoints", m.store.segment_checkpoints.to_string()),
-        ("segment_mb", (m.store.segment_bytes >> 20).to_string()),
-        ("store_r", match m.store.store_r {
-            StoreR::Checkpoints => "checkpoints".into(),
-            StoreR::All => "all".into(),
-        }),
-        ("clv_steps", m.store.clv_steps.to_string()),
-        ("transient", m.store.transient.to_string()),
-    ];
-    match &c.system {
-        SystemConfig::Henon { a, b } => v.extend([("system", "henon".into()), ("henon_a", a.to_string()), ("henon_b", b.to_string())]),
-        SystemConfig::Lorenz { sigma, rho, beta } => v.extend([
-            ("system", "lorenz".into()),
-            ("lorenz_sigma", sigma.to_string()),
-            ("lorenz_rho", rho.to_string()),
-            ("lorenz_beta", beta.to_string()),
-        ]),
-        SystemConfig::Disks { n, lx, ly, density, aspect } => v.extend([
-            ("system", "disks".into()),
-            ("n", n.to_string()),
-            ("lx", lx.to_string()),
-            ("ly", ly.to_string()),
-            ("density", density.to_string()),
-            ("aspect", aspect.to_string()),
-        ]),
-    }
-    v
+    clv::store::run::flag_values(&m.config, &m.store)
 }
 
 /// Refuse flags given with --resume that disagree with the stored run, except a longer

@@ -1,7 +1,7 @@
 //! The run directory: its description (run.json) and its segment files.
 
 use super::segment::{self, parse_final_name};
-use crate::config::RunConfig;
+use crate::config::{RunConfig, SystemConfig};
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::fs;
@@ -23,32 +23,62 @@ pub enum StoreR {
 /// The settings in which two runs differ, as the flags that set them, each side named by its
 /// label: "--steps 10000 in the run, 5000 asked for" (the thread count is no setting of a run).
 pub fn differences((run, run_store, here): (&RunConfig, &StoreConfig, &str), (asked, asked_store, there): (&RunConfig, &StoreConfig, &str)) -> Vec<String> {
-    fn leaves(prefix: &str, v: &serde_json::Value, out: &mut Vec<(String, String)>) {
-        match v {
-            serde_json::Value::Object(map) => map.iter().for_each(|(k, v)| leaves(k, v, out)),
-            _ => out.push((prefix.replace('_', "-"), v.to_string())),
-        }
-    }
-    let flat = |c: &RunConfig, s: &StoreConfig| {
-        let mut out = Vec::new();
-        leaves("", &serde_json::to_value(c).unwrap_or_default(), &mut out);
-        leaves("", &serde_json::to_value(s).unwrap_or_default(), &mut out);
-        out
-    };
-    let (ours, theirs) = (flat(run, run_store), flat(asked, asked_store));
+    let (ours, theirs) = (flag_values(run, run_store), flag_values(asked, asked_store));
     let mut out: Vec<String> = theirs
         .iter()
-        .filter(|(k, _)| k != "threads")
-        .filter_map(|(k, want)| match ours.iter().find(|(o, _)| o == k) {
-            Some((_, have)) if have == want => None,
-            Some((_, have)) => Some(format!("--{k} {have} {here}, {want} {there}")),
-            None => Some(format!("--{k} {want} {there}, none {here}")),
+        .filter_map(|(id, want)| {
+            let flag = id.replace('_', "-");
+            match ours.iter().find(|(o, _)| o == id) {
+                Some((_, have)) if have == want => None,
+                Some((_, have)) => Some(format!("--{flag} {have} {here}, {want} {there}")),
+                None => Some(format!("--{flag} {want} {there}, none {here}")),
+            }
         })
         .collect();
     if out.is_empty() {
         out.push("settings that flags do not show".into());
     }
     out
+}
+
+/// The values of the flags that define a run, as they would be given on the command line,
+/// by the flags' ids (--relax-steps is relax_steps).
+pub fn flag_values(c: &RunConfig, store: &StoreConfig) -> Vec<(&'static str, String)> {
+    let mut v = vec![
+        ("tau", c.tau.to_string()),
+        ("relax_steps", c.relax_steps.to_string()),
+        ("steps", c.steps.to_string()),
+        ("vectors", c.vectors.to_string()),
+        ("seed", c.seed.to_string()),
+        ("blocks", c.blocks.to_string()),
+        ("checkpoint_every", store.checkpoint_every.to_string()),
+        ("segment_checkpoints", store.segment_checkpoints.to_string()),
+        ("segment_mb", (store.segment_bytes >> 20).to_string()),
+        ("store_r", match store.store_r {
+            StoreR::Checkpoints => "checkpoints".into(),
+            StoreR::All => "all".into(),
+        }),
+        ("clv_steps", store.clv_steps.to_string()),
+        ("transient", store.transient.to_string()),
+    ];
+    match &c.system {
+        SystemConfig::Henon { a, b } => v.extend([("system", "henon".into()), ("henon_a", a.to_string()), ("henon_b", b.to_string())]),
+        SystemConfig::Lorenz { sigma, rho, beta } => v.extend([
+            ("system", "lorenz".into()),
+            ("lorenz_sigma", sigma.to_string()),
+            ("lorenz_rho", rho.to_string()),
+            ("lorenz_beta", beta.to_string()),
+        ]),
+        SystemConfig::Disks { n, lx, ly, density, aspect } => v.extend([
+            ("system", "disks".into()),
+            ("n", n.to_string()),
+            ("lx", lx.to_string()),
+            ("ly", ly.to_string()),
+            ("density", density.to_string()),
+            ("aspect", aspect.to_string()),
+        ]),
+    }
+    v
 }
 
 /// How a run is laid out on disk and what is kept.
@@ -704,7 +734,28 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use super::{free_bytes, short_of_space};
+    use super::{differences, free_bytes, short_of_space, StoreConfig};
+    use crate::config::{RunConfig, SystemConfig};
+
+    /// Runs that differ are told apart by the flags that set them: --lorenz-rho, not the
+    /// configuration's field rho; --system, not its tag; --segment-mb in MB.
+    #[test]
+    fn differences_name_the_flags() {
+        let lorenz = RunConfig::preset("lorenz").unwrap();
+        let store = StoreConfig::for_run(&lorenz);
+        let mut other = lorenz.clone();
+        other.system = SystemConfig::lorenz_with(10.0, 21.0, 8.0 / 3.0).unwrap();
+        assert_eq!(differences((&lorenz, &store, "in the run"), (&other, &store, "asked for")), ["--lorenz-rho 28 in the run, 21 asked for"]);
+        let henon = RunConfig::preset("henon").unwrap();
+        let d = differences((&lorenz, &store, "here"), (&henon, &store, "there")).join("; ");
+        assert!(d.contains("--system lorenz here, henon there") && d.contains("--henon-a 1.4 there, none here") && d.contains("--tau 0.1 here, 1 there"), "{d}");
+        let mut bigger = store.clone();
+        bigger.segment_bytes = 2 << 30;
+        assert_eq!(differences((&lorenz, &store, "a"), (&lorenz, &bigger, "b")), ["--segment-mb 1024 a, 2048 b"]);
+        let mut kept = store.clone();
+        kept.keep_segments = 5;
+        assert_eq!(differences((&lorenz, &store, "a"), (&lorenz, &kept, "b")), ["settings that flags do not show"]);
+    }
 
     #[test]
     fn free_space_is_found_for_a_directory_not_made_yet() {
