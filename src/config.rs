@@ -49,9 +49,10 @@ impl SystemConfig {
     }
 
     /// Refuse parameters of the Henon map or the Lorenz flow for which the exponents are not
-    /// defined or the orbit cannot stay bounded (the disks' box is checked where it is made).
-    /// Whether the orbit is chaotic is left to the run: the report warns if no exponent is
-    /// positive.
+    /// defined or not resolved by a double's digits, or the Lorenz integrator's steps would be
+    /// too many (the disks' box is checked where it is made). Whether the orbit stays bounded
+    /// (a Henon orbit escapes for a above about 1.42 at b = 0.3) and is chaotic is left to the
+    /// run, which stops or warns.
     pub fn check_parameters(&self) -> Result<()> {
         match *self {
             SystemConfig::Henon { a, b } => {
@@ -61,6 +62,14 @@ impl SystemConfig {
                 // det J = -b at every point: lambda_1 + lambda_2 = ln |b|.
                 if !(b.is_finite() && b != 0.0) {
                     return Err(Error::param("henon-b", format!("must be a finite number other than 0 (det J = -b, so with b = 0 the map folds the plane onto a line and lambda_2 = -infinity), got {b}")));
+                }
+                // lambda_1 - lambda_2 >= -ln |b| per iteration, and the map's tau is 1: beyond
+                // e^-16 the contracting vector keeps too few of a double's digits.
+                if b.abs() < MIN_HENON_B {
+                    return Err(Error::param(
+                        "henon-b",
+                        format!("|b| = {b:e} is below e^-16 = {MIN_HENON_B:.1e}: lambda_1 + lambda_2 = ln |b|, so in one iteration (the map's fixed tau) the contracting vector shrinks by more than a double's 16 digits resolve against the other; take |b| above {MIN_HENON_B:.1e}"),
+                    ));
                 }
             }
             SystemConfig::Lorenz { sigma, rho, beta } => {
@@ -133,6 +142,16 @@ impl SystemConfig {
         }
     }
 
+    /// The time between QR steps a run takes unless told: one iteration of the map, 0.6
+    /// for disks (the paper's), 0.1 for the classic Lorenz flow ([`Lorenz::default_tau`]).
+    pub fn default_tau(&self) -> f64 {
+        match *self {
+            SystemConfig::Henon { .. } => 1.0,
+            SystemConfig::Lorenz { sigma, rho, beta } => Lorenz::default_tau(sigma, rho, beta),
+            SystemConfig::Disks { .. } => 0.6,
+        }
+    }
+
     /// Phase-space dimension D.
     pub fn dim(&self) -> usize {
         match self {
@@ -162,6 +181,10 @@ pub struct RunConfig {
     /// Number of blocks for the standard error of the exponents.
     pub blocks: usize,
 }
+
+/// The smallest |b| of the Henon map that [`SystemConfig::check_parameters`] accepts: e^-16,
+/// so that lambda_1 - lambda_2 per iteration stays below linalg's PRECISE_SPREAD of 18.
+pub const MIN_HENON_B: f64 = 1.125_351_747_192_591e-7;
 
 /// The longest time between two QR steps that [`RunConfig::validate`] accepts.
 pub const MAX_TAU: f64 = 1e4;

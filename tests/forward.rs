@@ -372,8 +372,32 @@ fn henon_and_lorenz_parameters_are_settings() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("--n: sets up hard disks (--system disks); the Henon map (--system henon) has no such setting"), "{err}");
 
+    // A faster field takes a shorter default tau with its shorter steps (it was refused:
+    // "invalid --tau", with no --tau given).
+    let v = json(&["--system", "lorenz", "--lorenz-sigma", "300", "--lorenz-rho", "300", "--steps", "300", "--relax-steps", "100"]);
+    let tau = v["config"]["tau"].as_f64().unwrap();
+    assert!(tau < 0.02, "{v}");
+
+    // Two runs without chaos combine into a spectrum that says so; `clv run` says it too.
+    let runs: Vec<String> = ["1", "2"]
+        .iter()
+        .map(|seed| {
+            let out = dir.join(format!("periodic-{seed}")).to_str().unwrap().to_string();
+            let o = clv(&["forward", "--system", "henon", "--henon-a", "1.0", "--steps", "1000", "--seed", seed, "--out", &out, "--quiet"]);
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            out
+        })
+        .collect();
+    let o = clv(&["combine", &runs[0], &runs[1]]);
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && table.contains("warning: lambda_1 = ") && table.contains("periodic orbit"), "{table}");
+    let o = clv(&["run", "--preset", "henon", "--henon-a", "1.0", "--steps", "2000", "--out", dir.join("run").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && err.contains("clv run: warning: lambda_1 = ") && err.contains("periodic orbit"), "{err}");
+
     for (args, needle) in [
         (vec!["forward", "--henon-a", "1.2"], "--henon-a: sets up the Henon map (--system henon); hard disks (--system disks) have no such setting"),
+        (vec!["forward", "--system", "henon", "--henon-b", "1e-12"], "--henon-b: |b| = 1e-12 is below e^-16"),
         (vec!["forward", "--system", "henon", "--lorenz-rho", "20"], "--lorenz-rho: sets up the Lorenz flow"),
         (vec!["forward", "--system", "henon", "--henon-b", "0"], "--henon-b: must be a finite number other than 0"),
         (vec!["forward", "--system", "lorenz", "--lorenz-beta", "-1"], "--lorenz-beta: must be a positive finite number"),

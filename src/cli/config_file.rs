@@ -48,7 +48,10 @@ pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
             Some(s) if s.contains('\\') && value.starts_with('"') => return Err(bad(format!("the value of {key} has an escape sequence, which these files do not read; write it as a 'literal string'"))),
             Some(s) => s.to_string(),
             None if value == "true" || value == "false" => value.to_string(),
-            None => number(value).ok_or_else(|| bad(format!("the value of {key} must be a number, a \"string\" or true/false, found {value:?}")))?,
+            None => number(value).ok_or_else(|| {
+                let fraction = if value.contains('/') { format!(" (a fraction is written as a string: {key} = \"{value}\")") } else { String::new() };
+                bad(format!("the value of {key} must be a number, a \"string\" or true/false, found {value:?}{fraction}"))
+            })?,
         };
         match value.as_str() {
             "true" => args.push(format!("--{key}")),
@@ -185,6 +188,11 @@ mod tests {
         }
         std::fs::write(&path, "steps = ten\n").unwrap();
         assert!(expand(&path, &known).unwrap_err().to_string().contains("must be a number"));
+        // A fraction, which the flags take, is a string in TOML.
+        std::fs::write(&path, "aspect = 2/11\n").unwrap();
+        assert!(expand(&path, &known).unwrap_err().to_string().contains("(a fraction is written as a string: aspect = \"2/11\")"));
+        std::fs::write(&path, "aspect = \"2/11\"\n").unwrap();
+        assert_eq!(expand(&path, &known).unwrap(), ["--aspect=2/11"]);
         // A setting given twice is refused (TOML forbids it; which one wins would be a guess).
         std::fs::write(&path, "steps = 10\n[store]\nsteps = 20\n").unwrap();
         let err = expand(&path, &known).unwrap_err().to_string();

@@ -36,14 +36,15 @@ pub struct RunArgs {
 
 /// The flags of `clv forward` that set up `config` (a preset): the system (by density and
 /// aspect) and the run, not the store, whose window then follows the run's length; all
-/// vectors (k = D) by leaving --vectors out, so that they follow a changed --n. Parsed back
-/// they give `config`.
+/// vectors (k = D) by leaving --vectors out, so that they follow a changed --n, and the
+/// system's default tau by leaving --tau out, so that it follows changed Lorenz parameters.
+/// Parsed back they give `config`.
 fn config_flags(config: &RunConfig) -> Vec<String> {
     let meta = RunMeta { format: FORMAT.into(), config: config.clone(), store: StoreConfig::for_run(config), build: BuildInfo::current() };
     let left_out = ["lx", "ly", "checkpoint_every", "segment_checkpoints", "segment_mb", "store_r", "clv_steps", "transient"];
     flag_values(&meta)
         .into_iter()
-        .filter(|(id, _)| !left_out.contains(id) && (*id != "vectors" || config.vectors != config.system.dim()))
+        .filter(|(id, _)| !left_out.contains(id) && (*id != "vectors" || config.vectors != config.system.dim()) && (*id != "tau" || config.tau != config.system.default_tau()))
         .chain([("threads", config.threads.to_string())])
         .flat_map(|(id, value)| [format!("--{}", id.replace('_', "-")), value])
         .collect()
@@ -203,6 +204,10 @@ pub fn run(args: &RunArgs, matches: &ArgMatches) -> Result<()> {
         Estimate::or_unknown(window.and_then(|w| w.ks_entropy))
     ));
     let gs = clv::report::SpectrumSummary::read(&clv::store::RunDir { path: result.run_dir.clone() }.spectrum_path()).ok();
+    // The forward stage's warnings, which its own table would print (also atop the report).
+    for w in gs.iter().flat_map(|g| &g.warnings) {
+        say(format!("warning: {w}"));
+    }
     if let Some(d) = gs.and_then(|g| g.blocks).and_then(|b| clv::stage::analyze::kernels::convergence::diagnose(&b.exponents, config.system.neutral())) {
         say(format!("convergence of the GS spectrum ({} blocks): {}", d.blocks, d.verdict()));
     }

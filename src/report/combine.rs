@@ -57,6 +57,10 @@ pub struct Combined {
     /// Student's t for a one-sigma (68.3 %) interval from the R - 1 degrees of freedom of
     /// the errors: stderr times this is the interval's half width (1.84 for two runs).
     pub t_one_sigma: f64,
+    /// What makes the combined exponents less trustworthy than their errors say
+    /// ([`crate::report::warnings`]); absent when nothing does.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// Read `paths` (run directories or spectrum.json files) and combine them.
@@ -115,9 +119,11 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
         let per_run: Vec<f64> = runs.iter().map(|r| r.exponents.iter().zip(&exponents).enumerate().filter(|(i, (_, c))| counted(*i, **c)).map(|(_, (x, _))| x).sum()).collect();
         Estimate { value, stderr: weighted_mean(&per_run, &weights).1 }
     });
+    let config = RunConfig { steps: runs.iter().map(|r| r.config.steps).sum(), ..first.clone() };
     Ok(Combined {
+        warnings: crate::report::warnings(&config, &exponents, &stderr),
         runs: paths,
-        config: RunConfig { steps: runs.iter().map(|r| r.config.steps).sum(), ..first.clone() },
+        config,
         seeds: runs.iter().map(|r| r.config.seed).collect(),
         steps: runs.iter().map(|r| r.config.steps).collect(),
         relax_steps: runs.iter().map(|r| r.config.relax_steps).collect(),
@@ -197,6 +203,9 @@ impl Combined {
         for (i, ((x, e), c)) in self.exponents.iter().zip(&self.stderr).zip(&self.chi2_per_dof).enumerate() {
             let c = if c.is_finite() { format!("{c:9.2}") } else { format!("{:>9}", "-") };
             let _ = writeln!(s, "{:>6}  {:>14.8}  {:>10.2e}  {c}", i + 1, x, e);
+        }
+        for w in &self.warnings {
+            let _ = writeln!(s, "warning: {w}");
         }
         if let Some(h) = self.ks_entropy {
             let _ = writeln!(s, "KS entropy (sum of the positive exponents): {h}");

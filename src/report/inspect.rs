@@ -161,7 +161,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     // During the relaxation nothing is accumulated: its zeros are no spectrum.
     let accumulating = newest.as_ref().filter(|(s, _)| s.step > meta.config.relax_steps);
     let (exponents, stderr) = accumulating.map(|(s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();
-    let warnings = crate::report::warnings(&meta.config, &exponents);
+    let warnings = crate::report::warnings(&meta.config, &exponents, &stderr);
     let convergence = newest.as_ref().and_then(|(_, acc)| {
         let blocks = acc.as_ref()?.block_averages(meta.config.tau);
         let d = crate::stage::analyze::kernels::convergence::diagnose(&blocks.exponents, meta.config.system.neutral())?;

@@ -58,39 +58,59 @@ impl Statistics {
     }
 }
 
-/// What makes a forward spectrum `exponents` (lambda_1 first) of `config`'s run less
-/// trustworthy than its errors say: a tau too long for a double's digits
-/// ([`crate::linalg::precision_warning`]), a hard-disk null space not yet settled
-/// ([`null_space_warning`]), or no sign of chaos at all ([`chaos_warning`]).
-pub fn warnings(config: &RunConfig, exponents: &[f64]) -> Vec<String> {
-    crate::linalg::precision_warning(exponents, config.tau).into_iter().chain(null_space_warning(config, exponents)).chain(chaos_warning(config, exponents)).collect()
+/// What makes a forward spectrum `exponents` (lambda_1 first, with standard errors
+/// `stderr`) of `config`'s run less trustworthy than its errors say: a tau too long for a
+/// double's digits ([`crate::linalg::precision_warning`]), a hard-disk null space not yet
+/// settled ([`null_space_warning`]), or no sign of chaos ([`chaos_warning`]).
+pub fn warnings(config: &RunConfig, exponents: &[f64], stderr: &[f64]) -> Vec<String> {
+    crate::linalg::precision_warning(exponents, config.tau).into_iter().chain(null_space_warning(config, exponents)).chain(chaos_warning(config, exponents, stderr)).collect()
 }
 
-/// At or below this fraction of the largest |lambda_i|, lambda_1 is not taken for positive.
+/// At or below this fraction of the largest |lambda_i| (and, for a map, below this many
+/// e-foldings per iteration), lambda_1 is not taken for positive.
 pub const CHAOS_TOLERANCE: f64 = 1e-3;
 
-/// Why a spectrum without a clearly positive exponent is not that of chaos: with other
-/// parameters the Henon map and the Lorenz flow settle on a stable fixed point or periodic
-/// orbit, whose exponents these then are. For a flow the zero exponent of the flow direction
-/// is then lambda_1 (a periodic orbit) or none (a fixed point), not the lambda_2 the
-/// analyses take it for.
-pub fn chaos_warning(config: &RunConfig, exponents: &[f64]) -> Option<String> {
+/// Why lambda_1 is not clearly positive, if it is not: within 3 standard errors of 0, at
+/// most [`CHAOS_TOLERANCE`] of the largest |lambda_i|, or for a map below that per
+/// iteration (an area-preserving Henon map's quasi-periodic orbits give lambda_1 = -lambda_2
+/// decaying like ln t / t, as small as that after 2e4 iterations). With other parameters
+/// the Henon map and the Lorenz flow settle on a stable fixed point or periodic orbit, whose
+/// exponents these then are; a short run may not tell even at the classic parameters.
+pub fn chaos_warning(config: &RunConfig, exponents: &[f64], stderr: &[f64]) -> Option<String> {
     use crate::config::SystemConfig;
     let lambda_1 = *exponents.first()?;
     let scale = exponents.iter().fold(0.0f64, |m, l| m.max(l.abs()));
-    if !(scale > 0.0 && lambda_1 <= CHAOS_TOLERANCE * scale) {
+    if !(scale > 0.0) {
         return None;
     }
+    let sigma = stderr.first().copied().filter(|s| s.is_finite() && *s > 0.0);
+    let map = matches!(config.system, SystemConfig::Henon { .. });
+    let why = if lambda_1 <= CHAOS_TOLERANCE * scale {
+        format!("at most {CHAOS_TOLERANCE:.0e} of the largest |lambda_i|, {scale:.3e}")
+    } else if map && lambda_1 < CHAOS_TOLERANCE {
+        format!("below {CHAOS_TOLERANCE:.0e} per iteration")
+    } else if let Some(s) = sigma.filter(|&s| lambda_1 < 3.0 * s) {
+        format!("within 3 standard errors of 0, {s:.1e} each")
+    } else {
+        return None;
+    };
+    let classic = match config.system {
+        SystemConfig::Henon { .. } => config.system == SystemConfig::henon(),
+        SystemConfig::Lorenz { .. } => config.system == SystemConfig::lorenz(),
+        SystemConfig::Disks { .. } => true,
+    };
     let what = match config.system {
+        _ if classic => "these parameters are chaotic, so the run is too short to tell: extend it",
         SystemConfig::Henon { .. } => {
-            "with these parameters the orbit is not chaotic: it has settled on a stable periodic orbit (all exponents negative) or, with |b| = 1, a quasi-periodic one (both zero), whose exponents these are; the paper's chaotic attractor has a = 1.4, b = 0.3"
+            "with these parameters the orbit may not be chaotic but have settled on a stable periodic orbit (all exponents negative) or, with |b| = 1, a quasi-periodic one (both zero), whose exponents these then are; or the run is too short to tell; the paper's chaotic attractor has a = 1.4, b = 0.3"
         }
         SystemConfig::Lorenz { .. } => {
-            "with these parameters the orbit is not chaotic: it has settled on a stable fixed point (all exponents negative) or periodic orbit (lambda_1 = 0, along the flow), whose exponents these are, and the analyses that take lambda_2 for the flow direction's zero exponent do not apply; the classic chaotic parameters are sigma = 10, rho = 28, beta = 8/3"
+            "with these parameters the orbit may not be chaotic but have settled on a stable fixed point (all exponents negative; with sigma = 10, beta = 8/3 every orbit does below rho = 24.06, after a chaotic transient above 13.93) or periodic orbit (lambda_1 = 0, along the flow; windows such as rho = 99.5..100.8, 160 or 350), whose exponents these then are, and the analyses that take lambda_2 for the flow direction's zero exponent do not apply; or the run is too short to tell; the classic chaotic parameters are sigma = 10, rho = 28, beta = 8/3"
         }
-        SystemConfig::Disks { .. } => "hard disks are chaotic at every density, so the run is far too short for its exponents",
+        SystemConfig::Disks { .. } => unreachable!("disks are classic"),
     };
-    Some(format!("lambda_1 = {lambda_1:.3e} is not clearly positive (at most {CHAOS_TOLERANCE:.0e} of the largest |lambda_i|, {scale:.3e}): {what}"))
+    let error = sigma.map(|s| format!(" ± {s:.1e}")).unwrap_or_default();
+    Some(format!("lambda_1 = {lambda_1:.3e}{error} is not clearly positive ({why}): {what}"))
 }
 
 /// Above this fraction of lambda_1, a null-space exponent of hard disks is not round-off.
@@ -151,7 +171,7 @@ impl SpectrumReport {
     pub fn new(config: RunConfig, acc: &Accumulator, statistics: Statistics) -> Self {
         let exponents = acc.exponents(config.tau);
         SpectrumReport {
-            warnings: warnings(&config, &exponents),
+            warnings: warnings(&config, &exponents, &acc.stderr(config.tau)),
             stderr: acc.stderr(config.tau),
             ks_entropy: acc.ks_entropy(config.tau, config.system.neutral()),
             kaplan_yorke_dimension: kaplan_yorke_dimension(&exponents, config.system.dim()),
@@ -292,27 +312,38 @@ mod tests {
         l[6] = -4e-5;
         let w = null_space_warning(&config, &l).expect("2e-5 of lambda_1");
         assert!(w.contains("(i = 6..11)") && w.contains("|lambda_7| = 4.00e-5") && w.contains("2.0e-5 of lambda_1") && w.contains("--relax-steps (1000 now"), "{w}");
-        assert_eq!(warnings(&config, &l), vec![w]);
+        assert_eq!(warnings(&config, &l, &[1e-3; 16]), vec![w]);
         assert!(null_space_warning(&config, &l[..5]).is_none(), "k < 2N+3: the null space is not among the exponents");
         config.system = crate::config::SystemConfig::Lorenz { sigma: 10.0, rho: 28.0, beta: 8.0 / 3.0 };
         assert!(null_space_warning(&config, &[0.9, 1e-3, -14.5]).is_none(), "a flow's zero exponent converges like 1/T");
     }
 
-    /// No clearly positive exponent: a warning that names lambda_1 and, for each system,
-    /// what the orbit settled on; chaos (lambda_1 well above 1e-3 of the largest |lambda|)
-    /// passes.
+    /// No clearly positive exponent: a warning that names lambda_1 and why it is not (at
+    /// most 1e-3 of the largest |lambda|, for a map below 1e-3 per iteration, or within 3
+    /// standard errors of 0), and what the orbit may have settled on or, at the classic
+    /// parameters, that the run is too short; chaos passes.
     #[test]
     fn a_spectrum_without_chaos_is_named() {
-        let henon = RunConfig::preset("henon").unwrap();
-        assert!(chaos_warning(&henon, &[0.42, -1.62]).is_none());
-        let w = chaos_warning(&henon, &[-0.161, -1.043]).expect("a periodic orbit");
-        assert!(w.contains("lambda_1 = -1.610e-1") && w.contains("periodic orbit") && w.contains("a = 1.4, b = 0.3"), "{w}");
-        assert_eq!(warnings(&henon, &[-0.161, -1.043]), vec![w]);
-        let lorenz = RunConfig::preset("lorenz").unwrap();
-        assert!(chaos_warning(&lorenz, &[0.906, 1e-4, -14.57]).is_none());
-        let w = chaos_warning(&lorenz, &[1e-4, -2.0, -14.57]).expect("a limit cycle: its lambda_1 is the flow's zero");
-        assert!(w.contains("fixed point") && w.contains("lambda_2 for the flow direction"), "{w}");
-        assert!(chaos_warning(&lorenz, &[]).is_none() && chaos_warning(&lorenz, &[0.0, 0.0, 0.0]).is_none(), "nothing measured yet");
+        let mut henon = RunConfig::preset("henon").unwrap();
+        assert!(chaos_warning(&henon, &[0.42, -1.62], &[4e-4, 4e-4]).is_none());
+        let w = chaos_warning(&henon, &[-0.09, -1.11], &[0.29, 0.29]).expect("three steps of the paper's map");
+        assert!(w.contains("lambda_1 = -9.000e-2 ± 2.9e-1") && w.contains("these parameters are chaotic, so the run is too short"), "{w}");
+        henon.system = crate::config::SystemConfig::henon_with(1.0, 0.3).unwrap();
+        let w = chaos_warning(&henon, &[-0.161, -1.043], &[7e-11, 7e-11]).expect("a periodic orbit");
+        assert!(w.contains("lambda_1 = -1.610e-1") && w.contains("at most 1e-3 of the largest") && w.contains("periodic orbit") && w.contains("a = 1.4, b = 0.3"), "{w}");
+        assert_eq!(warnings(&henon, &[-0.161, -1.043], &[7e-11, 7e-11]), vec![w]);
+        // |b| = 1, a quasi-periodic orbit: lambda_1 = -lambda_2 is the largest |lambda| itself
+        // (an outside check's a = 0.3, b = -1: 2.3e-4 +- 8.8e-5 after 2e4 iterations).
+        henon.system = crate::config::SystemConfig::henon_with(0.3, -1.0).unwrap();
+        let w = chaos_warning(&henon, &[2.3e-4, -2.3e-4], &[8.8e-5, 8.8e-5]).expect("quasi-periodic");
+        assert!(w.contains("below 1e-3 per iteration") && w.contains("quasi-periodic"), "{w}");
+        let mut lorenz = RunConfig::preset("lorenz").unwrap();
+        assert!(chaos_warning(&lorenz, &[0.906, 1e-4, -14.57], &[0.01, 0.01, 0.01]).is_none());
+        lorenz.system = crate::config::SystemConfig::lorenz_with(10.0, 100.5, 8.0 / 3.0).unwrap();
+        let w = chaos_warning(&lorenz, &[0.052, -0.3, -14.0], &[0.053, 0.05, 0.05]).expect("a periodic window, inside its errors");
+        assert!(w.contains("within 3 standard errors of 0") && w.contains("fixed point") && w.contains("lambda_2 for the flow direction"), "{w}");
+        assert!(chaos_warning(&lorenz, &[0.5, -0.3, -14.0], &[f64::NAN; 3]).is_none(), "no errors, no statistical test");
+        assert!(chaos_warning(&lorenz, &[], &[]).is_none() && chaos_warning(&lorenz, &[0.0, 0.0, 0.0], &[0.0; 3]).is_none(), "nothing measured yet");
     }
 
     /// The collision frequency counts each collision for both disks, over the relaxation too.

@@ -66,6 +66,13 @@ impl Lorenz {
         STEPS_PER_UNIT * (Self::rate(sigma, rho, beta) / Self::rate(Self::SIGMA, Self::RHO, Self::BETA)).max(1.0)
     }
 
+    /// The default time between QR steps: 0.1 at the classic parameters, shorter in
+    /// proportion where the field is faster ([`Lorenz::steps_per_unit`]), so that the
+    /// tangent vectors spread by about as much between two QR steps.
+    pub fn default_tau(sigma: f64, rho: f64, beta: f64) -> f64 {
+        0.1 * STEPS_PER_UNIT / Self::steps_per_unit(sigma, rho, beta)
+    }
+
     /// Substeps of one tau and their length.
     fn substeps(&self) -> (usize, f64) {
         let n = (self.tau * Self::steps_per_unit(self.sigma, self.rho, self.beta)).ceil().max(1.0) as usize;

@@ -1097,7 +1097,22 @@ fn ticks(lo: f64, hi: f64, step: f64) -> Vec<(f64, String)> {
     // One notation for the whole axis: 20000 beside 1e5 reads as two scales.
     let largest = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let scientific = largest >= 1e5 || largest < 1e-3;
-    values.into_iter().map(|v| (v, fmt_tick(v, step, scientific))).collect()
+    let mut labels: Vec<String> = values.iter().map(|&v| fmt_tick(v, step, scientific)).collect();
+    if scientific {
+        // The same number of digits in every mantissa (9.490e5, 9.495e5, 9.500e5), as few
+        // as all of them allow (2e4 .. 1e5).
+        let decimal = |l: &String| l.split_once('e').is_some_and(|(m, _)| m.contains('.'));
+        while labels.iter().any(decimal) && labels.iter().filter(|l| decimal(l)).all(|l| l.split_once('e').is_some_and(|(m, _)| m.ends_with('0'))) {
+            labels = labels
+                .into_iter()
+                .map(|l| match l.split_once('e') {
+                    Some((m, e)) if m.contains('.') => format!("{}e{e}", m[..m.len() - 1].trim_end_matches('.')),
+                    _ => l,
+                })
+                .collect();
+        }
+    }
+    values.into_iter().zip(labels).collect()
 }
 
 /// Label for tick value `v` on a grid of spacing `step`: plain decimals with just enough
@@ -1109,14 +1124,9 @@ fn fmt_tick(v: f64, step: f64, scientific: bool) -> String {
     let step_exp = step.log10().floor() as i32;
     let v_exp = v.abs().log10().floor() as i32;
     if scientific {
+        // Untrimmed: `ticks` trims the mantissas of an axis alike.
         let digits = (v_exp - step_exp).clamp(0, 10) as usize;
-        let s = format!("{v:.digits$e}");
-        match s.split_once('e') {
-            Some((m, e)) if m.contains('.') => {
-                format!("{}e{e}", m.trim_end_matches('0').trim_end_matches('.'))
-            }
-            _ => s,
-        }
+        format!("{v:.digits$e}")
     } else {
         let digits = (-step_exp).clamp(0, 10) as usize;
         format!("{v:.digits$}")

@@ -394,9 +394,10 @@ impl LocalExponents {
         Ok(Produced {
             title: "Domination of the Oseledec splitting (Sec. 6)".into(),
             caption: format!(
-                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over {}{}, and for the pairs (j, j+1) of the selected indices; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0{}. Overall fraction at Δ = {}: {:.3e}{}.{borders_text}{unfilled}{caveat}",
+                "Fraction of windows of Δ steps in which the finite-time exponent of index i+1 exceeds that of index i, against Δ: pooled over {}{}{}; from all {frames} frames. A dominated splitting needs this to vanish beyond a finite Δ_0{}. Overall fraction at Δ = {}: {:.3e}{}.{borders_text}{unfilled}{caveat}",
                 if ctx.k == 2 { "the one adjacent pair".to_string() } else { format!("all {} adjacent pairs", ctx.k.saturating_sub(1)) },
                 if ctx.is_disks() { ", averaged over the pairs outside the null space" } else { "" },
+                if ctx.k > 2 { ", and for the pairs (j, j+1) of the selected indices" } else { "" },
                 if ctx.is_disks() { " (degenerate exponents, as in the null space and the modes, swap for every Δ)" } else { "" },
                 self.deltas[0],
                 overall[0],

@@ -654,7 +654,7 @@ mod tests {
         let caption = mode_overlaps(d, &steps, |j| Some(means[usize::from(j == 5)].clone()));
         assert!(caption.contains("not for j = 6 (no conjugate peak above the median of 0.050 elsewhere, as the paper's LP(3,0))"), "{caption}");
         // A conjugate peak out of the background, below the step's neighbour i = 4 (the
-        // default run's LP(1,0): 0.103 against 0.02, below 0.208 at i = 71).
+        // default run's LP(1,0): 0.103 against a median of 0.034, below 0.208 at i = 71).
         means[1][6] = 0.12;
         means[1][3] = 0.15;
         let caption = mode_overlaps(d, &steps, |j| Some(means[usize::from(j == 5)].clone()));

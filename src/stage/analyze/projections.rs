@@ -156,7 +156,9 @@ impl Analysis for Projections {
         // The last three null CLVs are sheared towards the position shifts (Figs. 2, 3).
         let shear = match self.ctx.null_shear() {
             Some(r) if r.end <= k => format!(
-                " At i = {}..{} (η_q = {}) those covariant vectors are E_(k+3) - s E_k after a backward time s, turned towards the position shifts E_k as s grows, where the GS vectors are momentum shifts: a property of the finite window, not of the dynamics (see Figs. 2 and 3).",
+                " In the null space, i = {}..{}, η_q = 1: the first three covariant vectors are the position shifts E_k themselves, and the last three, i = {}..{} (η_q = {}), are E_(k+3) - s E_k after a backward time s, turned towards them as s grows, where those GS vectors are the momentum shifts E_(k+3): a property of the finite window, not of the dynamics (see Figs. 2 and 3).",
+                r.start - 2,
+                r.end,
                 r.start + 1,
                 r.end,
                 r.clone().map(|i| format!("{:.4}", q_cv[i])).collect::<Vec<_>>().join(", ")
