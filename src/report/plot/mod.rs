@@ -1096,7 +1096,7 @@ fn ticks(lo: f64, hi: f64, step: f64) -> Vec<(f64, String)> {
     let values: Vec<f64> = (0..=(k1 - k0) as i64).map(|i| (k0 + i as f64) * step).collect();
     // One notation for the whole axis: 20000 beside 1e5 reads as two scales.
     let largest = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let scientific = largest >= 1e5 || largest < 1e-3;
+    let scientific = !(1e-3..1e5).contains(&largest);
     let mut labels: Vec<String> = values.iter().map(|&v| fmt_tick(v, step, scientific)).collect();
     if scientific {
         // The same number of digits in every mantissa (9.490e5, 9.495e5, 9.500e5), as few
