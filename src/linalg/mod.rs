@@ -162,13 +162,7 @@ pub fn unpack_upper(packed: &[f64]) -> Option<Mat<f64>> {
         return None;
     }
     let mut r = Mat::zeros(k, k);
-    let mut at = 0;
-    for j in 0..k {
-        for i in 0..=j {
-            r[(i, j)] = packed[at];
-            at += 1;
-        }
-    }
+    unpack_upper_into(packed, &mut r);
     Some(r)
 }
 
@@ -309,5 +303,13 @@ mod tests {
         assert_eq!(p.len(), 15);
         assert_eq!(unpack_upper(&p).unwrap(), r);
         assert!(unpack_upper(&[1.0, 2.0]).is_none());
+        // Into a reused matrix, whatever it held (the backward stage's buffers).
+        let mut into = Mat::from_fn(5, 5, |i, j| (100 + i * 5 + j) as f64);
+        unpack_upper_into(&p, &mut into);
+        for j in 0..5 {
+            for i in 0..5 {
+                assert_eq!(into[(i, j)], if i <= j { r[(i, j)] } else { (100 + i * 5 + j) as f64 }, "({i}, {j})");
+            }
+        }
     }
 }

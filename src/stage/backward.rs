@@ -1167,4 +1167,21 @@ mod tests {
         assert!(rel(&run, &base.join("elsewhere.mcap")).is_absolute());
         std::fs::remove_dir_all(&base).unwrap();
     }
+
+    /// A random C_0 is upper triangular with unit columns and a positive diagonal, like
+    /// every C the iteration makes; the identity is one; the seed decides it.
+    #[test]
+    fn the_initial_c_is_a_normalised_upper_triangle() {
+        let k = 7;
+        let c = initial_c(k, CInit::Random, 3);
+        for j in 0..k {
+            let norm: f64 = (0..k).map(|i| c[(i, j)] * c[(i, j)]).sum::<f64>().sqrt();
+            assert!((norm - 1.0).abs() < 1e-15 && c[(j, j)] > 0.0, "column {j}: norm {norm}");
+            assert!((j + 1..k).all(|i| c[(i, j)] == 0.0), "column {j} below the diagonal");
+            assert!(j == 0 || (0..j).any(|i| c[(i, j)] != 0.0), "column {j} is not the identity's");
+        }
+        assert_eq!(initial_c(k, CInit::Random, 3), c);
+        assert_ne!(initial_c(k, CInit::Random, 4), c);
+        assert_eq!(initial_c(k, CInit::Identity, 3), Mat::<f64>::identity(k, k));
+    }
 }

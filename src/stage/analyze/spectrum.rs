@@ -338,7 +338,11 @@ mod tests {
         assert_eq!(rows.len(), ctx.k);
         // the mean of the two frames' steps, at backward times 19..20 tau and 9..10 tau
         let tau = ctx.tau;
-        let want = (null_shear_exponent(19.0 * tau, 20.0 * tau) + null_shear_exponent(9.0 * tau, 10.0 * tau)) / 2.0;
+        // The closed form -ln((1 + s2^2) / (1 + s1^2)) / (2 (s2 - s1)), written out here so
+        // that a wrong formula in the function cannot pass (a mutation check).
+        let shear = |s1: f64, s2: f64| -((1.0 + s2 * s2) / (1.0 + s1 * s1)).ln() / (2.0 * (s2 - s1));
+        assert!((null_shear_exponent(0.0, tau) + (1.0 + tau * tau).ln() / (2.0 * tau)).abs() < 1e-15);
+        let want = (shear(19.0 * tau, 20.0 * tau) + shear(9.0 * tau, 10.0 * tau)) / 2.0;
         for (i, row) in rows.iter().enumerate() {
             let shear: f64 = row["lambda_clv_null_shear"].parse().unwrap();
             if i >= 2 * n {

@@ -493,6 +493,31 @@ mod tests {
         (out, produced)
     }
 
+    /// Psi is between E^u = v^1..v^(2N-3) and E^s = v^(2N+4)..v^(4N), the null space
+    /// v^(2N-2)..v^(2N+3) in neither: the null space's first and last vectors made parallel
+    /// leave Psi at pi/2, the last unstable and the first stable vector made parallel close
+    /// it (a Psi that took one null vector into each subspace passed every other test).
+    #[test]
+    fn psi_leaves_the_null_space_out() {
+        let n = 6;
+        let d = 4 * n;
+        let mut rng = Rng::new(7);
+        let phase = phase(n, 10.0, 2.0, &mut rng);
+        let identity: Vec<f64> = (0..d * d).map(|i| if i % (d + 1) == 0 { 1.0 } else { 0.0 }).collect();
+        let parallel = |a: usize, b: usize| {
+            let mut v = identity.clone();
+            let col = identity[a * d..(a + 1) * d].to_vec();
+            v[b * d..(b + 1) * d].copy_from_slice(&col);
+            v
+        };
+        let frames = [frame(2, phase.clone(), parallel(2 * n - 3, 2 * n + 2), None), frame(1, phase, parallel(2 * n - 4, 2 * n + 3), None)];
+        let (out, _) = run(n, &frames, "psi-border");
+        let rows = read_csv(&out.join("transversality.csv"));
+        let psi = |r: usize| rows[r]["psi_unstable_stable"].parse::<f64>().unwrap();
+        assert!((psi(0) - FRAC_PI_2).abs() < 1e-14, "null vectors are in neither subspace: {}", psi(0));
+        assert!(psi(1).abs() < 1e-14, "v^(2N-3) is unstable and v^(2N+4) stable: {}", psi(1));
+    }
+
     /// Orthogonal conjugate subspaces give pi/2, identical ones 0, for the mode pair and for
     /// E^u vs E^s.
     #[test]
