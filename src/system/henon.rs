@@ -39,6 +39,11 @@ impl Henon {
     }
 }
 
+/// A parameter as typed (1.4), or in exponent form where that would run to many digits.
+fn short(x: f64) -> String {
+    if x != 0.0 && !(1e-4..1e6).contains(&x.abs()) { format!("{x:e}") } else { x.to_string() }
+}
+
 impl DynamicalSystem for Henon {
     fn name(&self) -> &'static str {
         "henon"
@@ -66,8 +71,8 @@ impl DynamicalSystem for Henon {
         if !x.is_finite() || x.abs() > 1e6 {
             return Err(Error::Dynamics(format!(
                 "the Henon orbit (a = {}, b = {}) escaped to infinity after {} iterations; start from another seed{}",
-                self.a,
-                self.b,
+                short(self.a),
+                short(self.b),
                 self.iterations,
                 if (self.a, self.b) == (Self::A, Self::B) { "" } else { ", or choose a and b with a bounded attractor (the classic a = 1.4, b = 0.3 has one)" }
             )));
