@@ -68,7 +68,7 @@ impl SystemConfig {
                 if b.abs() < MIN_HENON_B {
                     return Err(Error::param(
                         "henon-b",
-                        format!("|b| = {b:e} is below e^-16 = {MIN_HENON_B:.1e}: lambda_1 + lambda_2 = ln |b|, so in one iteration (the map's fixed tau) the contracting vector shrinks by more than a double's 16 digits resolve against the other; take |b| above {MIN_HENON_B:.1e}"),
+                        format!("|b| = {:e} is below e^-16 = {MIN_HENON_B:.1e}: lambda_1 + lambda_2 = ln |b|, so in one iteration (the map's fixed tau) the contracting vector shrinks against the other by more than e^16, near the e^18 past which it keeps fewer than half of a double's 16 digits; take |b| above {MIN_HENON_B:.1e}", b.abs()),
                     ));
                 }
             }
@@ -184,7 +184,7 @@ pub struct RunConfig {
 
 /// The smallest |b| of the Henon map that [`SystemConfig::check_parameters`] accepts: e^-16,
 /// so that lambda_1 - lambda_2 per iteration stays below linalg's PRECISE_SPREAD of 18.
-pub const MIN_HENON_B: f64 = 1.125_351_747_192_591e-7;
+pub const MIN_HENON_B: f64 = 1.125_351_747_192_591_2e-7;
 
 /// The longest time between two QR steps that [`RunConfig::validate`] accepts.
 pub const MAX_TAU: f64 = 1e4;

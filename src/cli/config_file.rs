@@ -49,7 +49,8 @@ pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
             Some(s) => s.to_string(),
             None if value == "true" || value == "false" => value.to_string(),
             None => number(value).ok_or_else(|| {
-                let fraction = if value.contains('/') { format!(" (a fraction is written as a string: {key} = \"{value}\")") } else { String::new() };
+                let takes_fractions = ["aspect", "henon-a", "henon-b", "lorenz-sigma", "lorenz-rho", "lorenz-beta"].contains(&key.as_str());
+                let fraction = if value.contains('/') && takes_fractions { format!(" (a fraction is written as a string: {key} = \"{value}\")") } else { String::new() };
                 bad(format!("the value of {key} must be a number, a \"string\" or true/false, found {value:?}{fraction}"))
             })?,
         };
@@ -119,7 +120,8 @@ pub fn render(name: &str, config: &RunConfig, store: &StoreConfig) -> String {
     let derived = StoreConfig::for_run(config);
     let _ = writeln!(
         s,
-        "\n[run]\ntau = {}\nrelax-steps = {}\nsteps = {}\n{}vectors = {}    # default: all, k = D\nseed = {}\nthreads = {}\nblocks = {}",
+        "\n[run]\n{}tau = {}    # default: the system's (0.6 for disks, 1 for Henon, 0.1 for the classic Lorenz flow)\nrelax-steps = {}\nsteps = {}\n{}vectors = {}    # default: all, k = D\nseed = {}\nthreads = {}\nblocks = {}",
+        at_default(config.tau == config.system.default_tau()),
         config.tau,
         config.relax_steps,
         config.steps,
@@ -162,7 +164,8 @@ mod tests {
         let joined = args.join(" ");
         assert!(joined.contains("--n=198") && joined.contains("--steps=240000") && joined.contains("--system=disks"), "{joined}");
         // Defaults are comments: k = D and the CLV window follow n and steps when edited.
-        assert!(text.contains("# vectors = 792") && text.contains("# clv-steps = 25000") && text.contains("# transient = 12500"), "{text}");
+        assert!(text.contains("# vectors = 792") && text.contains("# clv-steps = 25000") && text.contains("# transient = 12500") && text.contains("# tau = 0.6"), "{text}");
+        assert!(render("paper", &RunConfig { tau: 0.5, ..config.clone() }, &StoreConfig::for_run(&config)).contains("\ntau = 0.5"), "a tau of its own is written");
         assert!(!joined.contains("--vectors") && !joined.contains("--clv-steps") && !joined.contains("--transient"), "{joined}");
         let mut store = StoreConfig::for_run(&config);
         store.clv_steps = 1000;
@@ -191,6 +194,8 @@ mod tests {
         // A fraction, which the flags take, is a string in TOML.
         std::fs::write(&path, "aspect = 2/11\n").unwrap();
         assert!(expand(&path, &known).unwrap_err().to_string().contains("(a fraction is written as a string: aspect = \"2/11\")"));
+        std::fs::write(&path, "tau = 1/10\n").unwrap();
+        assert!(!expand(&path, &known).unwrap_err().to_string().contains("a fraction"), "--tau takes no fraction");
         std::fs::write(&path, "aspect = \"2/11\"\n").unwrap();
         assert_eq!(expand(&path, &known).unwrap(), ["--aspect=2/11"]);
         // A setting given twice is refused (TOML forbids it; which one wins would be a guess).

@@ -80,7 +80,7 @@ pub fn chaos_warning(config: &RunConfig, exponents: &[f64], stderr: &[f64]) -> O
     use crate::config::SystemConfig;
     let lambda_1 = *exponents.first()?;
     let scale = exponents.iter().fold(0.0f64, |m, l| m.max(l.abs()));
-    if scale.is_nan() || scale <= 0.0 {
+    if scale <= 0.0 {
         return None;
     }
     let sigma = stderr.first().copied().filter(|s| s.is_finite() && *s > 0.0);

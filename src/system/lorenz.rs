@@ -75,7 +75,9 @@ impl Lorenz {
 
     /// Substeps of one tau and their length.
     fn substeps(&self) -> (usize, f64) {
-        let n = (self.tau * Self::steps_per_unit(self.sigma, self.rho, self.beta)).ceil().max(1.0) as usize;
+        // Within 1e-9 of a whole number it is that number: the default tau times the steps
+        // per unit time is 40 up to rounding.
+        let n = (self.tau * Self::steps_per_unit(self.sigma, self.rho, self.beta) - 1e-9).ceil().max(1.0) as usize;
         (n, self.tau / n as f64)
     }
 

@@ -1097,22 +1097,19 @@ fn ticks(lo: f64, hi: f64, step: f64) -> Vec<(f64, String)> {
     // One notation for the whole axis: 20000 beside 1e5 reads as two scales.
     let largest = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let scientific = !(1e-3..1e5).contains(&largest);
-    let mut labels: Vec<String> = values.iter().map(|&v| fmt_tick(v, step, scientific)).collect();
-    if scientific {
-        // The same number of digits in every mantissa (9.490e5, 9.495e5, 9.500e5), as few
-        // as all of them allow (2e4 .. 1e5).
-        let decimal = |l: &String| l.split_once('e').is_some_and(|(m, _)| m.contains('.'));
-        while labels.iter().any(decimal) && labels.iter().filter(|l| decimal(l)).all(|l| l.split_once('e').is_some_and(|(m, _)| m.ends_with('0'))) {
-            labels = labels
-                .into_iter()
-                .map(|l| match l.split_once('e') {
-                    Some((m, e)) if m.contains('.') => format!("{}e{e}", m[..m.len() - 1].trim_end_matches('.')),
-                    _ => l,
-                })
-                .collect();
-        }
+    if !scientific {
+        return values.into_iter().map(|v| (v, fmt_tick(v, step, false))).collect();
     }
-    values.into_iter().zip(labels).collect()
+    // The same number of digits in every mantissa (9.490e5, 9.495e5, 9.500e5; 9.0e5 ..
+    // 1.0e6), as few as all of them allow (2e4 .. 1e5): the largest value's digits for the
+    // step, trimmed alike.
+    let mut digits = (largest.log10().floor() as i32 - step.log10().floor() as i32).clamp(0, 10) as usize;
+    let label = |v: f64, digits: usize| if v.abs() < step * 1e-6 { "0".to_string() } else { format!("{v:.digits$e}") };
+    let trailing_zero = |l: &String| l.split_once('e').is_none_or(|(m, _)| m.ends_with('0'));
+    while digits > 0 && values.iter().map(|&v| label(v, digits)).all(|l| trailing_zero(&l)) {
+        digits -= 1;
+    }
+    values.into_iter().map(|v| (v, label(v, digits))).collect()
 }
 
 /// Label for tick value `v` on a grid of spacing `step`: plain decimals with just enough

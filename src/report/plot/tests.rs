@@ -435,6 +435,10 @@ fn ranges_ticks_and_labels() {
     assert_eq!(fmt_tick(150_000.0, 50_000.0, true), "1.5e5");
     let labels: Vec<String> = ticks(9.488e5, 9.502e5, 500.0).into_iter().map(|t| t.1).collect();
     assert_eq!(labels, ["9.490e5", "9.495e5", "9.500e5"], "one mantissa length per axis");
+    let labels: Vec<String> = ticks(9.0e5, 1.0e6, 2e4).into_iter().map(|t| t.1).collect();
+    assert_eq!(labels, ["9.0e5", "9.2e5", "9.4e5", "9.6e5", "9.8e5", "1.0e6"], "the Henon preset's window");
+    let labels: Vec<String> = ticks(0.0, 2.5e5, 5e4).into_iter().map(|t| t.1).collect();
+    assert_eq!(labels, ["0", "5.0e4", "1.0e5", "1.5e5", "2.0e5", "2.5e5"]);
     assert_eq!(fmt_tick(250.0, 50.0, false), "250");
     // One notation per axis: the Henon run's 2e4..1e5 was "20000 .. 80000, 1e5".
     let labels: Vec<String> = ticks(1e4, 1.05e5, 2e4).into_iter().map(|t| t.1).collect();
