@@ -35,6 +35,8 @@ pub fn differences((run, run_store, here): (&RunConfig, &StoreConfig, &str), (as
             }
         })
         .collect();
+    // Another system's own flags on this side (--lorenz-rho against a Henon run).
+    out.extend(ours.iter().filter(|(id, _)| !theirs.iter().any(|(t, _)| t == id)).map(|(id, have)| format!("--{} {have} {here}, none {there}", id.replace('_', "-"))));
     if out.is_empty() {
         out.push("settings that flags do not show".into());
     }
@@ -749,6 +751,7 @@ mod tests {
         let henon = RunConfig::preset("henon").unwrap();
         let d = differences((&lorenz, &store, "here"), (&henon, &store, "there")).join("; ");
         assert!(d.contains("--system lorenz here, henon there") && d.contains("--henon-a 1.4 there, none here") && d.contains("--tau 0.1 here, 1 there"), "{d}");
+        assert!(d.contains("--lorenz-rho 28 here, none there"), "{d}");
         let mut bigger = store.clone();
         bigger.segment_bytes = 2 << 30;
         assert_eq!(differences((&lorenz, &store, "a"), (&lorenz, &bigger, "b")), ["--segment-mb 1024 a, 2048 b"]);
