@@ -500,17 +500,8 @@ mod tests {
     #[test]
     fn psi_leaves_the_null_space_out() {
         let n = 6;
-        let d = 4 * n;
-        let mut rng = Rng::new(7);
-        let phase = phase(n, 10.0, 2.0, &mut rng);
-        let identity: Vec<f64> = (0..d * d).map(|i| if i % (d + 1) == 0 { 1.0 } else { 0.0 }).collect();
-        let parallel = |a: usize, b: usize| {
-            let mut v = identity.clone();
-            let col = identity[a * d..(a + 1) * d].to_vec();
-            v[b * d..(b + 1) * d].copy_from_slice(&col);
-            v
-        };
-        let frames = [frame(2, phase.clone(), parallel(2 * n - 3, 2 * n + 2), None), frame(1, phase, parallel(2 * n - 4, 2 * n + 3), None)];
+        let phase = phase(n, 10.0, 2.0, &mut Rng::new(7));
+        let frames = [frame(2, phase.clone(), unit_vectors_with(n, &[(2 * n - 3, 2 * n + 2)]), None), frame(1, phase, unit_vectors_with(n, &[(2 * n - 4, 2 * n + 3)]), None)];
         let (out, _) = run(n, &frames, "psi-border");
         let rows = read_csv(&out.join("transversality.csv"));
         let psi = |r: usize| rows[r]["psi_unstable_stable"].parse::<f64>().unwrap();
@@ -518,22 +509,26 @@ mod tests {
         assert!(psi(1).abs() < 1e-14, "v^(2N-3) is unstable and v^(2N+4) stable: {}", psi(1));
     }
 
+    /// The 4N unit vectors (column-major), vector b of each pair (a, b) set to vector a.
+    fn unit_vectors_with(n: usize, same: &[(usize, usize)]) -> Vec<f64> {
+        let d = 4 * n;
+        let identity: Vec<f64> = (0..d * d).map(|i| if i % (d + 1) == 0 { 1.0 } else { 0.0 }).collect();
+        let mut v = identity.clone();
+        for &(a, b) in same {
+            v[b * d..(b + 1) * d].copy_from_slice(&identity[a * d..(a + 1) * d]);
+        }
+        v
+    }
+
     /// Orthogonal conjugate subspaces give pi/2, identical ones 0, for the mode pair and for
     /// E^u vs E^s.
     #[test]
     fn orthogonal_and_identical_conjugate_subspaces() {
         let n = 6;
-        let d = 4 * n;
         let mut rng = Rng::new(5);
         let phase = phase(n, 10.0, 2.0, &mut rng);
-        let identity: Vec<f64> = (0..d * d).map(|i| if i % (d + 1) == 0 { 1.0 } else { 0.0 }).collect();
         // mode pair at 0-based 7, 8; conjugates 15, 16 made equal to them
-        let mut same = identity.clone();
-        for (a, b) in [(7, 16), (8, 15)] {
-            let col = identity[a * d..(a + 1) * d].to_vec();
-            same[b * d..(b + 1) * d].copy_from_slice(&col);
-        }
-        let frames = [frame(2, phase.clone(), identity, None), frame(1, phase, same, None)];
+        let frames = [frame(2, phase.clone(), unit_vectors_with(n, &[]), None), frame(1, phase, unit_vectors_with(n, &[(7, 16), (8, 15)]), None)];
         let (out, produced) = run(n, &frames, "conjugate");
         let rows = read_csv(&out.join("transversality.csv"));
         assert_eq!(rows.len(), 2);
