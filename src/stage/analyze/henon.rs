@@ -43,6 +43,9 @@ struct Point {
 pub struct HenonPicture {
     a: f64,
     b: f64,
+    /// The forward run's lambda_1 <= 0: the frames are a stable orbit, not a strange
+    /// attractor, and v^1 is not the unstable direction.
+    stable_orbit: bool,
     points: Vec<Point>,
 }
 
@@ -60,7 +63,8 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
         SystemConfig::Henon { a, b } => (a, b),
         _ => (Henon::A, Henon::B),
     };
-    Some(Box::new(HenonPicture { a, b, points: Vec::new() }))
+    let stable_orbit = ctx.gs.as_ref().and_then(|g| g.exponents.first()).is_some_and(|&l| l <= 0.0);
+    Some(Box::new(HenonPicture { a, b, stable_orbit, points: Vec::new() }))
 }
 
 /// A box [x0, x1] x [y0, y1].
@@ -232,13 +236,18 @@ impl Analysis for HenonPicture {
         Ok(vec![Produced {
             title: "Hénon map (Fig. 1)".into(),
             caption: format!(
-                "The attractor ({frames} frame points), a stretch of the stable manifold through point 0 (step {}, at ({:.4}, {:.4})): a segment of half-length {:.1e} along v^2 at the point {n} steps later mapped {n} times backward with the inverse map ({} curve points inside the box), and at point 0 the covariant vectors{} as arrows. v^1 lies along the attractor (the unstable manifold), v^2 along the stable manifold{}.",
+                "The attractor ({frames} frame points), a stretch of the stable manifold through point 0 (step {}, at ({:.4}, {:.4})): a segment of half-length {:.1e} along v^2 at the point {n} steps later mapped {n} times backward with the inverse map ({} curve points inside the box), and at point 0 the covariant vectors{} as arrows. {}{}.",
                 zero.step,
                 zero.x[0],
                 zero.x[1],
                 eps_used,
                 kept.len(),
                 if gs.is_empty() { "" } else { " and the orthogonal Gram-Schmidt vectors" },
+                if self.stable_orbit {
+                    "With λ_1 <= 0 (see the warning above) the frames are a stable periodic orbit, not a strange attractor: v^1 is its least contracting direction, v^2 its most contracting one, along the curve"
+                } else {
+                    "v^1 lies along the attractor (the unstable manifold), v^2 along the stable manifold"
+                },
                 if gs.is_empty() { " (run the backward stage with --with-gs for the GS vectors)" } else { "; g^1 = v^1, g^2 is orthogonal to it and not the stable direction" }
             ),
             figures: vec!["fig1_henon".into()],
@@ -343,5 +352,16 @@ mod tests {
         assert_eq!(names, ["v1", "v2", "g1", "g2"]);
         assert!(!read_csv(&out.join("henon_stable_manifold.csv")).is_empty());
         assert!(new(&context("disks", 4, 16, 3.0, 3.0, None, false)).is_none());
+        assert!(produced[0].caption.contains("v^1 lies along the attractor (the unstable manifold)"), "{}", produced[0].caption);
+        // A forward run without chaos: the frames are a stable orbit, and the caption says so.
+        let mut ctx = context("henon", 0, 2, 0.0, 0.0, None, true);
+        ctx.gs = Some(crate::report::SpectrumSummary { exponents: vec![-0.16, -1.04], stderr: vec![1e-10; 2], ks_entropy: None, blocks: None, warnings: Vec::new() });
+        let mut a = new(&ctx).expect("henon");
+        for s in 0..4u64 {
+            a.consume(&frame(1000 - s, p.to_vec(), vec![1.0, 0.0, 0.0, 1.0], None)).unwrap();
+            p = step(p);
+        }
+        let produced = a.finish(&out_dir("henon-stable"), 4).unwrap();
+        assert!(produced[0].caption.contains("the frames are a stable periodic orbit, not a strange attractor"), "{}", produced[0].caption);
     }
 }
