@@ -261,6 +261,14 @@ pub fn classify_clearly(frame: &Frame, step: &Step, candidates: &Candidates) -> 
     classify_step(frame, step, candidates).filter(|m| excess(m.fraction, candidates.families[m.family].dim(m.kind), frame.d) >= MIN_FRACTION)
 }
 
+/// The mode a step is, by name ("LP(1,0)"), where [`classify_clearly`] finds one that also
+/// has the step's degeneracy: what Figs. 14 and 15 call a step.
+pub fn clear_name(frame: &Frame, step: &Step, candidates: &Candidates) -> Option<String> {
+    let m = classify_clearly(frame, step, candidates)?;
+    let family = &candidates.families[m.family];
+    matches_degeneracy(step, m.kind, family).then(|| family.name(m.kind))
+}
+
 /// Whether a class is what the step's degeneracy suggests: the size of the T mode's step for
 /// T, of the LP mode's for L, P or LP (a pure L or P vector group is half of an LP step).
 pub fn matches_degeneracy(step: &Step, kind: ModeKind, family: &Family) -> bool {

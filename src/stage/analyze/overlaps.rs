@@ -39,6 +39,8 @@ pub struct Overlaps {
     /// The positive mode steps that `mode_js` end, at least two; empty where fewer were found
     /// and `mode_js` are the fixed 2N-5, 2N-3.
     mode_steps: Vec<Step>,
+    /// The mode each of `mode_steps` is, where the first frame tells ([`super::mode_steps::clear_name`]).
+    mode_names: Vec<Option<String>>,
     /// The indices are chosen ([`Overlaps::settle`]).
     settled: bool,
     /// The conjugate partners 4N+1-j of `js` (0-based), Fig. 13's second plot.
@@ -77,6 +79,7 @@ pub fn new(ctx: &Context) -> Option<Box<dyn Analysis>> {
         fig4_js: Vec::new(),
         mode_js: Vec::new(),
         mode_steps: Vec::new(),
+        mode_names: Vec::new(),
         settled: false,
         conjugate_js: Vec::new(),
         vv_js: Vec::new(),
@@ -99,6 +102,8 @@ impl Overlaps {
         // n_x = 1, 2, 3).
         let steps = super::mode_steps::positive(&ctx.modes, ctx.d);
         if steps.len() >= 2 {
+            let candidates = super::mode_steps::candidates(ctx);
+            self.mode_names = steps.iter().map(|s| super::mode_steps::clear_name(frame, s, &candidates)).collect();
             self.mode_steps = steps;
         }
         self.mode_js = match ctx.central_range() {
@@ -434,8 +439,12 @@ impl Overlaps {
             if let Some(m) = self.vv_mean(j) {
                 let y = without_self(&m, j);
                 // The step's range names its row in the mode table, which says what it is.
-                let title = match self.mode_steps.iter().find(|s| (s.start..s.start + s.len).contains(&j)) {
-                    Some(s) => format!("j = {} (step i = {}..{})", j + 1, s.start + 1, s.start + s.len),
+                let title = match self.mode_steps.iter().position(|s| (s.start..s.start + s.len).contains(&j)) {
+                    Some(p) => {
+                        let s = &self.mode_steps[p];
+                        let name = self.mode_names.get(p).cloned().flatten().map(|n| format!("{n}, ")).unwrap_or_default();
+                        format!("j = {} ({name}step i = {}..{})", j + 1, s.start + 1, s.start + s.len)
+                    }
                     None => format!("j = {}", j + 1),
                 };
                 let mut fig = Figure::new(&title).size(PANEL.0, PANEL.1).x_label("i").y_label("<|v^j · v^i|>");
@@ -584,8 +593,9 @@ mod tests {
         let header = std::fs::read_to_string(out.join("overlap_clv_clv.csv")).unwrap();
         assert!(header.lines().next().unwrap().contains(&format!("abs_v{}_mean", at + 4)), "Fig. 14 takes the LP block's last index: {header:.200}");
         let svg = std::fs::read_to_string(out.join("fig14_mode_overlap.svg")).unwrap();
-        let title = format!("j = {} (step i = {}..{})", at + 4, at + 1, at + 4);
-        assert!(svg.contains(&title), "the panel names its step's row in the mode table, {title}");
+        // The planted block is an LP mode of the smallest wave vector, and the panel says so.
+        let title = format!("j = {} (LP(1,0), step i = {}..{})", at + 4, at + 1, at + 4);
+        assert!(svg.contains(&title), "the panel names its mode and its step's row in the mode table, {title}: {}", svg.split("<text").filter(|t| t.contains("j = ")).collect::<Vec<_>>().join(" | "));
     }
 
     #[test]

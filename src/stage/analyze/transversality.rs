@@ -207,9 +207,9 @@ impl Analysis for Transversality {
             self.labels = self
                 .steps
                 .iter()
-                .map(|s| match mode_steps::classify_clearly(frame, s, &candidates) {
-                    Some(m) if mode_steps::matches_degeneracy(s, m.kind, &candidates.families[m.family]) => format!("{} ({})", candidates.families[m.family].name(m.kind), step_range(s)),
-                    _ => format!("{}-fold step ({})", s.len, step_range(s)),
+                .map(|s| match mode_steps::clear_name(frame, s, &candidates) {
+                    Some(name) => format!("{name} ({})", step_range(s)),
+                    None => format!("{}-fold step ({})", s.len, step_range(s)),
                 })
                 .collect();
         }
