@@ -10,7 +10,7 @@ use clv::system::lorenz::Lorenz;
 use clv::report::{SpectrumReport, Statistics};
 use clv::stage::forward::Forward;
 use clv::stage::forward_run::{self, Extension, Feedback};
-use clv::store::run::{BuildInfo, RunMeta, StoreConfig, StoreR, FORMAT};
+use clv::store::run::{flag_values, BuildInfo, RunMeta, StoreConfig, StoreR, FORMAT};
 use clv::{Error, Result};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -222,11 +222,6 @@ impl ForwardArgs {
     }
 }
 
-/// The values of the flags that define a run ([`clv::store::run::flag_values`]).
-pub fn flag_values(m: &RunMeta) -> Vec<(&'static str, String)> {
-    clv::store::run::flag_values(&m.config, &m.store)
-}
-
 /// Refuse flags given with --resume that disagree with the stored run, except a longer
 /// --steps (with a new --clv-steps or --transient): that extends the run.
 fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path::Path) -> Result<Option<Extension>> {
@@ -238,7 +233,7 @@ fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path:
         args.system = SystemKind::of(&stored.config.system);
     }
     no_flags_of_other_systems(args.system, |flag| from_command_line(matches, flag))?;
-    let given: Vec<&str> = flag_values(&stored)
+    let given: Vec<&str> = flag_values(&stored.config, &stored.store)
         .iter()
         .map(|(id, _)| *id)
         .chain(["system"])
@@ -249,8 +244,8 @@ fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path:
         return Ok(None);
     }
     let wanted_meta = args.meta()?;
-    let wanted = flag_values(&wanted_meta);
-    let stored_flags = flag_values(&stored);
+    let wanted = flag_values(&wanted_meta.config, &wanted_meta.store);
+    let stored_flags = flag_values(&stored.config, &stored.store);
     for id in given {
         if extending && ["steps", "clv_steps", "transient"].contains(&id) {
             continue;

@@ -1,13 +1,14 @@
 //! `clv run`: the whole pipeline on a preset or a configuration file, changed by settings
 //! given as `clv forward` flags.
 
-use super::forward::{flag_values, no_flags_of_other_systems};
+use super::forward::no_flags_of_other_systems;
+use clv::store::run::flag_values;
 use super::{config_keys, first_line, progress, Cli, Command};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, Args, CommandFactory, FromArgMatches};
 use clv::config::RunConfig;
 use clv::stage::forward_run::Feedback;
-use clv::store::run::{BuildInfo, RunMeta, StoreConfig, FORMAT};
+use clv::store::run::{RunMeta, StoreConfig};
 use clv::{Error, Result};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -40,9 +41,8 @@ pub struct RunArgs {
 /// system's default tau by leaving --tau out, so that it follows changed Lorenz parameters.
 /// Parsed back they give `config`.
 fn config_flags(config: &RunConfig) -> Vec<String> {
-    let meta = RunMeta { format: FORMAT.into(), config: config.clone(), store: StoreConfig::for_run(config), build: BuildInfo::current() };
     let left_out = ["lx", "ly", "checkpoint_every", "segment_checkpoints", "segment_mb", "store_r", "clv_steps", "transient"];
-    flag_values(&meta)
+    flag_values(config, &StoreConfig::for_run(config))
         .into_iter()
         .filter(|(id, _)| !left_out.contains(id) && (*id != "vectors" || config.vectors != config.system.dim()) && (*id != "tau" || config.tau != config.system.default_tau()))
         .chain([("threads", config.threads.to_string())])
