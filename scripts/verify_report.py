@@ -171,11 +171,15 @@ or before 2N-3. modes_fits.csv, scope mean: for the 2-steps classified T of one 
 the mean over frames of the least-squares fit A cos(k x) + B sin(k x) of the components across
 k of dq (and of dp) of each GS and CLV vector against its position along k x = e_k.q_n:
 amp = hypot(A, B), resid = rms residual, rel_resid = resid / amp; scope "step S": the same
-of the step's last vector at the shown frame S, for the positive steps classified T with
-their degeneracy, whose components across k and wrapped positions along k are
-fig10_T<n>_i<i>.csv (the CLV's sign matched to the GS vector). modes_lp.csv and
-LP<n>_i<first>.csv: for the positive steps classified L, P or LP of one wave vector with the
-LP size, at the shown frame, the least-squares combination of the group (GS, CLV) whose
+of the step's last vector at the shown frame S, for the positive steps classified T of one
+wave vector with their degeneracy, whose components across k and wrapped positions along k
+are fig10_T<n>_i<i>.csv (the CLV's sign matched to the GS vector); for a T step of several
+wave vectors (T(1,0)+T(0,1) in a square box), per wave vector fig10_T<n>_i<i>.csv holds
+instead the group's combination whose dq best matches that wave's cos pattern (least squares,
+unit, signed as below), its components across k of dq and dp and along k of dq, and
+modes_fits.csv no row. modes_lp.csv and
+LP<n>_i<first>.csv: for the positive steps classified L, P or LP with their size, per wave
+vector, at the shown frame, the least-squares combination of the group (GS, CLV) whose
 position part (Fig. 11; momentum part, Fig. 12) best matches the raw L sin, P sin (L cos,
 P cos) pattern, normalised and signed to overlap it positively: overlap = |cos| of its part
 and the pattern, and the fit's amplitude, phase = atan2(-B, A) (compared modulo 2 pi) and
@@ -958,53 +962,71 @@ def mode_tables(sampled, first, spectrum, lx, ly, d):
                 v = mean[si * 2 + j, c // 4]
                 if not np.all(np.isnan(v)):
                     out["modes_fits.csv"].append(dict(zip(FIT_KEYS, [str(st[0] + 1), str(st[0] + 2), str(st[0] + j + 1), src, str(w[0]), str(w[1]), "mean"])) | dict(zip(FIT_COLS, v)))
-    # The pattern tables at the shown frame: positive steps classified as a mode of one wave
-    # vector with its degeneracy; T: Fig. 10 (last vector of the pair), else Figs. 11, 12.
+    # The pattern tables at the shown frame: positive steps classified as a mode with its
+    # degeneracy, each of its wave vectors; T: Fig. 10 (last vector of a pair of one wave
+    # vector; in a step of several, the group's least-squares match of the wave's cos
+    # pattern of dq, with dq along k as a check), else Figs. 11, 12.
     phase, g, v = first["phase"], first["g"], first["v"]
+
+    def reconstructed(group, part, t):
+        """The group's combination whose `part` best matches pattern t: (unit vector signed
+        to overlap t positively, |cos| of its part and t)."""
+        coef, *_ = np.linalg.lstsq(group[part], t, rcond=None)
+        vec = group @ coef
+        dot = vec[part] @ t
+        overlap = abs(dot) / (np.linalg.norm(vec[part]) * np.linalg.norm(t))
+        return vec * np.sign(dot) / np.linalg.norm(vec), overlap
+
     for (st, _), c in zip(steps, chosen):
-        if c is None or len(families[c // 4][0]) != 1 or not st[0] + st[1] <= d // 2 - 3 or not matches_degeneracy(st[1], c, families):
+        if c is None or not st[0] + st[1] <= d // 2 - 3 or not matches_degeneracy(st[1], c, families):
             continue
-        w = families[c // 4][0][0]
-        k = wave_norm(w, lx, ly)
-        along, across = (np.array(x) for x in wave_axes(w, lx, ly))
-        span, xname, a_name, t_name = pattern_axes(w, lx, ly)
-        x = np.mod(phase[: 2 * n].reshape(n, 2) @ along, span)
-        # file stems: "T1" for (1,0), "T1_m1" for (1,-1); the LP figures' "LP" whether L, P or LP
-        stem = lambda kind: f"{kind}{w[0]}" if w[1] == 0 else f"{kind}{w[0]}_{w[1]}".replace("-", "m")  # noqa: E731
-        if KINDS[c % 4] == "T":
-            i = st[0] + st[1] - 1
-            sources = ([("GS", g[:, i])] if g is not None else []) + [("CLV", v[:, i] * (-1.0 if g is not None and g[:, i] @ v[:, i] < 0 else 1.0))]
-            cols = {xname: x}
-            for part, comp in ((slice(0, 2 * n), f"dq{t_name}"), (slice(2 * n, 4 * n), f"dp{t_name}")):
-                for src, vec in sources:
-                    cols[f"{comp}_{src.lower()}"] = vec[part].reshape(n, 2) @ across
-            out["patterns"][f"fig10_{stem('T')}_i{i + 1}.csv"] = cols
-            for src, vec in sources:
-                out["modes_fits.csv"].append(dict(zip(FIT_KEYS, [str(st[0] + 1), str(st[0] + st[1]), str(i + 1), src, str(w[0]), str(w[1]), f"step {first['step']}"])) | dict(zip(FIT_COLS, fit_values(*across_fits(vec, phase, w, lx, ly)))))
-        else:
-            sources = ([("GS", g[:, st[0] : st[0] + st[1]])] if g is not None else []) + [("CLV", v[:, st[0] : st[0] + st[1]])]
-            targets = mode_patterns("LP", ([w], k), phase, lx, ly)  # L cos, L sin, P cos, P sin
-            cols = {xname: x}
-            for fig, part, ch, pattern in ((11, slice(0, 2 * n), "q", "sin"), (12, slice(2 * n, 4 * n), "p", "cos")):
-                for src, group in sources:
-                    for which, t in (("L", targets[:, 1 if pattern == "sin" else 0]), ("P", targets[:, 3 if pattern == "sin" else 2])):
-                        coef, *_ = np.linalg.lstsq(group[part], t, rcond=None)
-                        vec = group @ coef
-                        dot = vec[part] @ t
-                        overlap = abs(dot) / (np.linalg.norm(vec[part]) * np.linalg.norm(t))
-                        vec = vec * np.sign(dot) / np.linalg.norm(vec)
-                        field = vec[part].reshape(n, 2)
-                        if which == "L":
-                            y = field @ along
-                            cols[f"fig{fig}_L_d{ch}{a_name}_{src.lower()}"] = y
-                            cols[f"fig{fig}_L_d{ch}{t_name}_{src.lower()}"] = field @ across
-                        else:
-                            pn = phase[2 * n :].reshape(n, 2)
-                            y = (field * pn).sum(axis=1) / (pn**2).sum(axis=1)
-                            cols[f"fig{fig}_P_d{ch}_over_p_{src.lower()}"] = y
-                        amp, ph, res = fit_sine(x, y, k)
-                        out["modes_lp.csv"].append({"first": str(st[0] + 1), "last": str(st[0] + st[1]), "n_x": str(w[0]), "n_y": str(w[1]), "source": src, "figure": str(fig), "pattern": f"{which}_{pattern}", "overlap": overlap, "amplitude": amp, "phase": ph, "residual": res})
-            out["patterns"][f"{stem('LP')}_i{st[0] + 1}.csv"] = cols
+        waves = families[c // 4][0]
+        several = len(waves) > 1
+        groups = ([("GS", g[:, st[0] : st[0] + st[1]])] if g is not None else []) + [("CLV", v[:, st[0] : st[0] + st[1]])]
+        for w in waves:
+            k = wave_norm(w, lx, ly)
+            along, across = (np.array(x) for x in wave_axes(w, lx, ly))
+            span, xname, a_name, t_name = pattern_axes(w, lx, ly)
+            x = np.mod(phase[: 2 * n].reshape(n, 2) @ along, span)
+            # file stems: "T1" for (1,0), "T1_m1" for (1,-1); the LP figures' "LP" whether L, P or LP
+            stem = lambda kind: f"{kind}{w[0]}" if w[1] == 0 else f"{kind}{w[0]}_{w[1]}".replace("-", "m")  # noqa: E731
+            if KINDS[c % 4] == "T":
+                i = st[0] + st[1] - 1
+                if several:
+                    cos = mode_patterns("T", ([w], k), phase, lx, ly)[:, 0]
+                    sources = [(src, reconstructed(group, slice(0, 2 * n), cos)[0]) for src, group in groups]
+                else:
+                    sources = ([("GS", g[:, i])] if g is not None else []) + [("CLV", v[:, i] * (-1.0 if g is not None and g[:, i] @ v[:, i] < 0 else 1.0))]
+                cols = {xname: x}
+                for part, comp in ((slice(0, 2 * n), f"dq{t_name}"), (slice(2 * n, 4 * n), f"dp{t_name}")):
+                    for src, vec in sources:
+                        cols[f"{comp}_{src.lower()}"] = vec[part].reshape(n, 2) @ across
+                    if several and comp.startswith("dq"):
+                        for src, vec in sources:
+                            cols[f"dq{a_name}_{src.lower()}"] = vec[part].reshape(n, 2) @ along
+                out["patterns"][f"fig10_{stem('T')}_i{i + 1}.csv"] = cols
+                if not several:
+                    for src, vec in sources:
+                        out["modes_fits.csv"].append(dict(zip(FIT_KEYS, [str(st[0] + 1), str(st[0] + st[1]), str(i + 1), src, str(w[0]), str(w[1]), f"step {first['step']}"])) | dict(zip(FIT_COLS, fit_values(*across_fits(vec, phase, w, lx, ly)))))
+            else:
+                targets = mode_patterns("LP", ([w], k), phase, lx, ly)  # L cos, L sin, P cos, P sin
+                cols = {xname: x}
+                for fig, part, ch, pattern in ((11, slice(0, 2 * n), "q", "sin"), (12, slice(2 * n, 4 * n), "p", "cos")):
+                    for src, group in groups:
+                        for which, t in (("L", targets[:, 1 if pattern == "sin" else 0]), ("P", targets[:, 3 if pattern == "sin" else 2])):
+                            vec, overlap = reconstructed(group, part, t)
+                            field = vec[part].reshape(n, 2)
+                            if which == "L":
+                                y = field @ along
+                                cols[f"fig{fig}_L_d{ch}{a_name}_{src.lower()}"] = y
+                                cols[f"fig{fig}_L_d{ch}{t_name}_{src.lower()}"] = field @ across
+                            else:
+                                pn = phase[2 * n :].reshape(n, 2)
+                                y = (field * pn).sum(axis=1) / (pn**2).sum(axis=1)
+                                cols[f"fig{fig}_P_d{ch}_over_p_{src.lower()}"] = y
+                            amp, ph, res = fit_sine(x, y, k)
+                            out["modes_lp.csv"].append({"first": str(st[0] + 1), "last": str(st[0] + st[1]), "n_x": str(w[0]), "n_y": str(w[1]), "source": src, "figure": str(fig), "pattern": f"{which}_{pattern}", "overlap": overlap, "amplitude": amp, "phase": ph, "residual": res})
+                out["patterns"][f"{stem('LP')}_i{st[0] + 1}.csv"] = cols
     # modes_dispersion.csv: the positive, consistently classified steps by kind, then |k|.
     disp = [r for r in rows if r["side"] == "+" and r["consistent"] == "true" and np.isfinite(r["k"]) and np.isfinite(r["lambda"])]
     disp.sort(key=lambda r: (r["kind"], r["k"]))

@@ -973,6 +973,22 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     let phis: Vec<String> = m["columns"]["transversality.csv"].as_array().unwrap().iter().filter_map(|c| c.as_str()).filter(|c| c.starts_with("phi_")).map(String::from).collect();
     assert!(phis.len() >= 2, "{m}");
 
+    // N = 100 in a square box: T(1,0) and T(0,1) are degenerate by symmetry, one step of
+    // four exponents (i = 194..197 with this seed), and Fig. 10 shows each wave vector's
+    // pure T vector reconstructed inside it, with dq along k as a check.
+    let (square_run, square_frames, square_report) = (base.join("square-run"), base.join("square-frames.mcap"), base.join("square-report"));
+    ok(clv(&["forward", "--n", "100", "--aspect", "1", "--steps", "800", "--relax-steps", "200", "--clv-steps", "30", "--seed", "1", "--quiet", "--out", square_run.to_str().unwrap()]));
+    ok(clv(&["backward", square_run.to_str().unwrap(), "--out", square_frames.to_str().unwrap(), "--with-gs", "--quiet"]));
+    ok(clv(&["analyze", square_frames.to_str().unwrap(), "--every", "3", "--out", square_report.to_str().unwrap(), "--quiet"]));
+    let sq: serde_json::Value = serde_json::from_slice(&ok(verify(&square_report, &square_frames)).stdout).unwrap();
+    assert!(sq["agree"] == true, "{sq}");
+    let square_fig10: Vec<&String> = sq["checked"].as_object().unwrap().keys().filter(|t| t.starts_with("fig10_T")).collect();
+    assert_eq!(square_fig10.len(), 2, "one table per wave vector of T(1,0)+T(0,1): {sq}");
+    all_checked(&sq, &["modes.csv", "modes.json", square_fig10[0].as_str(), square_fig10[1].as_str()]);
+    for (table, check) in [("fig10_T1_i197.csv", "dqx_clv"), ("fig10_T0_1_i197.csv", "dqy_clv")] {
+        assert!(sq["columns"][table].as_array().is_some_and(|c| c.iter().any(|c| c == check)), "{table} {check}: {sq}");
+    }
+
     // One number of one table off by a relative 1e-6 (in a copy of the report, the other
     // tables as written): exactly that one disagreement, and exit 1. Rows are counted from 1
     // after the header (in a table of indices i = 1, 2, ..., row i is index i); the message

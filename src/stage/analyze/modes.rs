@@ -37,7 +37,10 @@
 //! 4. LP modes of one wave vector (Figs. 11, 12): the pure L and P vectors are reconstructed
 //!    inside the four-dimensional GS and CLV groups at one frame from the position (Fig. 11,
 //!    sine patterns) and the momentum perturbations (Fig. 12, cosine patterns); for P the
-//!    disk momenta are divided out. Steps of several wave vectors get no pattern figures.
+//!    disk momenta are divided out.
+//! 5. Steps of several wave vectors (beyond the paper, whose thin box has none: T(1,0)+T(0,1)
+//!    in a square box) get the figures of each of their wave vectors, its pure T, L and P
+//!    vectors reconstructed inside the whole step.
 //!
 //! Small systems may have few or no modes: the table is then empty and says so.
 
@@ -402,21 +405,24 @@ impl Modes {
         for (acc, c) in self.steps.iter().zip(chosen) {
             let (Some(frame), Some((kind, f))) = (shown, *c) else { continue };
             let family = &cands.families[f];
-            let Some(wave) = family.single() else { continue };
             if !is_positive(&acc.step, self.ctx.d) || !matches_degeneracy(&acc.step, kind, family) {
                 continue;
             }
-            // In the paper's order of figures: the T modes (Fig. 10), then the LP modes
-            // (Figs. 11, 12), each by wave vector, whatever the order of their steps.
-            let order = (kind != ModeKind::T, wave.n_x.abs() + wave.n_y.abs(), wave.n_x.abs());
-            if kind == ModeKind::T {
-                let (entry, rows) = transverse_figures(cands, frame, &acc.step, wave, out)?;
-                fit_rows.extend(rows);
-                pattern_entries.push((order, entry));
-            } else {
-                let (entry, rows) = lp_figures(cands, frame, &acc.step, wave, out)?;
-                lp_rows.extend(rows);
-                pattern_entries.push((order, entry));
+            // A step of several wave vectors (T(1,0)+T(0,1) in a square box) gets the figures
+            // of each, reconstructed inside the whole step.
+            for &wave in &family.waves {
+                // In the paper's order of figures: the T modes (Fig. 10), then the LP modes
+                // (Figs. 11, 12), each by wave vector, whatever the order of their steps.
+                let order = (kind != ModeKind::T, wave.n_x.abs() + wave.n_y.abs(), wave.n_x.abs());
+                if kind == ModeKind::T {
+                    let (entry, rows) = transverse_figures(cands, frame, &acc.step, family, wave, out)?;
+                    fit_rows.extend(rows);
+                    pattern_entries.push((order, entry));
+                } else {
+                    let (entry, rows) = lp_figures(cands, frame, &acc.step, family, wave, out)?;
+                    lp_rows.extend(rows);
+                    pattern_entries.push((order, entry));
+                }
             }
         }
         pattern_entries.sort_by_key(|(order, _)| *order);
@@ -747,74 +753,118 @@ fn fit_cells(fit: &[SineFit; 2]) -> Vec<String> {
     fit.iter().flat_map(|f| [f.amplitude, f.residual, f.residual / f.amplitude]).map(fmt).collect()
 }
 
-/// Fig. 10 for one T step: the perturbations across k (dq_y and dp_y for (n_x, 0)) of its
-/// last vector (the one nearest the null space, as the paper's i = 393 for T(1,0)) against
-/// the position along k (q_x), GS and CLV, with fits.
-fn transverse_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &Path) -> Result<(Produced, Vec<Vec<String>>)> {
+/// Fig. 10 for one wave vector of a T step: its perturbations across k (dq_y and dp_y for
+/// (n_x, 0)) against the position along k (q_x), GS and CLV, with fits. A pair of one wave
+/// vector shows its last vector (the one nearest the null space, as the paper's i = 393 for
+/// T(1,0)), the CLV's sign matched to the GS vector; a step of several wave vectors shows,
+/// for each, the vector of the step's span whose dq best matches that wave's cos pattern
+/// (reconstructed as Figs. 11 and 12 reconstruct L and P), with dq along k, which vanishes
+/// for an ideal T pattern, as a check.
+fn transverse_figures(cands: &Candidates, frame: &Frame, step: &Step, family: &Family, wave: Wave, out: &Path) -> Result<(Produced, Vec<Vec<String>>)> {
     let axes = WaveAxes::new(cands, wave);
+    let d = frame.d;
     let i = step.start + step.len - 1;
     let x = axes.positions(&frame.phase);
-    let gs = frame.g(i);
-    // the sign of a vector is arbitrary: show the CLV with the sign that best matches g^i
-    let sign = gs.map_or(1.0, |g| if vecset::dot(g, frame.v(i)) < 0.0 { -1.0 } else { 1.0 });
-    let clv: Vec<f64> = frame.v(i).iter().map(|x| sign * x).collect();
-    let mut sources: Vec<(&str, &[f64])> = Vec::new();
-    if let Some(g) = gs {
-        sources.push(("GS", g));
-    }
-    sources.push(("CLV", &clv));
     let name = Family { waves: vec![wave], k: axes.k }.name(ModeKind::T);
+    let several = family.single().is_none();
+    // (source, vector, |cos| of its dq with the pattern where reconstructed)
+    let mut sources: Vec<(&str, Vec<f64>, Option<f64>)> = Vec::new();
+    if several {
+        let pattern = km::mode_patterns(ModeKind::T, &Family { waves: vec![wave], k: axes.k }, &frame.phase, cands.lx, cands.ly);
+        let cos = &pattern[..d / 2];
+        if let Some(g) = frame.g.as_deref() {
+            let r = km::reconstruct(group(g, d, step), d, cos, Part::Position);
+            sources.push(("GS", r.vector, Some(r.overlap)));
+        }
+        let r = km::reconstruct(group(&frame.v, d, step), d, cos, Part::Position);
+        sources.push(("CLV", r.vector, Some(r.overlap)));
+    } else {
+        let gs = frame.g(i);
+        // the sign of a vector is arbitrary: show the CLV with the sign that best matches g^i
+        let sign = gs.map_or(1.0, |g| if vecset::dot(g, frame.v(i)) < 0.0 { -1.0 } else { 1.0 });
+        if let Some(g) = gs {
+            sources.push(("GS", g.to_vec(), None));
+        }
+        sources.push(("CLV", frame.v(i).iter().map(|x| sign * x).collect(), None));
+    }
     let stem = format!("fig10_{}_i{}", axes.stem(ModeKind::T), i + 1);
     let mut rows = Vec::new();
     let mut columns = Columns(vec![(axes.x_label.split(' ').next().unwrap_or("x").into(), x.clone())]);
     let mut figs = Vec::new();
-    let t = axes.across_name;
+    let (a, t) = (axes.along_name, axes.across_name);
+    let shown = if several { format!("{name} in {}, i = {}..{}", family.name(ModeKind::T), step.start + 1, i + 1) } else { format!("{name}, i = {}", i + 1) };
     for (part, comp, label) in [(Part::Position, format!("dq{t}"), format!("δq_{t}")), (Part::Momentum, format!("dp{t}"), format!("δp_{t}"))] {
         let mut points = Vec::new();
         let mut fits = Vec::new();
-        for &(src, v) in &sources {
+        for (src, v, _) in &sources {
             let y = km::project(km::part_of(v, part), axes.across);
             let fit = km::fit_sine(&x, &y, axes.k);
             fits.push((format!("{src} fit: A = {:.3}, rms residual {:.3}", fit.amplitude, fit.residual), src.to_string(), fit));
             columns.push(format!("{comp}_{}", src.to_lowercase()), &y);
             points.push(Scatter { label: src.to_string(), src: src.to_string(), y, check: false });
         }
-        let title = format!("{name}, i = {}: {label} against {} (step {})", i + 1, axes.x_label, frame.step);
+        if several && part == Part::Position {
+            for (src, v, _) in &sources {
+                let y = km::project(km::part_of(v, part), axes.along);
+                columns.push(format!("dq{a}_{}", src.to_lowercase()), &y);
+                points.push(Scatter { label: format!("{src} δq_{a} (0 for an ideal T)"), src: src.to_string(), y, check: true });
+            }
+        }
+        let title = format!("{shown}: {label} against {} (step {})", axes.x_label, frame.step);
         let fstem = format!("{stem}_{comp}");
         save_figure(&pattern_figure(&title, &label, &axes, &x, &points, &fits), out, &fstem)?;
         figs.push(fstem);
     }
-    for &(src, v) in &sources {
-        let (q, p) = km::fit_transverse(v, &frame.phase, wave, cands.lx, cands.ly);
-        let mut row = vec![(step.start + 1).to_string(), (step.start + step.len).to_string(), (i + 1).to_string(), src.into(), wave.n_x.to_string(), wave.n_y.to_string(), format!("step {}", frame.step)];
-        row.extend(fit_cells(&[q, p]));
-        rows.push(row);
+    // The averaged fits of modes_fits.csv are those of the pair's own vectors.
+    if !several {
+        for (src, v, _) in &sources {
+            let (q, p) = km::fit_transverse(v, &frame.phase, wave, cands.lx, cands.ly);
+            let mut row = vec![(step.start + 1).to_string(), (step.start + step.len).to_string(), (i + 1).to_string(), src.to_string(), wave.n_x.to_string(), wave.n_y.to_string(), format!("step {}", frame.step)];
+            row.extend(fit_cells(&[q, p]));
+            rows.push(row);
+        }
     }
     columns.write(&out.join(format!("{stem}.csv")))?;
-    Ok((
-        Produced {
-            title: format!("Transverse mode {name} (Fig. 10)"),
-            caption: format!(
-                "Position (δq_{t}) and momentum (δp_{t}) perturbations{} of vector i = {} of the {name} pair (i = {}..{}) against s = {} at step {}, for the {}, with least-squares fits A cos(k s + φ) in the same colours, k = {:.4}. Fits of both vectors of the pair averaged over the frames are in modes_fits.csv (columns dqt, dpt: across k).",
-                if t == "t" { " across k" } else { "" },
-                i + 1,
-                step.start + 1,
-                step.start + step.len,
-                axes.x_label,
-                frame.step,
-                if gs.is_some() { "GS vector (blue) and the covariant vector (vermillion, sign matched to the GS vector)" } else { "covariant vector (vermillion)" },
-                axes.k
-            ),
-            figures: figs,
-            tables: vec![format!("{stem}.csv"), "modes_fits.csv".into()],
-        },
-        rows,
-    ))
+    let across = if t == "t" { " across k" } else { "" };
+    let colours = |one: &str, both: &str| if frame.g.is_some() { both.to_string() } else { one.to_string() };
+    let caption = if several {
+        let overlaps: Vec<String> = sources.iter().map(|(src, _, o)| format!("{src} {:.3}", o.unwrap_or(f64::NAN))).collect();
+        format!(
+            "Position (δq_{t}) and momentum (δp_{t}) perturbations{across} of the pure {name} vector, reconstructed at step {} inside the {}-dimensional {} of the {} step (i = {}..{}) by least squares against the cos pattern of δq_{t} (Table III), against s = {}, with least-squares fits A cos(k s + φ) in the same colours, k = {:.4}. |cos| between the reconstructed δq and the pattern (1 where the pattern lies in the span): {}. δq_{a}, which vanishes for an ideal T pattern, as a check in open markers. Every value is in {stem}.csv.",
+            frame.step,
+            step.len,
+            colours("covariant subspace (vermillion)", "GS (blue) and covariant (vermillion) subspaces"),
+            family.name(ModeKind::T),
+            step.start + 1,
+            step.start + step.len,
+            axes.x_label,
+            axes.k,
+            overlaps.join(", ")
+        )
+    } else {
+        format!(
+            "Position (δq_{t}) and momentum (δp_{t}) perturbations{across} of vector i = {} of the {name} pair (i = {}..{}) against s = {} at step {}, for the {}, with least-squares fits A cos(k s + φ) in the same colours, k = {:.4}. Fits of both vectors of the pair averaged over the frames are in modes_fits.csv (columns dqt, dpt: across k).",
+            i + 1,
+            step.start + 1,
+            step.start + step.len,
+            axes.x_label,
+            frame.step,
+            colours("covariant vector (vermillion)", "GS vector (blue) and the covariant vector (vermillion, sign matched to the GS vector)"),
+            axes.k
+        )
+    };
+    let (title, tables) = if several {
+        (format!("Transverse mode {name} of {} (Fig. 10)", family.name(ModeKind::T)), vec![format!("{stem}.csv")])
+    } else {
+        (format!("Transverse mode {name} (Fig. 10)"), vec![format!("{stem}.csv"), "modes_fits.csv".into()])
+    };
+    Ok((Produced { title, caption, figures: figs, tables }, rows))
 }
 
-/// Figs. 11 and 12 for one LP step: pure L and P vectors reconstructed inside the GS and the
-/// CLV group from the position (sine patterns) and the momentum (cosine patterns) parts.
-fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &Path) -> Result<(Produced, Vec<Vec<String>>)> {
+/// Figs. 11 and 12 for one wave vector of an LP step: pure L and P vectors reconstructed
+/// inside the GS and the CLV group (the whole step, also where it holds several wave
+/// vectors) from the position (sine patterns) and the momentum (cosine patterns) parts.
+fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, family: &Family, wave: Wave, out: &Path) -> Result<(Produced, Vec<Vec<String>>)> {
     let d = frame.d;
     let axes = WaveAxes::new(cands, wave);
     let x = axes.positions(&frame.phase);
@@ -891,11 +941,14 @@ fn lp_figures(cands: &Candidates, frame: &Frame, step: &Step, wave: Wave, out: &
     columns.write(&out.join(format!("{stem}.csv")))?;
     Ok((
         Produced {
-            title: format!("Longitudinal-momentum mode {name} (Figs. 11, 12)"),
+            title: if family.single().is_some() { format!("Longitudinal-momentum mode {name} (Figs. 11, 12)") } else { format!("Longitudinal-momentum mode {name} of {} (Figs. 11, 12)", family.name(ModeKind::LP)) },
             caption: format!(
-                "Pure L and P vectors reconstructed at step {} inside the four-dimensional {} of {name} (i = {}..{}) by least squares against the Table III patterns, against {}: Fig. 11 from the position perturbations (sine patterns: δq_{a} of L, with δq_{t}, which vanishes for an ideal L pattern, as a check, here rms δq_{t} / rms δq_{a} = {}, and (δq·p)/p² of P, the momenta divided out), Fig. 12 likewise from the momentum perturbations (cosine patterns). GS values in blue, CLV values in vermillion (as in Fig. 10), each with its sine fit in its colour; the checks of L, δq_{t} and δp_{t}, in open markers. Overlaps and sine fits are in modes_lp.csv.{}",
+                "Pure L and P vectors{} reconstructed at step {} inside the {}-dimensional {} of {} (i = {}..{}) by least squares against the Table III patterns, against {}: Fig. 11 from the position perturbations (sine patterns: δq_{a} of L, with δq_{t}, which vanishes for an ideal L pattern, as a check, here rms δq_{t} / rms δq_{a} = {}, and (δq·p)/p² of P, the momenta divided out), Fig. 12 likewise from the momentum perturbations (cosine patterns). GS values in blue, CLV values in vermillion (as in Fig. 10), each with its sine fit in its colour; the checks of L, δq_{t} and δp_{t}, in open markers. Overlaps and sine fits are in modes_lp.csv.{}",
+                if family.single().is_some() { String::new() } else { format!(" of {name}") },
                 frame.step,
+                if step.len == 4 { "four".to_string() } else { step.len.to_string() },
                 if frame.g.is_some() { "GS and covariant subspaces" } else { "covariant subspace" },
+                if family.single().is_some() { name.clone() } else { format!("the {} step", family.name(ModeKind::LP)) },
                 step.start + 1,
                 step.start + step.len,
                 axes.x_label,
@@ -1132,8 +1185,8 @@ mod tests {
 
     /// In a square box the modes of (1,0) and (0,1) are degenerate by symmetry: a T step of
     /// 4 exponents and an LP step of 8, found, named and tabulated as such (their mixtures
-    /// are random inside the steps, as in a real run), with no pattern figures, which are for
-    /// one wave vector.
+    /// are random inside the steps, as in a real run), with the pattern figures of each wave
+    /// vector, its pure vectors reconstructed inside the whole step.
     #[test]
     fn square_box_modes_of_two_wave_vectors() {
         const L: f64 = 8.0;
@@ -1171,7 +1224,43 @@ mod tests {
         let got: Vec<(&str, &str, &str, &str, &str)> = plus.iter().map(|r| (r["first"].as_str(), r["last"].as_str(), r["degeneracy"].as_str(), r["name"].as_str(), r["consistent"].as_str())).collect();
         assert_eq!(got, [("46", "53", "8", "LP(1,0)+LP(0,1)", "true"), ("54", "57", "4", "T(1,0)+T(0,1)", "true")], "{rows:?}");
         assert!(plus.iter().all(|r| r["fraction_gs"].parse::<f64>().unwrap() > 0.999));
-        assert!(!out.join("modes_fits.csv").exists() && !produced.iter().any(|p| p.title.contains("Fig. 10") || p.title.contains("Figs. 11")));
+        // Fig. 10 of each wave vector: the reconstructed pure T vector is the pattern (dq
+        // across k a cosine of q along k, residual 0; dq along k 0) in both sources, and
+        // its dp is 0.7 of its dq, as planted.
+        for (stem, across, along) in [("T1", "y", "x"), ("T0_1", "x", "y")] {
+            let csv = out.join(format!("fig10_{stem}_i57.csv"));
+            let table = read_table(&csv);
+            let s = column(&table, &format!("q_{along}"));
+            for src in ["gs", "clv"] {
+                let dq = column(&table, &format!("dq{across}_{src}"));
+                let dp = column(&table, &format!("dp{across}_{src}"));
+                let fit = km::fit_sine(&s, &dq, std::f64::consts::TAU / L);
+                assert!(fit.amplitude > 0.1 && fit.residual < 1e-12, "{stem} {src}: {fit:?}");
+                assert!(column(&table, &format!("dq{along}_{src}")).iter().all(|x| x.abs() < 1e-12), "{stem} {src}");
+                assert!(dq.iter().zip(&dp).all(|(q, p)| (0.7 * q - p).abs() < 1e-12), "{stem} {src}");
+            }
+            for comp in ["dq", "dp"] {
+                assert!(is_png(&out.join(format!("fig10_{stem}_i57_{comp}{across}.png"))));
+            }
+        }
+        let t_entries: Vec<&Produced> = produced.iter().filter(|p| p.title.contains("(Fig. 10)")).collect();
+        assert_eq!(t_entries.iter().map(|p| p.title.as_str()).collect::<Vec<_>>(), ["Transverse mode T(0,1) of T(1,0)+T(0,1) (Fig. 10)", "Transverse mode T(1,0) of T(1,0)+T(0,1) (Fig. 10)"]);
+        assert!(t_entries[1].caption.contains("4-dimensional GS (blue) and covariant (vermillion) subspaces of the T(1,0)+T(0,1) step (i = 54..57)") && t_entries[1].caption.contains("GS 1.000, CLV 1.000"), "{}", t_entries[1].caption);
+        // The averaged fits are those of a pair's own vectors: none for a step of two waves.
+        assert!(!out.join("modes_fits.csv").exists());
+        // Figs. 11 and 12 of each wave vector: pure L and P in the span of the 8-fold step.
+        let rec = read_csv(&out.join("modes_lp.csv"));
+        assert_eq!(rec.len(), 16, "2 waves x GS, CLV x Figs. 11, 12 x L, P: {rec:?}");
+        assert!(rec.iter().all(|r| r["first"] == "46" && r["last"] == "53" && r["overlap"].parse::<f64>().unwrap() > 0.999999), "{rec:?}");
+        for stem in ["LP1", "LP0_1"] {
+            for fig in ["fig11", "fig12"] {
+                for m in ["L", "P"] {
+                    assert!(is_png(&out.join(format!("{fig}_{stem}_i46_{m}.png"))), "{fig}_{stem}_i46_{m}");
+                }
+            }
+        }
+        let lp_entry = produced.iter().find(|p| p.title == "Longitudinal-momentum mode LP(1,0) of LP(1,0)+LP(0,1) (Figs. 11, 12)").expect("Figs. 11, 12 of (1,0)");
+        assert!(lp_entry.caption.starts_with("Pure L and P vectors of LP(1,0) reconstructed at step 3 inside the 8-dimensional GS and covariant subspaces of the LP(1,0)+LP(0,1) step (i = 46..53)"), "{}", lp_entry.caption);
         assert!(produced[0].caption.contains("together") && produced[0].caption.contains("(1,0)+(0,1)"), "{}", produced[0].caption);
         let dispersion = read_csv(&out.join("modes_dispersion.csv"));
         assert_eq!(dispersion.len(), 2);

@@ -541,8 +541,9 @@ pub fn reconstruct(vectors: &[f64], d: usize, target: &[f64], part: Part) -> Rec
     Reconstruction { vector: w, overlap }
 }
 
-/// Pure L and P vectors reconstructed inside a degenerate LP group of one wave vector
-/// (column-major 4N x 4) against the four Table III patterns read from `part`.
+/// Pure L and P vectors of one wave vector reconstructed inside a degenerate group
+/// (column-major 4N x m: its LP quadruplet, or a step of several wave vectors) against the
+/// four Table III patterns read from `part`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LpReconstruction {
     pub l_cos: Reconstruction,
@@ -551,7 +552,7 @@ pub struct LpReconstruction {
     pub p_sin: Reconstruction,
 }
 
-/// Reconstruction of the pure L and P vectors of an LP group of one wave vector (paper Figs.
+/// Reconstruction of the pure L and P vectors of one wave vector in a group (paper Figs.
 /// 11 and 12: position resp. momentum perturbations of the reconstructed pure modes; the
 /// figures show the sine pattern of dq and the cosine pattern of dp).
 pub fn reconstruct_lp(vectors: &[f64], phase: &[f64], wave: Wave, lx: f64, ly: f64, part: Part) -> LpReconstruction {
