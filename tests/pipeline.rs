@@ -171,7 +171,10 @@ fn clv_run_on_the_default_preset_writes_the_report() {
     // Another preset into the same --out: refused, the run and its report left as they are.
     let other = clv(&["run", "--preset", "henon", "--out", o, "--quiet"]);
     let err = String::from_utf8_lossy(&other.stderr);
-    assert!(!other.status.success() && err.contains("--out") && err.contains("another configuration"), "{err}");
+    // The way out first, and the first of the many differences the system's.
+    let want = "holds a run of another configuration (--system disks in the run, henon asked for, ";
+    let example = format!("more): give this one another --out (e.g. --out {o}-henon), or ask for that run's configuration");
+    assert!(!other.status.success() && err.contains(&want) && err.contains(&example), "{err}");
     assert_eq!(read(&out.join("report/index.html")), html);
     drop(first);
 }
@@ -593,7 +596,7 @@ fn configuration_files_round_trip_and_flags_override_them() {
     assert_eq!((&run["store"]["clv_steps"], &run["store"]["transient"], &run["config"]["seed"]), (&serde_json::json!(80), &serde_json::json!(50), &serde_json::json!(5)));
     let refused = clv(&["run", "--config", small.to_str().unwrap(), "--out", changed.to_str().unwrap(), "--quiet", "--clv-steps", "90", "--seed", "5"]);
     let err = String::from_utf8_lossy(&refused.stderr);
-    assert!(!refused.status.success() && err.contains("another configuration: --clv-steps 80 in the run, 90 asked for;"), "{err}");
+    assert!(!refused.status.success() && err.contains("another configuration (--clv-steps 80 in the run, 90 asked for): give this one another --out,"), "{err}");
     // Resuming with a file whose setting differs from the run's names the file's setting.
     let reseeded = base.join("reseeded.toml");
     std::fs::write(&reseeded, "n = 8\nseed = 9\n").unwrap();
@@ -680,7 +683,7 @@ fn clv_run_writes_no_report_over_another_runs() {
     // Another configuration in the same --out: refused, naming the settings as flags.
     let other = run(&k, &["--seed", "5"]);
     let err = common::stderr(&other);
-    assert!(!other.status.success() && err.contains("holds a run of another configuration: --seed 1 in the run, 5 asked for;"), "{err}");
+    assert!(!other.status.success() && err.contains("holds a run of another configuration (--seed 1 in the run, 5 asked for): give this one another --out,"), "{err}");
     let index = read(&k.join("report/index.html"));
     std::fs::remove_dir_all(k.join("run")).unwrap();
     let again = run(&k, &["--seed", "7"]);

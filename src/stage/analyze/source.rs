@@ -69,9 +69,19 @@ fn frame_source(source: &Path) -> Result<(PathBuf, Option<SweepFile>)> {
     } else {
         String::new()
     };
-    let write = if frames.exists() { format!("{d}/NAME.mcap") } else { frames.display().to_string() };
+    let write = if frames.exists() { source.join("NAME.mcap") } else { frames.clone() };
+    // The same sweep again: GS vectors and V_n where it had them, into a stream (nothing on
+    // disk, as `clv run` does it) or into a file, whose size is worth knowing first.
+    let again = BackwardOptions { frames_path: Some(write.clone()), no_frames: false, save_every: 1, ..opts.clone() };
+    let same = format!("{}{}", if opts.with_gs { " --with-gs" } else { "" }, if opts.vectors_every > 1 { format!(" --vectors-every {}", opts.vectors_every) } else { String::new() });
+    let size = match crate::store::RunDir::open(source) {
+        Ok((dir, meta)) => format!(" (about {})", crate::store::run::human(crate::stage::backward::frame_file_bytes(&dir, &meta, &again))),
+        Err(_) => String::new(),
+    };
     Err(Error::Other(format!(
-        "{d}: the run's last backward sweep ({flags}) {what}, so there are no frames of it to analyse; write a frame file with `clv backward {d} --out {write}` and analyse the run again{other}"
+        "{d}: the run's last backward sweep ({flags}) {what}, so there are no frames of it to analyse. Analyse them as they are computed, with nothing written: \
+         `clv backward {d}{same} --out - | clv analyze - --out REPORT`; or write a frame file with `clv backward {d}{same} --out {}`{size} and analyse the run again{other}",
+        write.display()
     )))
 }
 
