@@ -410,3 +410,16 @@ fn henon_and_lorenz_parameters_are_settings() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Disks in a box far too large for them never collide: free flight only shears the tangent
+/// vectors, every exponent comes out exactly 0, and the run says that this is no spectrum
+/// (an outside check found it reported as valid, Kaplan-Yorke dimension D included).
+#[test]
+fn disks_that_never_collide_give_no_spectrum_and_say_so() {
+    let out = clv(&["forward", "--json", "--quiet", "--n", "10", "--lx", "1e6", "--ly", "1e6", "--steps", "30", "--relax-steps", "5"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["statistics"]["collisions"], 0, "{v}");
+    assert!(v["exponents"].as_array().unwrap().iter().all(|l| l == 0.0), "{v}");
+    assert!(v["warnings"][0].as_str().is_some_and(|w| w.contains("no two disks collided")), "{v}");
+}

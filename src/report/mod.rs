@@ -70,7 +70,8 @@ pub fn warnings(config: &RunConfig, exponents: &[f64], stderr: &[f64]) -> Vec<St
 /// e-foldings per iteration), lambda_1 is not taken for positive.
 pub const CHAOS_TOLERANCE: f64 = 1e-3;
 
-/// Why lambda_1 is not clearly positive, if it is not: within 3 standard errors of 0, at
+/// Why lambda_1 is not clearly positive, if it is not: every exponent exactly 0 (no growth
+/// at all: hard disks that never collided), within 3 standard errors of 0, at
 /// most [`CHAOS_TOLERANCE`] of the largest |lambda_i|, or for a map below that per
 /// iteration (an area-preserving Henon map's quasi-periodic orbits give lambda_1 = -lambda_2
 /// decaying like ln t / t, as small as that after 2e4 iterations). With other parameters
@@ -80,8 +81,15 @@ pub fn chaos_warning(config: &RunConfig, exponents: &[f64], stderr: &[f64]) -> O
     use crate::config::SystemConfig;
     let lambda_1 = *exponents.first()?;
     let scale = exponents.iter().fold(0.0f64, |m, l| m.max(l.abs()));
-    if scale <= 0.0 {
-        return None;
+    if scale == 0.0 {
+        // Free flight shears the tangent vectors (dq += t dp), which grow only linearly: QR
+        // steps of a shear give R_ii of exactly 1.
+        return Some(match config.system {
+            SystemConfig::Disks { .. } => "every exponent is exactly 0: no two disks collided in the run, and free flight only shears the tangent vectors, \
+                 so this is no Lyapunov spectrum of the gas (nor its Kaplan-Yorke dimension): the box is far too large for its disks; raise --density, or give a smaller --lx and --ly"
+                .into(),
+            _ => "every exponent is exactly 0: no tangent vector grew or shrank, so this is no Lyapunov spectrum".into(),
+        });
     }
     let sigma = stderr.first().copied().filter(|s| s.is_finite() && *s > 0.0);
     let map = matches!(config.system, SystemConfig::Henon { .. });
@@ -339,7 +347,13 @@ mod tests {
         let w = chaos_warning(&lorenz, &[0.052, -0.3, -14.0], &[0.053, 0.05, 0.05]).expect("a periodic window, inside its errors");
         assert!(w.contains("within 3 standard errors of 0") && w.contains("fixed point") && w.contains("lambda_2 for the flow direction"), "{w}");
         assert!(chaos_warning(&lorenz, &[0.5, -0.3, -14.0], &[f64::NAN; 3]).is_none(), "no errors, no statistical test");
-        assert!(chaos_warning(&lorenz, &[], &[]).is_none() && chaos_warning(&lorenz, &[0.0, 0.0, 0.0], &[0.0; 3]).is_none(), "nothing measured yet");
+        assert!(chaos_warning(&lorenz, &[], &[]).is_none(), "nothing measured yet");
+        // Exactly zero: nothing grew (hard disks that never collided: R_ii = 1 in every step).
+        let w = chaos_warning(&lorenz, &[0.0, 0.0, 0.0], &[0.0; 3]).expect("no growth");
+        assert!(w.starts_with("every exponent is exactly 0: no tangent vector grew"), "{w}");
+        let disks = RunConfig::preset("default").unwrap();
+        let w = chaos_warning(&disks, &[0.0; 160], &[0.0; 160]).expect("no collision");
+        assert!(w.contains("no two disks collided") && w.contains("raise --density"), "{w}");
     }
 
     /// The collision frequency counts each collision for both disks, over the relaxation too.
