@@ -93,7 +93,11 @@ impl SystemConfig {
                     ));
                 }
             }
-            SystemConfig::Disks { .. } => {}
+            SystemConfig::Disks { n, .. } => {
+                if n > MAX_DISKS {
+                    return Err(Error::param("n", format!("{n} disks are more than any machine holds: give at most {MAX_DISKS} = 2^30 (whose tangent vectors of D = 4N doubles take 32 GB each)")));
+                }
+            }
         }
         Ok(())
     }
@@ -157,7 +161,8 @@ impl SystemConfig {
         match self {
             SystemConfig::Henon { .. } => 2,
             SystemConfig::Lorenz { .. } => 3,
-            SystemConfig::Disks { n, .. } => 4 * n,
+            // Saturating: an N beyond MAX_DISKS is refused by check_parameters, not wrapped.
+            SystemConfig::Disks { n, .. } => n.saturating_mul(4),
         }
     }
 }
@@ -185,6 +190,9 @@ pub struct RunConfig {
 /// The smallest |b| of the Henon map that [`SystemConfig::check_parameters`] accepts: e^-16,
 /// so that lambda_1 - lambda_2 per iteration stays below linalg's PRECISE_SPREAD of 18.
 pub const MIN_HENON_B: f64 = 1.125_351_747_192_591_2e-7;
+
+/// The most disks a run may have: 2^30, whose D = 4N doubles make 32 GB a vector.
+pub const MAX_DISKS: usize = 1 << 30;
 
 /// The longest time between two QR steps that [`RunConfig::validate`] accepts.
 pub const MAX_TAU: f64 = 1e4;
@@ -409,6 +417,18 @@ mod tests {
         }
         let fine = RunConfig { system: SystemConfig::disks_in_box(8, 5.0, 5.0), vectors: 32, ..RunConfig::preset("default").unwrap() };
         fine.validate().unwrap();
+    }
+
+    /// An N whose D = 4N does not fit a machine word wrapped to a small D (2^62 + 1 disks
+    /// had D = 4, passed the memory check and hung while placing them): refused by N.
+    #[test]
+    fn more_disks_than_a_machine_holds_are_refused() {
+        for n in [MAX_DISKS + 1, (1 << 62) + 1, usize::MAX] {
+            let config = RunConfig { system: SystemConfig::disks_in_box(n, 10.0, 10.0), vectors: 4, ..RunConfig::preset("default").unwrap() };
+            assert_eq!(config.system.dim(), n.saturating_mul(4));
+            let err = config.validate().unwrap_err().to_string();
+            assert!(err.contains("--n") && err.contains("give at most 1073741824"), "{n}: {err}");
+        }
     }
 
     /// The configuration knows D before a system is built (to size stores and check
