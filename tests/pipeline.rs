@@ -548,6 +548,11 @@ fn configuration_files_round_trip_and_flags_override_them() {
     std::fs::write(&boolean, "steps = 100\nn = true\n").unwrap();
     let err = common::stderr(&clv(&["forward", "--config", boolean.to_str().unwrap(), "--out", base.join("b").to_str().unwrap(), "--quiet"]));
     assert!(err.contains("boolean.toml:2: n takes a value, not true or false"), "{err}");
+    // false too: it was dropped, and the run took the default without a word.
+    std::fs::write(&boolean, "steps = 100\nn = 8\nseed = false\n").unwrap();
+    let refused = clv(&["forward", "--config", boolean.to_str().unwrap(), "--out", base.join("b").to_str().unwrap(), "--quiet"]);
+    let err = common::stderr(&refused);
+    assert!(!refused.status.success() && err.contains("boolean.toml:3: seed takes a value, not true or false") && !base.join("b").exists(), "{err}");
     // The box given by its sides on the command line replaces the file's density and aspect.
     let out = ok(clv(&["forward", "--config", f, "--n", "8", "--lx", "4", "--ly", "4", "--steps", "100", "--json", "--quiet"]));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();

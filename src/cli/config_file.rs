@@ -56,7 +56,9 @@ pub fn expand(path: &Path, known: &[String]) -> Result<Vec<String>> {
         };
         match value.as_str() {
             "true" => args.push(format!("--{key}")),
-            "false" => {}
+            // Kept, not dropped: a setting that takes a value refuses it (it was silently
+            // left at its default).
+            "false" => args.push(format!("--{key}=false")),
             // One argument `--key=value`: a negative number is a value, not a flag.
             _ => args.push(format!("--{key}={value}")),
         }

@@ -135,7 +135,8 @@ pub fn forward_flags_of_file(file: &std::path::Path) -> Result<Vec<String>> {
     if let Err(e) = parse(&flags) {
         let key = flags.iter().find(|f| parse(std::slice::from_ref(f)).is_err()).and_then(|f| f.strip_prefix("--")).and_then(|f| f.split('=').next());
         let line = key.and_then(|k| config_file::line_of(file, k)).map(|l| format!(":{l}")).unwrap_or_default();
-        if e.kind() == clap::error::ErrorKind::InvalidValue && let Some(k) = key.filter(|k| flags.iter().any(|f| f == &format!("--{k}"))) {
+        let boolean = |k: &&str| (e.kind() == clap::error::ErrorKind::InvalidValue && flags.contains(&format!("--{k}"))) || flags.contains(&format!("--{k}=false"));
+        if let Some(k) = key.filter(boolean) {
             return Err(Error::Other(format!("{}{line}: {k} takes a value, not true or false (those are for switches)", file.display())));
         }
         return Err(Error::Other(format!("{}{line}: {}", file.display(), first_line(&e))));
