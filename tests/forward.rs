@@ -254,7 +254,8 @@ fn combine_gives_the_spectrum_of_independent_runs() {
     let segment = std::fs::read_dir(&runs[0]).unwrap().map(|e| e.unwrap().path()).find(|p| p.extension().is_some_and(|x| x == "mcap")).unwrap();
     for (args, named) in [
         (vec!["combine", paths[0], paths[0]], "have the same seed"),
-        (vec!["combine", paths[0], other.to_str().unwrap()], "another system or setting"),
+        // Named by the flag that differs, the seed and length not among them.
+        (vec!["combine", paths[0], other.to_str().unwrap()], &format!("another system or setting than {}: --tau 0.6 in {}, 0.5 in {}; runs combine where they differ only in --seed, --steps", paths[0], paths[0], other.display())),
         (vec!["combine", paths[0], unfinished.to_str().unwrap()], "has no spectrum.json: the run is not finished"),
         (vec!["combine", paths[0], empty.to_str().unwrap()], "is not a run directory"),
         (vec!["combine", paths[0], segment.to_str().unwrap()], "is an MCAP file"),

@@ -16,6 +16,7 @@
 //! small (or the runs do not sample the same state).
 
 use crate::config::RunConfig;
+use crate::store::run::{differences, StoreConfig};
 use crate::error::{Error, Result};
 use crate::statistics::{ks_entropy, Estimate};
 use serde::{Deserialize, Serialize};
@@ -73,12 +74,19 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
     for (run, path) in runs.iter().zip(paths).skip(1) {
         let same = RunConfig { steps: first.steps, seed: first.seed, threads: first.threads, blocks: first.blocks, relax_steps: first.relax_steps, system: first.system.clone(), ..run.config.clone() };
         if same != *first || !run.config.system.same_system(&first.system) {
+            // Named by their flags; the store's follow --steps, and may differ with it.
+            let free = ["steps", "seed", "blocks", "relax-steps", "checkpoint-every", "segment-checkpoints", "segment-mb", "store-r", "clv-steps", "transient"];
+            let (here, there) = (format!("in {}", paths[0].display()), format!("in {}", path.display()));
+            let store = StoreConfig::for_run;
+            let differ: Vec<String> = differences((first, &store(first), &here), (&run.config, &store(&run.config), &there))
+                .into_iter()
+                .filter(|d| !free.iter().any(|f| d.starts_with(&format!("--{f} "))))
+                .collect();
+            let differ = if differ.is_empty() { format!("{} against {}", serde_json::to_string(first).unwrap_or_default(), serde_json::to_string(&run.config).unwrap_or_default()) } else { differ.join(", ") };
             return Err(Error::Other(format!(
-                "{} is a run of another system or setting ({}) than {} ({}); only runs that differ in seed and length can be combined",
+                "{} is a run of another system or setting than {}: {differ}; runs combine where they differ only in --seed, --steps, --relax-steps and --blocks",
                 path.display(),
-                serde_json::to_string(&run.config).unwrap_or_default(),
-                paths[0].display(),
-                serde_json::to_string(first).unwrap_or_default()
+                paths[0].display()
             )));
         }
     }
