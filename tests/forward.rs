@@ -424,3 +424,38 @@ fn disks_that_never_collide_give_no_spectrum_and_say_so() {
     assert!(v["exponents"].as_array().unwrap().iter().all(|l| l == 0.0), "{v}");
     assert!(v["warnings"][0].as_str().is_some_and(|w| w.contains("no two disks collided")), "{v}");
 }
+
+/// Flags given with --resume are checked against the run, the others taken from it: a
+/// shorter --steps is named as such (it was refused for its default --clv-steps), and an
+/// error names the run's own --relax-steps, not the flag's default. A run shorter than the
+/// default 100 steps between checkpoints has them at its ends (it was refused for a
+/// --checkpoint-every nobody gave).
+#[test]
+fn resume_checks_the_given_flags_against_the_run() {
+    let dir = std::env::temp_dir().join(format!("clv-resume-flags-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let run = dir.join("run");
+    let r = run.to_str().unwrap();
+    let made = clv(&["forward", "--n", "4", "--aspect", "1", "--relax-steps", "200", "--steps", "300", "--checkpoint-every", "50", "--clv-steps", "100", "--transient", "50", "--quiet", "--out", r]);
+    assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
+    let err = |args: &[&str]| {
+        let out = clv(&[&["forward", "--resume", r, "--quiet"][..], args].concat());
+        (out.status.success(), String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    let (fine, e) = err(&["--steps", "1"]);
+    assert!(!fine && e.contains("--steps 1 is fewer than the 300 steps of the run in") && e.contains("drop --steps to resume it"), "{e}");
+    let (fine, e) = err(&["--steps", "18446744073709551615"]);
+    assert!(!fine && e.contains("--relax-steps 200 plus --steps 18446744073709551615"), "{e}");
+    let (fine, e) = err(&["--seed", "2"]);
+    assert!(!fine && e.contains("--seed 2 conflicts with the run in") && e.contains("made with --seed 1"), "{e}");
+    for same in [&["--steps", "300", "--relax-steps", "200"][..], &["--checkpoint-every", "50", "--n", "4"]] {
+        let (fine, e) = err(same);
+        assert!(fine, "{same:?}: {e}");
+    }
+    let short = dir.join("short");
+    let made = clv(&["forward", "--n", "4", "--aspect", "1", "--relax-steps", "10", "--steps", "30", "--quiet", "--out", short.to_str().unwrap()]);
+    assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
+    let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(short.join("run.json")).unwrap()).unwrap();
+    assert_eq!(meta["store"]["checkpoint_every"], 40, "{meta}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

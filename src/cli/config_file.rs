@@ -135,7 +135,8 @@ pub fn render(name: &str, config: &RunConfig, store: &StoreConfig) -> String {
     );
     let _ = writeln!(
         s,
-        "\n[store]\ncheckpoint-every = {}\nsegment-checkpoints = {}\n{}clv-steps = {}    # default: a tenth of relax-steps + steps, at most 2/3 of steps\n{}transient = {}    # default: half of clv-steps",
+        "\n[store]\n{}checkpoint-every = {}    # default: 100, or the whole run where it is shorter\nsegment-checkpoints = {}\n{}clv-steps = {}    # default: a tenth of relax-steps + steps, at most 2/3 of steps\n{}transient = {}    # default: half of clv-steps",
+        at_default(store.checkpoint_every == derived.checkpoint_every),
         store.checkpoint_every,
         store.segment_checkpoints,
         at_default(store.clv_steps == derived.clv_steps),

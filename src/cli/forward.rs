@@ -98,9 +98,9 @@ pub struct ForwardArgs {
     /// Continue the interrupted run in this directory (its configuration is read from it); with a larger --steps, make the run longer.
     #[arg(long)]
     pub resume: Option<PathBuf>,
-    /// Steps between checkpoints.
-    #[arg(long, default_value_t = 100, allow_negative_numbers = true)]
-    pub checkpoint_every: u64,
+    /// Steps between checkpoints (default 100, or the whole run where it is shorter).
+    #[arg(long, allow_negative_numbers = true)]
+    pub checkpoint_every: Option<u64>,
     /// Checkpoints per segment file.
     #[arg(long, default_value_t = 10, allow_negative_numbers = true)]
     pub segment_checkpoints: u64,
@@ -203,7 +203,9 @@ impl ForwardArgs {
     pub fn meta(&self) -> Result<RunMeta> {
         let config = self.config()?;
         let mut store = StoreConfig::for_run(&config);
-        store.checkpoint_every = self.checkpoint_every;
+        if let Some(c) = self.checkpoint_every {
+            store.checkpoint_every = c;
+        }
         store.segment_checkpoints = self.segment_checkpoints;
         store.segment_bytes = self.segment_mb.saturating_mul(1 << 20);
         store.store_r = match self.store_r {
@@ -242,6 +244,44 @@ fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path:
     let extending = given.contains(&"steps") && args.steps > stored.config.steps;
     if given.is_empty() {
         return Ok(None);
+    }
+    if given.contains(&"steps") && args.steps < stored.config.steps {
+        return Err(Error::param(
+            "resume",
+            format!("--steps {} is fewer than the {} steps of the run in {}: a run is not made shorter; drop --steps to resume it, or give more to extend it", args.steps, stored.config.steps, dir.display()),
+        ));
+    }
+    // The settings not given are the run's, so that checking the given ones together blames
+    // none of the flags' defaults (--resume --steps 1 was refused for its --clv-steps).
+    let c = &stored.config;
+    let not_given = |id: &str| !from_command_line(matches, id);
+    if not_given("steps") {
+        args.steps = c.steps;
+    }
+    if not_given("relax-steps") {
+        args.relax_steps = c.relax_steps;
+    }
+    if not_given("tau") {
+        args.tau = Some(c.tau);
+    }
+    if not_given("seed") {
+        args.seed = c.seed;
+    }
+    if not_given("blocks") {
+        args.blocks = c.blocks;
+    }
+    if not_given("checkpoint-every") {
+        args.checkpoint_every = Some(stored.store.checkpoint_every);
+    }
+    if SYSTEM_FLAGS.iter().all(|(flag, _)| not_given(flag)) && SystemKind::of(&c.system) == args.system {
+        match c.system {
+            SystemConfig::Disks { n, lx, ly, .. } => (args.n, args.lx, args.ly) = (n, Some(lx), Some(ly)),
+            SystemConfig::Henon { a, b } => (args.henon_a, args.henon_b) = (Some(a), Some(b)),
+            SystemConfig::Lorenz { sigma, rho, beta } => (args.lorenz_sigma, args.lorenz_rho, args.lorenz_beta) = (Some(sigma), Some(rho), Some(beta)),
+        }
+        if not_given("vectors") {
+            args.vectors = Some(c.vectors);
+        }
     }
     let wanted_meta = args.meta()?;
     let wanted = flag_values(&wanted_meta.config, &wanted_meta.store);

@@ -104,7 +104,8 @@ pub struct StoreConfig {
 }
 
 impl StoreConfig {
-    /// The defaults for a run: checkpoints every 100 steps, 10 per segment, the CLV window
+    /// The defaults for a run: checkpoints every 100 steps (a shorter run's only at its
+    /// ends), 10 per segment, the CLV window
     /// a tenth of relax-steps + steps, at most 2/3 of steps (the paper's window is the last
     /// tenth of its run), a transient of half that.
     pub fn for_run(config: &RunConfig) -> Self {
@@ -112,7 +113,7 @@ impl StoreConfig {
         // accumulated steps.
         let clv_steps = ((config.relax_steps + config.steps) / 10).min(config.steps * 2 / 3).max(1);
         StoreConfig {
-            checkpoint_every: 100,
+            checkpoint_every: config.relax_steps.saturating_add(config.steps).clamp(1, 100),
             segment_checkpoints: 10,
             segment_bytes: 1 << 30,
             store_r: StoreR::Checkpoints,
@@ -142,11 +143,14 @@ impl StoreConfig {
         if self.segment_checkpoints == 0 {
             return Err(Error::param("segment-checkpoints", "must be at least 1"));
         }
-        if self.clv_steps.checked_add(self.transient).is_none_or(|needed| needed > config.steps) {
+        let needed = self.clv_steps.saturating_add(self.transient);
+        if needed > config.steps {
+            // More steps only where a run can have that many (2^53 with the relaxation).
+            let more = if needed <= (1u64 << 53).saturating_sub(config.relax_steps) { format!("give --steps {needed} or more, or ") } else { "give ".into() };
             return Err(Error::param("clv-steps", format!(
-                "the CLV window ({}) plus the backward transient ({}) must fit in the accumulated --steps ({}); give --steps {} or more, \
-                 or a shorter --clv-steps and --transient (by default a tenth of the run and half that; --transient 0 discards none)",
-                self.clv_steps, self.transient, config.steps, self.clv_steps.saturating_add(self.transient)
+                "the CLV window ({}) plus the backward transient ({}) must fit in the accumulated --steps ({}); {more}a shorter --clv-steps and --transient \
+                 (by default a tenth of the run and half that; --transient 0 discards none)",
+                self.clv_steps, self.transient, config.steps
             )));
         }
         Ok(())
