@@ -29,6 +29,8 @@ pub struct Cli {
     pub command: Command,
 }
 
+// One Command is parsed per process: its size does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Subcommand)]
 pub enum Command {
     /// Forward Gram-Schmidt pass: the Lyapunov spectrum; with --out, a resumable run directory.
