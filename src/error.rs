@@ -59,10 +59,12 @@ impl fmt::Display for Error {
             Error::ReaderClosed { frames, recorded } => write!(
                 f,
                 "the reader closed the stream after {frames} frames, and the sweep stopped unfinished (no CLV spectrum written). \
-                 If the reader failed or was stopped, give the same command again without --resume for the whole window \
-                 (and the reader's own again, e.g. `clv analyze - --overwrite`); with --resume it streams the frames after the first {recorded}, \
-                 those of its finished segments{}",
-                if frames > recorded { format!(" (the {} after them come again)", frames - recorded) } else { String::new() }
+                 To start over, give the same command again without --resume (and the reader's own again, e.g. `clv analyze - --overwrite`). {}",
+                match (recorded, frames > recorded) {
+                    (0, _) => "With --resume the sweep would stream the whole window again: it finished no segment.".to_string(),
+                    (r, true) => format!("A reader that kept what it read can take the rest with --resume: the sweep finished the segments of its first {r} frames and streams from frame {} on, so frames {}..{frames}, which the reader had, come again.", r + 1, r + 1),
+                    (r, false) => format!("A reader that kept what it read can take the rest with --resume: the sweep streams from frame {} on.", r + 1),
+                }
             ),
             Error::OutputClosed { what, then } => write!(f, "the reader of standard output closed it before {what}; {then}"),
             Error::Other(msg) => f.write_str(msg),
@@ -133,5 +135,20 @@ impl std::error::Error for Error {
             Error::Io { source, .. } => Some(source),
             _ => None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A closed reader: how to start over, and what --resume would stream, in each case.
+    #[test]
+    fn a_closed_reader_says_what_resume_streams() {
+        let say = |frames, recorded| Error::ReaderClosed { frames, recorded }.to_string();
+        assert!(say(7, 0).ends_with("With --resume the sweep would stream the whole window again: it finished no segment."), "{}", say(7, 0));
+        assert!(say(70, 50).ends_with("its first 50 frames and streams from frame 51 on, so frames 51..70, which the reader had, come again."), "{}", say(70, 50));
+        assert!(say(50, 50).ends_with("the sweep streams from frame 51 on."), "{}", say(50, 50));
+        assert!(say(50, 50).contains("To start over, give the same command again without --resume"));
     }
 }
