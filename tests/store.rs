@@ -117,7 +117,7 @@ fn resuming_a_finished_run_does_nothing_and_conflicts_are_refused() {
     assert!(contents(&dir) == *want);
     let out = clv(&["forward", "--resume", d, "--steps", "2000"]);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && err.contains("--steps 2000 conflicts") && err.contains("--steps 3000") && err.contains("larger --steps to extend"), "{err}");
+    assert!(!out.status.success() && err.contains("--steps 2000 is fewer than the 3000 steps of the run") && err.contains("give more to extend it"), "{err}");
     let out = clv(&["forward", "--resume", d, "--clv-steps", "300"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("--clv-steps 300 conflicts"), "a new window alone is refused: {err}");
@@ -146,6 +146,7 @@ fn resuming_a_finished_run_does_nothing_and_conflicts_are_refused() {
     let out = clv(&[&RUN[..], &["--out", d]].concat());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && err.contains("not empty (it holds a run: continue it with `clv forward --resume"), "{err}");
+    assert!(!err.contains("clv: writing"), "refused, yet announced as being written: {err}");
     assert!(contents(&dir) == *want, "a refused command must not touch the run");
     // A directory of other files is no run to resume.
     let other = dir.with_file_name("other-files");

@@ -12,9 +12,9 @@ pub struct AnalyzeArgs {
     /// Directory for index.html, figures (PNG, SVG) and tables (CSV, JSON).
     #[arg(long)]
     pub out: PathBuf,
-    /// Vector statistics use the frames of the steps that are multiples of m (default: about
-    /// 400 frames, and a multiple of the stream's --vectors-every and of a frame file's
-    /// --save-every).
+    /// Vector statistics use the frames of the steps that are multiples of m (default: the
+    /// CLV window's steps / 400, rounded down, so 400 to 800 frames, and a multiple of the
+    /// stream's --vectors-every and of a frame file's --save-every).
     #[arg(long, allow_negative_numbers = true)]
     pub every: Option<u64>,
     /// Lyapunov indices (1-based) for the overlap figures, e.g. 1,200,370 (default: the

@@ -403,6 +403,8 @@ fn forward_checked(args: &ForwardArgs, matches: &ArgMatches) -> Result<()> {
             return Err(Error::param("out", format!("{} is a file; a run needs a directory (a new path, or an empty directory)", dir.display())));
         }
         let meta = args.meta()?;
+        // Refused before it is announced (create checks again, under the lock).
+        clv::store::RunDir::check_empty(dir, "forward pass")?;
         if !args.quiet {
             clv::note!("clv: configuration: {}", serde_json::to_string(&meta.config).unwrap_or_default());
             clv::note!("clv: writing {}: {}", dir.display(), meta.store.footprint(&meta.config));

@@ -498,7 +498,7 @@ impl RunDir {
     /// Refuse a directory that holds anything but what a creation cut short before run.json
     /// was in place leaves: its lock file and run.json's temporary file. Not empty because
     /// another process is creating the run there now, it is refused as a second writer.
-    fn check_empty(path: &Path, what: &str) -> Result<()> {
+    pub fn check_empty(path: &Path, what: &str) -> Result<()> {
         if !path.exists() {
             return Ok(());
         }

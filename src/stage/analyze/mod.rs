@@ -125,7 +125,8 @@ pub fn paper_index(j: usize, positive: usize) -> usize {
     (j as f64 * positive as f64 / 393.0).round() as usize
 }
 
-/// The default of `--every`: about 400 frames of a window of `clv_steps`, rounded up to a
+/// The default of `--every`: clv_steps / 400 rounded down (400 to 800 frames of a window of
+/// `clv_steps`; all of a shorter one), rounded up to a
 /// multiple of `m`, the stride of the frames that carry V_n (`--vectors-every`, and a frame
 /// file's `--save-every`).
 pub fn default_every(clv_steps: u64, vectors_every: u64) -> u64 {
@@ -217,7 +218,7 @@ impl Context {
             let multiple = if with_v > 1 { format!(", a multiple of {with_v}") } else { String::new() };
             return Err(Error::param(
                 "every",
-                format!("{source} holds the frames of steps {oldest}..{newest}, and no step among them is a multiple of {every}: the vector statistics would have no frame; give a smaller m{multiple} (by default about 400 frames are sampled)"),
+                format!("{source} holds the frames of steps {oldest}..{newest}, and no step among them is a multiple of {every}: the vector statistics would have no frame; give a smaller m{multiple} (by default m is the window's steps / 400: 400 to 800 frames)"),
             ));
         }
         let mut ctx = Context {
