@@ -32,7 +32,7 @@ def main():
     ap.add_argument("--n", type=int, default=40)
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--clv", type=int, default=400)
-    ap.add_argument("--clv-bin", default=os.path.join(os.path.dirname(__file__), "..", "target", "release", "clv"))
+    ap.add_argument("--clv-bin", default=os.path.join(os.environ.get("CARGO_TARGET_DIR") or os.path.join(os.path.dirname(__file__), "..", "target"), "release", "clv"))
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="clv-mem-")
     rows = []

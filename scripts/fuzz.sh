@@ -4,11 +4,11 @@
 # is outside what is read, in the undamaged numbers; a panic, an abort or other numbers
 # reported as a success count as bad. Prints the counts; exits 1 if any trial was bad.
 #
-#   scripts/fuzz.sh [TRIALS] [CLV_BINARY]      # default 200 trials of each, target/release/clv
+#   scripts/fuzz.sh [TRIALS] [CLV_BINARY]      # default 200 trials of each, $CARGO_TARGET_DIR/release/clv (target/)
 set -u
 TRIALS=${1:-200}
 [[ $TRIALS =~ ^[1-9][0-9]*$ ]] || { echo "fuzz.sh: TRIALS is a whole number of at least 1, not '$TRIALS'" >&2; exit 2; }
-C=$(realpath -m "${2:-$(dirname "$0")/../target/release/clv}")
+C=$(realpath -m "${2:-${CARGO_TARGET_DIR:-$(dirname "$0")/../target}/release/clv}")
 [ -x "$C" ] || { echo "fuzz.sh: $C is not an executable clv (build it with cargo build --release, or give its path)" >&2; exit 2; }
 W=$(mktemp -d)
 trap 'rm -rf "$W"' EXIT

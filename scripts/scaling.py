@@ -8,7 +8,7 @@ each N this script runs the whole pipeline with one vector (a step costs O(colli
 N = 1024 takes under a minute), and for the smaller N the full spectrum for the
 Kolmogorov-Sinai entropy per disk, h_KS / N, which has a thermodynamic limit too.
 
-    python3 scripts/scaling.py --out scaling                   # N = 16 .. 1024, about 2 min
+    python3 scripts/scaling.py --out scaling                   # N = 16 .. 1024, two to three minutes
     python3 scripts/scaling.py --out s --n 8,16 --steps 600 --clv-steps 200
 
 Stopped, the same command again continues the study (study.py).

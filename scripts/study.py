@@ -85,7 +85,7 @@ def arguments(doc, default_n, table, min_n, counts=2, one_n=False, density=True)
         ap.add_argument("--n", type=numbers(whole(min_n), f"numbers of disks, each at least {min_n}", counts, default_n), default=default_n, help=f"numbers of disks, comma-separated (each at least {min_n})")
     if density:
         ap.add_argument("--density", type=positive, default=0.7, help="number density rho")
-    ap.add_argument("--clv-bin", type=program, default=os.path.join(HERE, "..", "target", "release", "clv"), help="the clv binary (default: target/release/clv of this repository)")
+    ap.add_argument("--clv-bin", type=program, default=os.path.join(os.environ.get("CARGO_TARGET_DIR") or os.path.join(HERE, "..", "target"), "release", "clv"), help="the clv binary (default: release/clv under $CARGO_TARGET_DIR, else target/release/clv of this repository)")
     return ap
 
 
