@@ -794,3 +794,23 @@ fn the_frame_file_estimate_is_the_files_size() {
     assert!(with_vectors > 5 && with_vectors < frames(&file).len(), "the file should mix frames with and without vectors");
     assert!((0.97..1.03).contains(&(estimate / size)), "estimated {estimate} bytes, the file has {size}");
 }
+
+/// A sweep into a file outside the run, interrupted, then the run made longer: the sweep's
+/// record went with the shorter run's results, so its FILE.tmp cannot be continued, and a
+/// new sweep into the same file says so (it advised a --resume that found no sweep).
+#[test]
+fn an_interrupted_sweep_of_a_run_made_longer_since_is_named() {
+    let dir = forward("outside-extended", &["--n", "8", "--aspect", "1", "--steps", "600", "--relax-steps", "50", "--clv-steps", "100", "--checkpoint-every", "20"]);
+    let d = dir.to_str().unwrap();
+    let file = dir.parent().unwrap().join("outside.mcap");
+    let f = file.to_str().unwrap();
+    let crashed = common::clv_env(&["backward", d, "--out", f, "--quiet"], &[("CLV_FAULT_CRASH_AT", "atomic-renamed#2")]);
+    assert_eq!(crashed.status.code(), Some(clv::store::fault::CRASH_STATUS), "{}", common::stderr(&crashed));
+    assert!(dir.parent().unwrap().join("outside.mcap.tmp").exists());
+    ok(clv(&["forward", "--resume", d, "--steps", "700", "--quiet"]));
+    let again = clv(&["backward", d, "--out", f, "--quiet"]);
+    let err = common::stderr(&again);
+    assert!(!again.status.success() && err.contains("of this run as it was with 600 steps, before it was made longer: that sweep cannot be continued") && err.contains("delete the file"), "{err}");
+    std::fs::remove_file(dir.parent().unwrap().join("outside.mcap.tmp")).unwrap();
+    ok(clv(&["backward", d, "--out", f, "--quiet"]));
+}

@@ -531,7 +531,7 @@ pub fn frame_file_bytes(dir: &RunDir, meta: &RunMeta, opts: &BackwardOptions) ->
 /// The progress of the sweep `opts` describes when it is to be continued (`resume`), after
 /// the checks that a new or continued sweep strands, mixes or overwrites nothing: another
 /// interrupted sweep's frames, another sweep's record, an existing file.
-fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Option<Progress>> {
+fn prior_sweep(dir: &RunDir, meta: &RunMeta, opts: &BackwardOptions, resume: bool) -> Result<Option<Progress>> {
     let frames_path = opts.frames_file(&dir.path);
     let progress_file = progress_path(dir);
     let record = match std::fs::read_to_string(&progress_file) {
@@ -603,6 +603,17 @@ fn prior_sweep(dir: &RunDir, opts: &BackwardOptions, resume: bool) -> Result<Opt
         None => {
             if let Some(f) = frames_path.as_ref()
                 && tmp_path(f).exists() {
+                    // This run's own sweep from before it was made longer: its record went with
+                    // the shorter run's results, so it cannot be continued.
+                    let theirs = crate::store::frames::metadata_of(&tmp_path(f)).and_then(|m| serde_json::from_str::<RunMeta>(m.get("run.json")?).ok());
+                    if let Some(shorter) = theirs.filter(|t| t.config.steps < meta.config.steps && RunConfig { steps: meta.config.steps, ..t.config.clone() }.same_but_threads(&meta.config)) {
+                        return Err(Error::Other(format!(
+                            "{} holds the frames of an interrupted backward sweep of this run as it was with {} steps, before it was made longer: \
+                             that sweep cannot be continued (its record went with the shorter run's results); delete the file, or give this sweep another --out",
+                            tmp_path(f).display(),
+                            shorter.config.steps
+                        )));
+                    }
                     return Err(Error::Other(format!(
                         "{} holds the frames of an interrupted backward sweep (of this run, or of another whose --out names the same file): \
                          continue that sweep with `clv backward RUN --resume`, give this one another --out, or delete the file to give that sweep up",
@@ -669,7 +680,7 @@ pub fn run(
         Some(f) => Some(crate::store::frames::lock(f)?),
         None => None,
     };
-    let prior = prior_sweep(&dir, opts, resume)?;
+    let prior = prior_sweep(&dir, &meta, opts, resume)?;
     if prior.as_ref().is_some_and(|p| p.done) {
         return finished_earlier(&dir, opts);
     }

@@ -128,6 +128,20 @@ fn same_sweep(a: &BTreeMap<String, String>, b: &BTreeMap<String, String>) -> boo
 
 /// Whether the frame stream in `path` begins with the metadata of another sweep than
 /// `metadata` describes ([`same_sweep`]); read only up to its metadata.
+/// The metadata a frame file (or an unfinished FILE.tmp) begins with, if it can be read.
+pub fn metadata_of(path: &Path) -> Option<BTreeMap<String, String>> {
+    const ENOUGH: &str = "clv: read up to the metadata";
+    let mut found = None;
+    let file = File::open(path).ok()?;
+    let _ = read_stream(path, std::io::BufReader::new(file), ReadMode::Salvage, |m| {
+        if m.topic == RUN_METADATA {
+            found = serde_json::from_slice(m.data).ok();
+        }
+        Err(Error::Other(ENOUGH.into()))
+    });
+    found
+}
+
 fn begins_with_other_metadata(path: &Path, metadata: &BTreeMap<String, String>) -> Result<bool> {
     const ENOUGH: &str = "clv: read up to the metadata";
     let mut other = false;
