@@ -52,6 +52,11 @@ impl fmt::Display for Error {
         match self {
             Error::Param { name, msg } => write!(f, "invalid --{name}: {msg}"),
             Error::Io { path, source } if source.is_disk_full() => write!(f, "{}: {} ({source}); every file finished before it is intact: {}, then give the command again", path.display(), source.no_room(), source.remedy()),
+            Error::Io { path, source } if source.kind() == std::io::ErrorKind::PermissionDenied => write!(
+                f,
+                "{}: {source}; clv needs to read and write here: check the permissions of the file and of its directory (ls -ld), or copy the run to a directory of your own",
+                path.display()
+            ),
             Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
             Error::Dynamics(msg) => write!(f, "dynamics: {msg}"),
             Error::Corrupt { path, msg } => write!(f, "{}: corrupt or unreadable: {msg}", path.display()),
@@ -141,6 +146,13 @@ impl std::error::Error for Error {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A permission error says what to check.
+    #[test]
+    fn a_permission_error_says_what_to_check() {
+        let e = Error::io("run/backward.tmp", std::io::Error::from(std::io::ErrorKind::PermissionDenied));
+        assert!(e.to_string().starts_with("run/backward.tmp: permission denied; clv needs to read and write here: check the permissions"), "{e}");
+    }
 
     /// A closed reader: how to start over, and what --resume would stream, in each case.
     #[test]
