@@ -174,7 +174,7 @@ fn clv_run_on_the_default_preset_writes_the_report() {
     // The way out first, and the first of the many differences the system's.
     let want = "holds a run of another configuration (--system disks in the run, henon asked for, ";
     let example = format!("more): give this one another --out (e.g. --out {o}-henon), or ask for that run's configuration");
-    assert!(!other.status.success() && err.contains(&want) && err.contains(&example), "{err}");
+    assert!(!other.status.success() && err.contains(want) && err.contains(&example), "{err}");
     assert_eq!(read(&out.join("report/index.html")), html);
     drop(first);
 }
