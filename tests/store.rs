@@ -516,6 +516,73 @@ fn a_missing_or_foreign_segment_is_named_and_resume_restores_the_run() {
     assert!(contents(&dir) == *want);
 }
 
+/// A segment whose steps are not those its name says: two segments' names swapped, or a
+/// stray copy under another name (which once made `clv inspect` report intact segments, or
+/// steps "2800..2599" missing, while the backward stage stopped at the file and advised a
+/// `clv forward --resume` that found nothing to do, or recomputed genuine segments, again
+/// and again). Inspect names the file and what it holds; resume sets it aside and
+/// recomputes only what no other segment holds (nothing, for the copy); the backward stage's
+/// advice then leads to the undamaged run's CLV spectrum, bit for bit.
+#[test]
+fn a_misnamed_segment_is_named_and_resume_restores_the_run() {
+    use clv::store::segment::final_name;
+    let (clean, want) = reference_copy("misnamed-clean");
+    ok(clv(&["backward", clean.to_str().unwrap(), "--quiet", "--save-every", "0"]));
+    let clv_exponents = |dir: &Path| -> Vec<u64> {
+        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("clv_spectrum.json")).unwrap()).unwrap();
+        v["exponents"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap().to_bits()).collect()
+    };
+    let want_clv = clv_exponents(&clean);
+    for case in ["swapped", "stray copy"] {
+        let (dir, _) = reference_copy(&format!("misnamed-{}", case.replace(' ', "-")));
+        let d = dir.to_str().unwrap();
+        let segs = RunDir { path: dir.clone() }.segments().unwrap();
+        // Two adjacent segments inside the backward stage's window, neither the newest.
+        let (a, b) = (&segs[segs.len() - 3], &segs[segs.len() - 2]);
+        let misnamed: Vec<(PathBuf, (u64, u64))> = if case == "swapped" {
+            let tmp = dir.join("swap.tmp");
+            std::fs::rename(&a.path, &tmp).unwrap();
+            std::fs::rename(&b.path, &a.path).unwrap();
+            std::fs::rename(&tmp, &b.path).unwrap();
+            vec![(a.path.clone(), (b.first, b.last)), (b.path.clone(), (a.first, a.last))]
+        } else {
+            let stray = dir.join(final_name(a.first, b.first));
+            std::fs::copy(&a.path, &stray).unwrap();
+            vec![(stray, (a.first, a.last))]
+        };
+        let seen = clv(&["inspect", d]);
+        let text = String::from_utf8_lossy(&seen.stdout);
+        assert!(!seen.status.success() && common::stderr(&seen).contains("clv forward --resume"), "{case}: {text}");
+        for (path, (first, last)) in &misnamed {
+            let name = path.file_name().unwrap().to_string_lossy();
+            assert!(text.lines().any(|l| l.contains(&*name) && l.contains(&format!("it holds steps {first}..{last}, not steps")) && l.contains("as its name says")), "{case}: {text}");
+        }
+        assert!(!text.contains("are missing"), "{case}: a gap made up from a name: {text}");
+        // The backward stage stops at the file, with the repair its advice names.
+        let out = clv(&["backward", d, "--quiet", "--save-every", "0"]);
+        let err = common::stderr(&out);
+        assert!(!out.status.success() && misnamed.iter().any(|(p, _)| err.contains(&*p.to_string_lossy())) && err.contains(&format!("clv forward --resume {d}")), "{case}: {err}");
+        let out = ok(clv(&["forward", "--resume", d]));
+        let err = common::stderr(&out);
+        for (path, _) in &misnamed {
+            let aside = path.with_extension("mcap.corrupt");
+            assert!(err.contains(&format!("moving it aside to {}", aside.display())) && aside.exists(), "{case}: {err}");
+        }
+        // Swapped names are written anew under their names; the stray copy's name is gone.
+        assert_eq!(misnamed.iter().all(|(p, _)| p.exists()), case == "swapped", "{case}");
+        // A stray copy costs no recomputation; swapped names cost the steps from the first on.
+        assert_eq!(err.contains("follows the missing checkpoints"), case == "swapped", "{case}: {err}");
+        assert!(contents(&dir) == *want, "{case}: the repaired run differs");
+        let seen = clv(&["inspect", d]);
+        assert!(seen.status.success(), "{case}: {}", String::from_utf8_lossy(&seen.stdout));
+        ok(clv(&["backward", d, "--quiet", "--save-every", "0"]));
+        assert!(clv_exponents(&dir) == want_clv, "{case}: the CLV spectrum differs from the undamaged run's");
+        // A second resume finds nothing more to do.
+        let again = common::stderr(&ok(clv(&["forward", "--resume", d])));
+        assert!(again.contains("already complete") && !again.contains("moving it aside"), "{case}: {again}");
+    }
+}
+
 /// A sweep into a frame file of its own name inside the run, interrupted, then the run
 /// extended: the interrupted file goes with the shorter run's results into previous-*, so
 /// that a new sweep into that name starts (before, the stranded FILE.tmp sent the user

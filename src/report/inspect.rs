@@ -4,7 +4,7 @@ use crate::error::Result;
 use crate::store::records::{Checkpoint, Stats};
 use crate::store::run::{human, RunDir, RunMeta};
 use crate::store::schema::{CHECKPOINT, R, STATS};
-use crate::store::segment::read_segment;
+use crate::store::segment::{read_segment, RUN_METADATA};
 use serde::Serialize;
 use std::fmt::Write;
 use std::path::Path;
@@ -12,12 +12,16 @@ use std::path::Path;
 #[derive(Debug, Serialize)]
 pub struct SegmentReport {
     pub file: String,
+    /// Its steps are not those its name says (renamed, or copied in under another name).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub misnamed: bool,
     pub first_step: u64,
     pub last_step: u64,
     pub bytes: u64,
     pub checkpoints: u64,
     pub r_matrices: u64,
-    /// None if intact, else what is wrong (CRC, truncation, undecodable message).
+    /// None if intact, else what is wrong (CRC, truncation, undecodable message, steps not
+    /// those its name says).
     pub damage: Option<String>,
 }
 
@@ -82,12 +86,18 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     for seg in dir.segments()? {
         let (mut checkpoints, mut rs) = (0, 0);
         let (mut last_stats, mut last_acc) = (None, None);
+        // The steps of its first message and its last checkpoint, which name the file.
+        let (mut first, mut last) = (None, None);
         let result = read_segment(&seg.path, crate::store::segment::ReadMode::Strict, |m| {
             let bad = |e: String| crate::Error::corrupt(&seg.path, format!("step {}: {e}", m.step));
             let check = |r: std::result::Result<(), String>| r.map_err(bad);
+            if m.topic != RUN_METADATA {
+                first.get_or_insert(m.step);
+            }
             if m.topic == CHECKPOINT.topic {
                 let cp = Checkpoint::decode(m.data).map_err(bad)?;
                 last_acc = Some(cp.state.acc);
+                last = Some(m.step);
                 checkpoints += 1;
             } else if m.topic == R.topic {
                 check(crate::store::records::decode_r(m.data).map(|_| ()))?;
@@ -109,7 +119,14 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
                 disagreeing.push(seg.path.display().to_string());
             }
         }
-        let damage = result.err().map(|e| e.to_string());
+        let mut misnamed = false;
+        let damage = match result {
+            Err(e) => Some(e.to_string()),
+            Ok(_) => seg.misnamed(first.zip(last)).map(|why| {
+                misnamed = true;
+                format!("{why}; `clv forward --resume` sets it aside and recomputes what no other segment holds")
+            }),
+        };
         if damage.is_none()
             && let Some(s) = last_stats
                 && newest.as_ref().is_none_or(|(n, _)| s.step > n.step) {
@@ -117,6 +134,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
                 }
         segments.push(SegmentReport {
             file: seg.path.file_name().unwrap_or_default().to_string_lossy().into(),
+            misnamed,
             first_step: seg.first,
             last_step: seg.last,
             bytes: seg.bytes,
@@ -149,11 +167,16 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     let damaged_records = damaged_records(&dir, meta_mismatch.is_none().then_some(&meta));
     let backward_sweep = backward_sweep(&dir);
     let c = meta.store.checkpoint_every.max(1);
-    let gaps: Vec<String> = segments
+    // Gaps between the segments whose names can be believed; one that a misnamed segment's
+    // name falls into is that segment's damage, named with it.
+    let named: Vec<&SegmentReport> = segments.iter().filter(|s| !s.misnamed).collect();
+    let claimed = |from: u64, to: u64| segments.iter().any(|s| s.misnamed && s.first_step <= to && from <= s.last_step);
+    let gaps: Vec<String> = named
         .windows(2)
         // A segment may begin off the grid of every C steps, before the next checkpoint was
         // due: at the checkpoint of a stop on a signal (forward_run::triage).
         .filter(|w| !(w[0].last_step < w[1].first_step && w[1].first_step <= (w[0].last_step / c + 1) * c))
+        .filter(|w| !claimed(w[0].last_step + 1, w[1].first_step.saturating_sub(1)))
         .map(|w| format!("the checkpoints of steps {}..{} are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them", (w[0].last_step / c + 1) * c, w[1].first_step - 1, dir.path.display()))
         .collect();
     previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));
@@ -319,7 +342,7 @@ impl Inspection {
             let _ = writeln!(s, "  {p}  {partial}");
         }
         for name in &self.set_aside {
-            let why = if name.ends_with(".corrupt") { "damaged, set aside by a repair; not read, safe to delete" } else { "set aside by an interrupted repair; removed by the next --resume" };
+            let why = if name.ends_with(".corrupt") { "damaged or misnamed, set aside by a repair; not read, safe to delete" } else { "set aside by an interrupted repair; removed by the next --resume" };
             let _ = writeln!(s, "  {name}  {why}");
         }
         for name in &self.previous {

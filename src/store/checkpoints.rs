@@ -46,7 +46,7 @@ impl Checkpoints {
         }
         // The old one goes before the new one is read: one fewer G_n in memory at the peak.
         self.last = None;
-        let seg = self.segment_of(step)?.path.clone();
+        let SegmentFile { path: seg, first, last, .. } = self.segment_of(step)?.clone();
         let bytes = match indexed_checkpoint(&seg, step) {
             Some(bytes) => bytes,
             None => {
@@ -59,7 +59,7 @@ impl Checkpoints {
                     Ok(())
                 })
                 .map_err(damaged)?;
-                found.ok_or_else(|| damaged(Error::corrupt(&seg, format!("no checkpoint at step {step}"))))?
+                found.ok_or_else(|| damaged(Error::corrupt(&seg, format!("no checkpoint at step {step}, though its name says it holds steps {first}..{last}"))))?
             }
         };
         let cp = Checkpoint::decode(&bytes).map_err(|e| damaged(Error::corrupt(&seg, format!("step {step}: {e}"))))?.state;

@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! RUN_DIR/run.json                  configuration + store layout + build (also inside every segment)
-//! RUN_DIR/seg-FIRST-LAST.mcap       finished segments: checkpoints FIRST..=LAST (steps)
+//! RUN_DIR/seg-FIRST-LAST.mcap       finished segments: steps FIRST (its first message)..=LAST (its last checkpoint)
 //! RUN_DIR/seg-FIRST.mcap.tmp        the segment being written (a leftover means a crash)
 //! RUN_DIR/spectrum.json             the final forward spectrum, once the run is complete
 //! RUN_DIR/.lock                     the write lock a stage holds while it writes the run (lock.rs)
@@ -13,7 +13,7 @@
 //! RUN_DIR/previous-S-steps/         the stages' results of the run as it was with S steps,
 //!                                   moved aside when it was made longer
 //! RUN_DIR/run.json.from-segments    the newest segment's copy of an edited or damaged run.json
-//! RUN_DIR/*.corrupt, *.superseded   damaged segments set aside, and those a repair replaced (repair.rs)
+//! RUN_DIR/*.corrupt, *.superseded   damaged or misnamed segments set aside, and those a repair replaced (repair.rs)
 //! ```
 //!
 //! Why this shape: the Ginelli backward pass needs, newest first, what the forward pass

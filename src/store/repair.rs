@@ -2,16 +2,17 @@
 //! aside the rest.
 //!
 //! A killed run leaves at most one unfinished segment, which is discarded; a damaged disk or
-//! a hand that moved files can leave damaged or missing segments anywhere, and everything
-//! from the first of them on is recomputed (the dynamics is deterministic, so bit for bit).
+//! a hand that moved files can leave damaged, missing or misnamed segments anywhere, and
+//! everything from the first of them on is recomputed (the dynamics is deterministic, so
+//! bit for bit).
 //! Nothing readable is deleted before its replacement is written: damaged segments are kept
 //! as `.corrupt`, the intact ones after them as `.superseded` until the stage has rewritten
 //! them.
 
 use super::records::{Checkpoint, Stats};
-use super::run::RunDir;
+use super::run::{RunDir, SegmentFile};
 use super::schema::{CHECKPOINT, STATS};
-use super::segment::{read_segment, ReadMode};
+use super::segment::{read_segment, ReadMode, RUN_METADATA};
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 
@@ -55,28 +56,63 @@ pub struct Triage {
 ///
 /// A segment missing between two others (moved out, deleted) is a gap in the checkpoints,
 /// which the backward stage would stop at: the segments after it are recomputed the same way.
+///
+/// A segment whose steps are not those its name says ([`SegmentFile::misnamed`]: renamed,
+/// or copied in under another name) is moved aside as `.corrupt` too. Where its name places
+/// it among the other segments, it is taken out first, and only the gap it may leave is
+/// recomputed: a stray copy costs nothing, two swapped names the steps from the first of
+/// them on. Named before or after all the others, it is damage in its place.
 pub fn triage(dir: &RunDir, checkpoint_every: u64, notice: &mut dyn FnMut(String)) -> Result<Triage> {
-    let segments = dir.segments()?;
-    let mut reads: Vec<Result<()>> = Vec::with_capacity(segments.len());
+    let all = dir.segments()?;
+    let mut reads: Vec<Result<()>> = Vec::with_capacity(all.len());
+    let mut misnamed = vec![false; all.len()];
     // The newest segment read before the first damaged one, with its last checkpoint: the
     // one the run continues from unless a gap comes earlier.
-    let mut newest_read: Option<(usize, LastCheckpoint)> = None;
-    for (i, seg) in segments.iter().enumerate() {
+    let mut newest_read: Option<(PathBuf, LastCheckpoint)> = None;
+    let mut damage_seen = false;
+    for (i, seg) in all.iter().enumerate() {
         match read_last(&seg.path) {
             // A file that cannot be read (permissions, a failing disk) is not damaged:
             // recomputing it and everything after it would cost hours for nothing.
             Err(e @ Error::Io { .. }) => {
                 return Err(Error::Other(format!("{e}; nothing was changed: make the file readable (its permissions, the disk) and resume again")));
             }
-            Ok(last) => {
-                if reads.iter().all(Result::is_ok) {
-                    newest_read = Some((i, last));
+            Ok((held, last)) => match seg.misnamed(Some(held)) {
+                Some(why) => {
+                    misnamed[i] = true;
+                    reads.push(Err(Error::Other(why)));
                 }
-                reads.push(Ok(()));
+                None => {
+                    if !damage_seen {
+                        newest_read = Some((seg.path.clone(), last));
+                    }
+                    reads.push(Ok(()));
+                }
+            },
+            Err(e) => {
+                damage_seen = true;
+                reads.push(Err(e));
             }
-            Err(e) => reads.push(Err(e)),
         }
     }
+    // The steps the rightly named segments span; a misnamed one inside them is set aside now.
+    let named: Vec<&SegmentFile> = all.iter().zip(&misnamed).filter_map(|(s, m)| (!m).then_some(s)).collect();
+    let span = named.first().zip(named.last()).map(|(a, b)| (a.first, b.last));
+    let (mut segments, mut kept) = (Vec::with_capacity(all.len()), Vec::with_capacity(all.len()));
+    for ((seg, read), m) in all.into_iter().zip(reads).zip(misnamed) {
+        match read {
+            Err(e) if m && span.is_some_and(|(a, b)| a <= seg.first && seg.last <= b) => {
+                let aside = seg.path.with_extension("mcap.corrupt");
+                notice(format!("{e}; moving it aside to {} (the steps it holds are recomputed where no other segment holds them)", aside.display()));
+                std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
+            }
+            read => {
+                segments.push(seg);
+                kept.push(read);
+            }
+        }
+    }
+    let reads = kept;
     let damaged = reads.iter().position(Result::is_err).unwrap_or(segments.len());
     let c = checkpoint_every.max(1);
     // A segment begins at the checkpoint after the last one of the segment before, or
@@ -111,8 +147,8 @@ pub fn triage(dir: &RunDir, checkpoint_every: u64, notice: &mut dyn FnMut(String
     }
     let newest_intact = match (intact.checked_sub(1), newest_read) {
         (None, _) => None,
-        (Some(i), Some((read, last))) if read == i => Some(last),
-        (Some(i), _) => Some(read_last(&segments[i].path)?),
+        (Some(i), Some((read, last))) if read == segments[i].path => Some(last),
+        (Some(i), _) => Some(read_last(&segments[i].path)?.1),
     };
     Ok(Triage { newest_intact, superseded })
 }
@@ -123,20 +159,24 @@ pub struct LastCheckpoint {
     pub stats: Stats,
 }
 
-/// The last checkpoint and stats of a finished segment, reading it whole (CRCs checked).
-fn read_last(path: &Path) -> Result<LastCheckpoint> {
-    let (mut cp, mut stats) = (None, None);
+/// The last checkpoint and stats of a finished segment, reading it whole (CRCs checked),
+/// with the steps the writer named it by: those of its first message and its last checkpoint.
+fn read_last(path: &Path) -> Result<((u64, u64), LastCheckpoint)> {
+    let (mut first, mut cp, mut stats) = (None, None, None);
     read_segment(path, ReadMode::Strict, |m| {
         let bad = |e: String| Error::corrupt(path, format!("step {}: {e}", m.step));
+        if m.topic != RUN_METADATA {
+            first.get_or_insert(m.step);
+        }
         if m.topic == CHECKPOINT.topic {
-            cp = Some(Checkpoint::decode(m.data).map_err(bad)?);
+            cp = Some((m.step, Checkpoint::decode(m.data).map_err(bad)?));
         } else if m.topic == STATS.topic {
             stats = Some(Stats::decode(m.data).map_err(bad)?);
         }
         Ok(())
     })?;
-    match (cp, stats) {
-        (Some(checkpoint), Some(stats)) if stats.step == checkpoint.state.step => Ok(LastCheckpoint { checkpoint, stats }),
+    match (first, cp, stats) {
+        (Some(first), Some((last, checkpoint)), Some(stats)) if stats.step == checkpoint.state.step => Ok(((first, last), LastCheckpoint { checkpoint, stats })),
         _ => Err(Error::corrupt(path, "no complete checkpoint with its statistics")),
     }
 }

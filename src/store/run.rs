@@ -379,6 +379,22 @@ pub struct SegmentFile {
     pub bytes: u64,
 }
 
+impl SegmentFile {
+    /// What is wrong with a segment whose steps are not those its name says, or None when
+    /// they are. `held`: the steps of its first message and of its last checkpoint (which the
+    /// writer names it by), None for a file without a checkpoint. Readers go by the names
+    /// ([`super::checkpoints`], the gaps a repair looks for), so a file renamed, or copied in
+    /// under another name, would send them to the wrong steps: it counts as damaged.
+    pub fn misnamed(&self, held: Option<(u64, u64)>) -> Option<String> {
+        let holds = match held {
+            Some(steps) if steps == (self.first, self.last) => return None,
+            Some((a, b)) => format!("holds steps {a}..{b}"),
+            None => "holds no checkpoint".into(),
+        };
+        Some(format!("{}: it {holds}, not steps {}..{} as its name says (renamed, or copied in under another name)", self.path.display(), self.first, self.last))
+    }
+}
+
 pub struct RunDir {
     pub path: PathBuf,
 }

@@ -2,9 +2,10 @@
 //!
 //! The mcap writer cannot append, and a file cut short by a crash still yields its complete
 //! chunks, so a segment is written under `NAME.mcap.tmp`, finished, fsynced and only then
-//! renamed to its final name (`seg-FIRST-LAST.mcap`, the steps of its first and last
-//! checkpoint), and the directory is fsynced. A finished segment is never rewritten; a
-//! `.tmp` file is by construction an interrupted one.
+//! renamed to its final name (`seg-FIRST-LAST.mcap`, the steps of its first message and its
+//! last checkpoint), and the directory is fsynced. A finished segment is never rewritten; a
+//! `.tmp` file is by construction an interrupted one. Readers go by the names; a file whose
+//! steps are not those of its name is damage ([`super::run::SegmentFile::misnamed`]).
 
 use super::schema::Schema;
 use super::write_error::{Watched, Witness};
