@@ -102,7 +102,7 @@ pub fn triage(dir: &RunDir, checkpoint_every: u64, notice: &mut dyn FnMut(String
     for ((seg, read), m) in all.into_iter().zip(reads).zip(misnamed) {
         match read {
             Err(e) if m && span.is_some_and(|(a, b)| a <= seg.first && seg.last <= b) => {
-                let aside = seg.path.with_extension("mcap.corrupt");
+                let aside = corrupt_aside(&seg.path);
                 notice(format!("{e}; moving it aside to {} (the steps it holds are recomputed where no other segment holds them)", aside.display()));
                 std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
             }
@@ -132,7 +132,7 @@ pub fn triage(dir: &RunDir, checkpoint_every: u64, notice: &mut dyn FnMut(String
     for (seg, read) in segments[intact..].iter().zip(&reads[intact..]) {
         let aside = match read {
             Err(e) => {
-                let aside = seg.path.with_extension("mcap.corrupt");
+                let aside = corrupt_aside(&seg.path);
                 notice(format!("{e}; moving it aside to {} and recomputing from the checkpoint before it", aside.display()));
                 aside
             }
@@ -159,6 +159,18 @@ pub struct LastCheckpoint {
     pub stats: Stats,
 }
 
+/// Where a damaged segment is kept: FILE.corrupt, or FILE.2.corrupt, ... where an earlier
+/// damaged segment of the same name is kept already (a second damage must not replace it).
+fn corrupt_aside(path: &Path) -> PathBuf {
+    let mut aside = path.with_extension("mcap.corrupt");
+    let mut i = 1;
+    while aside.symlink_metadata().is_ok() {
+        i += 1;
+        aside = path.with_extension(format!("{i}.mcap.corrupt"));
+    }
+    aside
+}
+
 /// The last checkpoint and stats of a finished segment, reading it whole (CRCs checked),
 /// with the steps the writer named it by: those of its first message and its last checkpoint.
 fn read_last(path: &Path) -> Result<((u64, u64), LastCheckpoint)> {
@@ -178,5 +190,24 @@ fn read_last(path: &Path) -> Result<((u64, u64), LastCheckpoint)> {
     match (first, cp, stats) {
         (Some(first), Some((last, checkpoint)), Some(stats)) if stats.step == checkpoint.state.step => Ok(((first, last), LastCheckpoint { checkpoint, stats })),
         _ => Err(Error::corrupt(path, "no complete checkpoint with its statistics")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A second damaged segment of one name is kept beside the first, not over it.
+    #[test]
+    fn damaged_segments_of_one_name_are_all_kept() {
+        let dir = std::env::temp_dir().join(format!("clv-corrupt-aside-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let seg = dir.join("seg-000000000000-000000000100.mcap");
+        assert_eq!(corrupt_aside(&seg), dir.join("seg-000000000000-000000000100.mcap.corrupt"));
+        std::fs::write(dir.join("seg-000000000000-000000000100.mcap.corrupt"), b"first").unwrap();
+        assert_eq!(corrupt_aside(&seg), dir.join("seg-000000000000-000000000100.2.mcap.corrupt"));
+        std::fs::write(dir.join("seg-000000000000-000000000100.2.mcap.corrupt"), b"second").unwrap();
+        assert_eq!(corrupt_aside(&seg), dir.join("seg-000000000000-000000000100.3.mcap.corrupt"));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
