@@ -89,7 +89,7 @@ impl Checkpoints {
 fn damaged(e: Error) -> Error {
     match e {
         Error::Corrupt { path, msg } => Error::Other(format!(
-            "{}: corrupt or unreadable: {msg}; the forward stage recomputes it and the segments after it, with bit-identical numbers: run `clv forward --resume {}`, then this again",
+            "{}: corrupt or unreadable: {msg}; the forward stage sets it aside and recomputes what no intact segment holds, with bit-identical numbers: run `clv forward --resume {}`, then this again",
             path.display(),
             path.parent().map(|p| p.display().to_string()).unwrap_or_default()
         )),
