@@ -101,6 +101,10 @@ fn analyze_refuses_bad_sources_clearly() {
     let segment = clv::store::RunDir { path: run.clone() }.segments().unwrap().remove(0).path;
     let err = common::stderr(&clv(&["analyze", segment.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
     assert!(err.contains("is a segment of a run directory") && err.contains("clv backward"), "{err}");
+    // Piped in, too (it was called a stream whose writer sent no frames).
+    let piped = Command::new(env!("CARGO_BIN_EXE_clv")).args(["analyze", "-", "--out", base.join("o").to_str().unwrap()]).stdin(std::fs::File::open(&segment).unwrap()).output().unwrap();
+    let err = common::stderr(&piped);
+    assert!(!piped.status.success() && err.contains("<stdin> is a segment of a run directory"), "{err}");
     // A report directory that holds files is not written over without --overwrite.
     let kept = base.join("kept");
     std::fs::create_dir_all(&kept).unwrap();

@@ -10,7 +10,7 @@
 //! Files and pipes alike hold the frames in the order the backward sweep forms them, newest
 //! step first, and are read in that order.
 
-use super::schema::FRAME;
+use super::schema::{CHECKPOINT, FRAME};
 use super::segment::{read_stream, ReadMode, RUN_METADATA};
 use crate::error::{Error, Result};
 use crate::stage::frame::Frame;
@@ -468,6 +468,13 @@ pub fn read_frames_with(
                 spectrum_json: map.get("spectrum.json").cloned(),
                 backward_json: map.get("backward.json").cloned(),
             });
+        }
+        // A run's segment, given by name or piped in: checkpoints where frames were expected.
+        if m.topic == CHECKPOINT.topic {
+            let name = if source == Path::new("-") { "<stdin>".to_string() } else { source.display().to_string() };
+            return Err(Error::Other(format!(
+                "{name} is a segment of a run directory (checkpoints and R matrices), not a frame stream; make the frames with `clv backward RUN_DIR --out - | clv analyze - --out REPORT`"
+            )));
         }
         if stop || m.topic != FRAME.topic {
             return Ok(());

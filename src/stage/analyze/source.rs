@@ -85,17 +85,6 @@ fn frame_source(source: &Path) -> Result<(PathBuf, Option<SweepFile>)> {
     )))
 }
 
-/// Whether `path` holds the checkpoints of a run segment (read only to explain an error).
-fn is_run_segment(path: &Path) -> bool {
-    use crate::store::schema::CHECKPOINT;
-    let mut found = false;
-    let _ = crate::store::segment::read_segment(path, crate::store::segment::ReadMode::Salvage, |m| {
-        found |= m.topic == CHECKPOINT.topic;
-        Ok(())
-    });
-    found
-}
-
 /// Run every applicable analysis over the frames of `source` (a file, or "-" for standard
 /// input) into `out`, calling `on_frame` with the count of frames read so far. Returns what
 /// was produced and the number of frames read.
@@ -155,11 +144,6 @@ pub fn analyze_source(
         e => e,
     })?;
     let Some(analyzer) = analyzer else {
-        if is_run_segment(source) {
-            return Err(Error::Other(format!(
-                "{name} is a segment of a run directory (checkpoints and R matrices), not a frame stream; make the frames with `clv backward RUN_DIR --out - | clv analyze - --out REPORT`"
-            )));
-        }
         return Err(Error::Other(match damage {
             Some(d) => format!("{name}: no frames in the stream ({d}){}", rewrite(&info.borrow())),
             None => format!("{name}: no frames in the stream: its writer sent none. It failed before its first frame (its own error says why: a full disk, a signal), or it was `clv backward --resume` of a sweep that had finished, which sends none (start it without --resume)"),
