@@ -446,6 +446,14 @@ fn resume_checks_the_given_flags_against_the_run() {
     assert!(!fine && e.contains("--steps 1 is fewer than the 300 steps of the run in") && e.contains("drop --steps to resume it"), "{e}");
     let (fine, e) = err(&["--steps", "18446744073709551615"]);
     assert!(!fine && e.contains("--relax-steps 200 plus --steps 18446744073709551615"), "{e}");
+    // Another system is named as such, not by the tau it would take from the run.
+    let (fine, e) = err(&["--system", "henon"]);
+    assert!(!fine && e.contains("--system henon conflicts with the run in"), "{e}");
+    // A step count from a configuration file is the file's.
+    let file = dir.join("fewer.toml");
+    std::fs::write(&file, "steps = 100\n").unwrap();
+    let (fine, e) = err(&["--config", file.to_str().unwrap()]);
+    assert!(!fine && e.contains("steps = 100 in ") && e.contains("leave out --config (or that setting)"), "{e}");
     let (fine, e) = err(&["--seed", "2"]);
     assert!(!fine && e.contains("--seed 2 conflicts with the run in") && e.contains("made with --seed 1"), "{e}");
     for same in [&["--steps", "300", "--relax-steps", "200"][..], &["--checkpoint-every", "50", "--n", "4"]] {
@@ -457,5 +465,17 @@ fn resume_checks_the_given_flags_against_the_run() {
     assert!(made.status.success(), "{}", String::from_utf8_lossy(&made.stderr));
     let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(short.join("run.json")).unwrap()).unwrap();
     assert_eq!(meta["store"]["checkpoint_every"], 40, "{meta}");
+    // `clv run` makes such a run longer, keeping its interval, and then continues it.
+    let out = dir.join("clv-run");
+    let o = out.to_str().unwrap();
+    let run = |steps: &str| clv(&["run", "--n", "4", "--aspect", "1", "--relax-steps", "10", "--steps", steps, "--out", o]);
+    assert!(run("30").status.success());
+    for (steps, said) in [("300", "extending the run in"), ("300", "continuing the run in")] {
+        let again = run(steps);
+        let err = String::from_utf8_lossy(&again.stderr);
+        assert!(again.status.success() && err.contains(said), "{said}: {err}");
+    }
+    let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("run/run.json")).unwrap()).unwrap();
+    assert_eq!((&meta["config"]["steps"], &meta["store"]["checkpoint_every"]), (&serde_json::json!(300), &serde_json::json!(40)), "{meta}");
     let _ = std::fs::remove_dir_all(&dir);
 }

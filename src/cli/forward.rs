@@ -246,9 +246,13 @@ fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path:
         return Ok(None);
     }
     if given.contains(&"steps") && args.steps < stored.config.steps {
+        let (setting, drop) = match args.config.as_ref().filter(|_| !on_command_line("steps")) {
+            Some(file) => (format!("steps = {} in {}", args.steps, file.display()), "leave out --config (or that setting)"),
+            None => (format!("--steps {}", args.steps), "drop --steps"),
+        };
         return Err(Error::param(
             "resume",
-            format!("--steps {} is fewer than the {} steps of the run in {}: a run is not made shorter; drop --steps to resume it, or give more to extend it", args.steps, stored.config.steps, dir.display()),
+            format!("{setting} is fewer than the {} steps of the run in {}: a run is not made shorter; {drop} to resume it, or give more to extend it", stored.config.steps, dir.display()),
         ));
     }
     // The settings not given are the run's, so that checking the given ones together blames
@@ -261,9 +265,6 @@ fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path:
     if not_given("relax-steps") {
         args.relax_steps = c.relax_steps;
     }
-    if not_given("tau") {
-        args.tau = Some(c.tau);
-    }
     if not_given("seed") {
         args.seed = c.seed;
     }
@@ -272,6 +273,9 @@ fn check_resume_flags(args: &ForwardArgs, matches: &ArgMatches, dir: &std::path:
     }
     if not_given("checkpoint-every") {
         args.checkpoint_every = Some(stored.store.checkpoint_every);
+    }
+    if not_given("tau") && SystemKind::of(&c.system) == args.system {
+        args.tau = Some(c.tau);
     }
     if SYSTEM_FLAGS.iter().all(|(flag, _)| not_given(flag)) && SystemKind::of(&c.system) == args.system {
         match c.system {

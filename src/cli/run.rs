@@ -138,17 +138,20 @@ fn own_options_moved(args: &RunArgs, matches: &ArgMatches) -> Result<RunArgs> {
     Ok(moved)
 }
 
-/// `clv run`'s CLV window follows --steps, but a run made longer by `clv forward --resume
-/// --steps` kept its own: for that run, given again with its steps and no window asked for,
-/// the run's window is taken (it was refused as another configuration).
+/// `clv run`'s CLV window and checkpoint interval follow --steps, but a run made longer by
+/// `clv forward --resume --steps` kept its own: for that run, given again with its steps and
+/// no window asked for, the run's window is taken (it was refused as another
+/// configuration); and a run shorter than 100 steps keeps its interval when made longer.
 fn window_of_the_run_in_out(args: &RunArgs, config: &RunConfig, mut store: StoreConfig) -> StoreConfig {
     let asked = |key: &str| super::names_flag(&args.settings, key) || args.config.as_deref().is_some_and(|file| super::config_file::line_of(file, key).is_some());
-    if asked("clv-steps") || asked("transient") {
-        return store;
+    let Ok((_, stored)) = clv::store::RunDir::open(&args.out.join("run")) else { return store };
+    // A run shorter than 100 steps checkpoints at its ends: made longer, it keeps that
+    // interval (the default of the longer run's length would make it another run).
+    let longer = RunConfig { steps: config.steps, ..stored.config.clone() };
+    if !asked("checkpoint-every") && longer.same_but_threads(config) {
+        store.checkpoint_every = stored.store.checkpoint_every;
     }
-    if let Ok((_, stored)) = clv::store::RunDir::open(&args.out.join("run"))
-        && stored.config.same_but_threads(config)
-    {
+    if !(asked("clv-steps") || asked("transient")) && stored.config.same_but_threads(config) {
         store.clv_steps = stored.store.clv_steps;
         store.transient = stored.store.transient;
     }
