@@ -583,6 +583,55 @@ fn a_misnamed_segment_is_named_and_resume_restores_the_run() {
     }
 }
 
+/// Before the first segment, only the checkpoints from where the backward stage starts are
+/// needed (the older ones are pruned by design). A stray copy named before the first segment
+/// is set aside at no cost (it made resume start the run over); the segments the backward
+/// stage starts from, deleted, are named by inspect and recomputed from step 0 (neither
+/// inspect nor resume noticed, and backward's advice led nowhere).
+#[test]
+fn checkpoints_before_the_first_segment_are_missing_only_where_the_backward_stage_needs_them() {
+    use clv::store::segment::final_name;
+    let (clean, want) = reference_copy("leading-clean");
+    ok(clv(&["backward", clean.to_str().unwrap(), "--quiet", "--save-every", "0"]));
+    let clv_exponents = |dir: &Path| -> serde_json::Value { serde_json::from_slice::<serde_json::Value>(&std::fs::read(dir.join("clv_spectrum.json")).unwrap()).unwrap()["exponents"].clone() };
+    let want_clv = clv_exponents(&clean);
+    // A stray copy of a kept segment under a name before all of them.
+    let (dir, _) = reference_copy("leading-stray");
+    let d = dir.to_str().unwrap();
+    let segs = RunDir { path: dir.clone() }.segments().unwrap();
+    assert!(segs[0].first > 0, "the reference run keeps no segment from step 0: {segs:?}");
+    let stray = dir.join(final_name(0, 150));
+    std::fs::copy(&segs[1].path, &stray).unwrap();
+    let err = common::stderr(&ok(clv(&["forward", "--resume", d])));
+    assert!(err.contains("moving it aside") && !err.contains("follows") && !err.contains("step 0"), "{err}");
+    assert!(contents(&dir) == *want && !stray.exists());
+    // The oldest kept segments deleted, down past the step the backward stage starts from.
+    let (dir, _) = reference_copy("leading-missing");
+    let d = dir.to_str().unwrap();
+    let segs = RunDir { path: dir.clone() }.segments().unwrap();
+    let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("run.json")).unwrap()).unwrap();
+    let (store, config) = (&meta["store"], &meta["config"]);
+    let start = config["relax_steps"].as_u64().unwrap() + config["steps"].as_u64().unwrap() - store["clv_steps"].as_u64().unwrap() - store["transient"].as_u64().unwrap();
+    let gone: Vec<_> = segs.iter().take_while(|s| s.first <= start).collect();
+    assert!(gone.len() >= 2 && gone.len() < segs.len(), "{segs:?}");
+    // Only the first of them missing is pruning's doing: no damage.
+    std::fs::remove_file(&gone[0].path).unwrap();
+    assert!(clv(&["inspect", d]).status.success());
+    for s in &gone[1..] {
+        std::fs::remove_file(&s.path).unwrap();
+    }
+    let seen = clv(&["inspect", d]);
+    let text = String::from_utf8_lossy(&seen.stdout);
+    assert!(!seen.status.success() && text.contains("from where the backward stage recomputes the run, are missing") && text.contains("recomputes the run from step 0"), "{text}");
+    let out = clv(&["backward", d, "--quiet", "--save-every", "0"]);
+    assert!(!out.status.success() && common::stderr(&out).contains(&format!("`clv forward --resume {d}` recomputes it")), "{}", common::stderr(&out));
+    let err = common::stderr(&ok(clv(&["forward", "--resume", d])));
+    assert!(err.contains("and the backward stage needs them: recomputing the run from step 0"), "{err}");
+    assert!(contents(&dir) == *want, "the recomputed run differs");
+    ok(clv(&["backward", d, "--quiet", "--save-every", "0"]));
+    assert!(clv_exponents(&dir) == want_clv, "the CLV spectrum differs from the undamaged run's");
+}
+
 /// A sweep into a frame file of its own name inside the run, interrupted, then the run
 /// extended: the interrupted file goes with the shorter run's results into previous-*, so
 /// that a new sweep into that name starts (before, the stranded FILE.tmp sent the user

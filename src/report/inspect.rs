@@ -171,13 +171,24 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     // name falls into is that segment's damage, named with it.
     let named: Vec<&SegmentReport> = segments.iter().filter(|s| !s.misnamed).collect();
     let claimed = |from: u64, to: u64| segments.iter().any(|s| s.misnamed && s.first_step <= to && from <= s.last_step);
-    let gaps: Vec<String> = named
-        .windows(2)
+    // Before the first segment only the checkpoints the backward stage starts from are
+    // needed (older ones are pruned by design).
+    let needed = meta.store.window_start(&meta.config) / c * c;
+    let leading = named.first().filter(|s| s.first_step > needed && !claimed(needed, s.first_step - 1)).map(|s| {
+        format!(
+            "the checkpoints of steps {needed}..{}, from where the backward stage recomputes the run, are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes the run from step 0",
+            s.first_step - 1,
+            dir.path.display()
+        )
+    });
+    let gaps: Vec<String> = leading
+        .into_iter()
+        .chain(named.windows(2)
         // A segment may begin off the grid of every C steps, before the next checkpoint was
         // due: at the checkpoint of a stop on a signal (forward_run::triage).
         .filter(|w| !(w[0].last_step < w[1].first_step && w[1].first_step <= (w[0].last_step / c + 1) * c))
         .filter(|w| !claimed(w[0].last_step + 1, w[1].first_step.saturating_sub(1)))
-        .map(|w| format!("the checkpoints of steps {}..{} are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them", (w[0].last_step / c + 1) * c, w[1].first_step - 1, dir.path.display()))
+        .map(|w| format!("the checkpoints of steps {}..{} are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them", (w[0].last_step / c + 1) * c, w[1].first_step - 1, dir.path.display())))
         .collect();
     previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));
     let total_steps = meta.config.relax_steps + meta.config.steps;

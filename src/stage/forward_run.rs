@@ -254,7 +254,7 @@ fn is_report(dir: &Path) -> bool {
 fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Result<Outcome> {
     let path = dir.path.as_path();
     discard_partial_segments(dir, &mut |msg| feedback.notice(msg))?;
-    let Triage { newest_intact, superseded } = triage(dir, meta.store.checkpoint_every, &mut |msg| feedback.notice(msg))?;
+    let Triage { newest_intact, superseded } = triage(dir, meta.store.checkpoint_every, meta.store.window_start(&meta.config), &mut |msg| feedback.notice(msg))?;
     let drop_superseded = || -> Result<()> {
         for aside in &superseded {
             std::fs::remove_file(aside).map_err(|e| Error::io(aside, e))?;

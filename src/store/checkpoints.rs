@@ -35,7 +35,11 @@ impl Checkpoints {
     /// The segment that holds the checkpoint of `step`.
     pub fn segment_of(&self, step: u64) -> Result<&SegmentFile> {
         self.segments.iter().find(|s| s.first <= step && step <= s.last).ok_or_else(|| {
-            Error::Other(format!("no segment holds the checkpoint at step {step}; the run directory is incomplete (see clv inspect)"))
+            let dir = self.segments.first().and_then(|s| s.path.parent()).map_or("RUN_DIR".into(), |d| d.display().to_string());
+            Error::Other(format!(
+                "no segment holds the checkpoint at step {step}: the run directory is incomplete (a segment moved out or deleted; `clv inspect {dir}` names what is missing); \
+                 `clv forward --resume {dir}` recomputes it with bit-identical numbers, then give this again"
+            ))
         })
     }
 

@@ -57,12 +57,16 @@ pub struct Triage {
 /// A segment missing between two others (moved out, deleted) is a gap in the checkpoints,
 /// which the backward stage would stop at: the segments after it are recomputed the same way.
 ///
+/// So are the checkpoints missing before the first segment, where the backward stage needs
+/// them (from `needed_from`, the first step of its work, on): there is no checkpoint before
+/// them, and the run is recomputed from step 0. Segments before that step are pruned by
+/// design.
+///
 /// A segment whose steps are not those its name says ([`SegmentFile::misnamed`]: renamed,
-/// or copied in under another name) is moved aside as `.corrupt` too. Where its name places
-/// it among the other segments, it is taken out first, and only the gap it may leave is
-/// recomputed: a stray copy costs nothing, two swapped names the steps from the first of
-/// them on. Named before or after all the others, it is damage in its place.
-pub fn triage(dir: &RunDir, checkpoint_every: u64, notice: &mut dyn FnMut(String)) -> Result<Triage> {
+/// or copied in under another name) is moved aside as `.corrupt` first, and only the gap it
+/// may leave is recomputed: a stray copy costs nothing, two swapped names the steps from the
+/// first of them on.
+pub fn triage(dir: &RunDir, checkpoint_every: u64, needed_from: u64, notice: &mut dyn FnMut(String)) -> Result<Triage> {
     let all = dir.segments()?;
     let mut reads: Vec<Result<()>> = Vec::with_capacity(all.len());
     let mut misnamed = vec![false; all.len()];
@@ -95,13 +99,11 @@ pub fn triage(dir: &RunDir, checkpoint_every: u64, notice: &mut dyn FnMut(String
             }
         }
     }
-    // The steps the rightly named segments span; a misnamed one inside them is set aside now.
-    let named: Vec<&SegmentFile> = all.iter().zip(&misnamed).filter_map(|(s, m)| (!m).then_some(s)).collect();
-    let span = named.first().zip(named.last()).map(|(a, b)| (a.first, b.last));
-    let (mut segments, mut kept) = (Vec::with_capacity(all.len()), Vec::with_capacity(all.len()));
+    // Misnamed segments are set aside now; the gaps they leave are found below.
+    let (mut segments, mut kept): (Vec<SegmentFile>, Vec<Result<()>>) = (Vec::with_capacity(all.len()), Vec::with_capacity(all.len()));
     for ((seg, read), m) in all.into_iter().zip(reads).zip(misnamed) {
         match read {
-            Err(e) if m && span.is_some_and(|(a, b)| a <= seg.first && seg.last <= b) => {
+            Err(e) if m => {
                 let aside = corrupt_aside(&seg.path);
                 notice(format!("{e}; moving it aside to {} (the steps it holds are recomputed where no other segment holds them)", aside.display()));
                 std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
@@ -119,10 +121,15 @@ pub fn triage(dir: &RunDir, checkpoint_every: u64, notice: &mut dyn FnMut(String
     // earlier: at the checkpoint of its own that a stop on a signal wrote (off the grid of
     // every C steps) before the next one was due.
     let gap = segments.windows(2).position(|w| !(w[0].last < w[1].first && w[1].first <= (w[0].last / c + 1) * c)).map(|i| i + 1);
-    if let Some(i) = gap.filter(|&i| i < damaged) {
+    // The checkpoint the backward stage starts its recomputation from, at the latest.
+    let needed = needed_from / c * c;
+    let leading = segments.first().filter(|s| s.first > needed).map(|s| s.first);
+    if let Some(first) = leading {
+        notice(format!("the checkpoints of steps {needed}..{} are missing (no segment holds them), and the backward stage needs them: recomputing the run from step 0", first - 1));
+    } else if let Some(i) = gap.filter(|&i| i < damaged) {
         notice(format!("the checkpoints of steps {}..{} are missing (no segment holds them): recomputing them and what follows", (segments[i - 1].last / c + 1) * c, segments[i].first - 1));
     }
-    let intact = gap.map_or(damaged, |g| g.min(damaged));
+    let intact = if leading.is_some() { 0 } else { gap.map_or(damaged, |g| g.min(damaged)) };
     let cause = if intact < damaged { "the missing checkpoints" } else { "a damaged segment" };
     let mut superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
         .map_err(|e| Error::io(&dir.path, e))?
