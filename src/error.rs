@@ -54,7 +54,7 @@ impl fmt::Display for Error {
             Error::Io { path, source } if source.is_disk_full() => write!(f, "{}: {} ({source}); every file finished before it is intact: {}, then give the command again", path.display(), source.no_room(), source.remedy()),
             Error::Io { path, source } if source.kind() == std::io::ErrorKind::PermissionDenied => write!(
                 f,
-                "{}: {source}; clv needs to read and write here: check the permissions of the file and of its directory (ls -ld), or copy the run to a directory of your own",
+                "{}: {source}; check the permissions of the file and of its directory (ls -ld): clv reads what it is given and writes where its output goes",
                 path.display()
             ),
             Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
@@ -151,7 +151,7 @@ mod tests {
     #[test]
     fn a_permission_error_says_what_to_check() {
         let e = Error::io("run/backward.tmp", std::io::Error::from(std::io::ErrorKind::PermissionDenied));
-        assert!(e.to_string().starts_with("run/backward.tmp: permission denied; clv needs to read and write here: check the permissions"), "{e}");
+        assert!(e.to_string().starts_with("run/backward.tmp: permission denied; check the permissions of the file and of its directory"), "{e}");
     }
 
     /// A closed reader: how to start over, and what --resume would stream, in each case.

@@ -711,13 +711,15 @@ fn analyze_run_dir_reads_only_the_last_sweeps_own_file() {
     let streamed = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", d, "--out", "-", "--quiet"]).stdout(Stdio::piped()).output().unwrap();
     assert!(streamed.status.success() && streamed.stdout.starts_with(b"\x89MCAP"));
     refused(analyze("stream"), "streamed its frames");
-    // The advice repeats what the sweep computed (GS vectors, V_n every 2nd step), as a
+    // The advice repeats what the sweep computed (GS vectors, V_n every 2nd step, its
+    // transient and start), as a
     // stream first (`clv run`'s sweep is one), and says how large the file would be.
-    let streamed = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", d, "--out", "-", "--with-gs", "--vectors-every", "2", "--quiet"]).stdout(Stdio::piped()).output().unwrap();
+    let streamed = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", d, "--out", "-", "--with-gs", "--vectors-every", "2", "--transient", "20", "--c-init", "random", "--quiet"]).stdout(Stdio::piped()).output().unwrap();
     assert!(streamed.status.success());
     let (out, _) = analyze("stream-gs");
     let err = common::stderr(&out);
-    let stream = format!("`clv backward {d} --with-gs --vectors-every 2 --out - | clv analyze - --out REPORT`; or write a frame file with `clv backward {d} --with-gs --vectors-every 2 --out {d}/NAME.mcap` (about ");
+    let same = "--with-gs --vectors-every 2 --transient 20 --c-init random";
+    let stream = format!("`clv backward {d} {same} --out - | clv analyze - --out REPORT`; or write a frame file with `clv backward {d} {same} --out {d}/NAME.mcap` (about ");
     assert!(!out.status.success() && err.contains(&stream), "{err}");
     // A file outside the run: read while it is there, refused once it is gone.
     let outside = base.join("outside.mcap");

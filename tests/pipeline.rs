@@ -557,6 +557,10 @@ fn configuration_files_round_trip_and_flags_override_them() {
     let refused = clv(&["forward", "--config", boolean.to_str().unwrap(), "--out", base.join("b").to_str().unwrap(), "--quiet"]);
     let err = common::stderr(&refused);
     assert!(!refused.status.success() && err.contains("boolean.toml:3: seed takes a value, not true or false") && !base.join("b").exists(), "{err}");
+    // Named by its own line where another setting needs a partner (--lx needs --ly).
+    std::fs::write(&boolean, "n = 4\nlx = 3\nly = 3\nseed = false\n").unwrap();
+    let err = common::stderr(&clv(&["forward", "--config", boolean.to_str().unwrap(), "--steps", "10"]));
+    assert!(err.contains("boolean.toml:4: seed takes a value, not true or false"), "{err}");
     // The box given by its sides on the command line replaces the file's density and aspect.
     let out = ok(clv(&["forward", "--config", f, "--n", "8", "--lx", "4", "--ly", "4", "--steps", "100", "--json", "--quiet"]));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();

@@ -135,7 +135,13 @@ pub fn forward_flags_of_file(file: &std::path::Path) -> Result<Vec<String>> {
     let flags = config_file::expand(file, &config_keys())?;
     let parse = |flags: &[String]| Cli::try_parse_from(["clv".to_string(), "forward".to_string()].iter().chain(flags));
     if let Err(e) = parse(&flags) {
-        let key = flags.iter().find(|f| parse(std::slice::from_ref(f)).is_err()).and_then(|f| f.strip_prefix("--")).and_then(|f| f.split('=').next());
+        // The setting clap names, if the file gives it; else the first that fails alone
+        // (which may be one that only needs another: --lx without --ly).
+        let named = e.get(clap::error::ContextKind::InvalidArg).map(|a| a.to_string()).and_then(|a| Some(a.strip_prefix("--")?.split([' ', '=']).next()?.to_string()));
+        let given = |k: &str| flags.iter().any(|f| *f == format!("--{k}") || f.starts_with(&format!("--{k}=")));
+        let alone = || flags.iter().find(|f| parse(std::slice::from_ref(f)).is_err()).and_then(|f| f.strip_prefix("--")).and_then(|f| f.split('=').next()).map(String::from);
+        let key = named.filter(|k| given(k)).or_else(alone);
+        let key = key.as_deref();
         let line = key.and_then(|k| config_file::line_of(file, k)).map(|l| format!(":{l}")).unwrap_or_default();
         let boolean = |k: &&str| (e.kind() == clap::error::ErrorKind::InvalidValue && flags.contains(&format!("--{k}"))) || flags.contains(&format!("--{k}=false"));
         if let Some(k) = key.filter(boolean) {

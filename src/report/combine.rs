@@ -16,7 +16,7 @@
 //! small (or the runs do not sample the same state).
 
 use crate::config::RunConfig;
-use crate::store::run::{differences, StoreConfig};
+use crate::store::run::{differences, differences_summary, StoreConfig};
 use crate::error::{Error, Result};
 use crate::statistics::{ks_entropy, Estimate};
 use serde::{Deserialize, Serialize};
@@ -82,7 +82,7 @@ pub fn combine(paths: &[PathBuf]) -> Result<Combined> {
                 .into_iter()
                 .filter(|d| !free.iter().any(|f| d.starts_with(&format!("--{f} "))))
                 .collect();
-            let differ = if differ.is_empty() { format!("{} against {}", serde_json::to_string(first).unwrap_or_default(), serde_json::to_string(&run.config).unwrap_or_default()) } else { differ.join(", ") };
+            let differ = if differ.is_empty() { format!("{} against {}", serde_json::to_string(first).unwrap_or_default(), serde_json::to_string(&run.config).unwrap_or_default()) } else { differences_summary(differ) };
             return Err(Error::Other(format!(
                 "{} is a run of another system or setting than {}: {differ}; runs combine where they differ only in --seed, --steps, --relax-steps and --blocks",
                 path.display(),

@@ -86,16 +86,12 @@ pub fn run(config: &RunConfig, store: &StoreConfig, out: &Path, feedback: &mut F
         } else if !stored.config.same_but_threads(config) || stored.store != *store {
             // The threads are the process's, not the run's: the numbers do not depend on them.
             // The way out first: after `clv run`, `clv run --preset lorenz` differs in 17 settings.
-            let mut differ = crate::store::run::differences((&stored.config, &stored.store, "in the run"), (config, store, "asked for"));
-            differ.sort_by_key(|d| !d.starts_with("--system "));
-            let shown = match differ.len() {
-                0..=4 => differ.join(", "),
-                more => format!("{}, and {} more", differ[..3].join(", "), more - 3),
-            };
+            let differ = crate::store::run::differences((&stored.config, &stored.store, "in the run"), (config, store, "asked for"));
             let example = match crate::store::run::flag_values(config, store).into_iter().find(|(id, _)| *id == "system") {
-                Some((_, system)) if differ[0].starts_with("--system ") => format!(" (e.g. --out {}-{system})", out.display()),
+                Some((_, system)) if differ.iter().any(|d| d.starts_with("--system ")) => format!(" (e.g. --out {}-{system})", out.display()),
                 _ => String::new(),
             };
+            let shown = crate::store::run::differences_summary(differ);
             return Err(Error::param(
                 "out",
                 format!(

@@ -43,6 +43,16 @@ pub fn differences((run, run_store, here): (&RunConfig, &StoreConfig, &str), (as
     out
 }
 
+/// [`differences`] for a message: the system's first (it makes most of the others), then
+/// at most three more, with how many are left out.
+pub fn differences_summary(mut differ: Vec<String>) -> String {
+    differ.sort_by_key(|d| !d.starts_with("--system "));
+    match differ.len() {
+        0..=4 => differ.join(", "),
+        more => format!("{}, and {} more", differ[..3].join(", "), more - 3),
+    }
+}
+
 /// The values of the flags that define a run, as they would be given on the command line,
 /// by the flags' ids (--relax-steps is relax_steps).
 pub fn flag_values(c: &RunConfig, store: &StoreConfig) -> Vec<(&'static str, String)> {
@@ -756,7 +766,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use super::{differences, free_bytes, short_of_space, StoreConfig};
+    use super::{differences, differences_summary, free_bytes, short_of_space, StoreConfig};
     use crate::config::{RunConfig, SystemConfig};
 
     /// Runs that differ are told apart by the flags that set them: --lorenz-rho, not the
@@ -778,6 +788,11 @@ mod tests {
         let mut kept = store.clone();
         kept.keep_segments = 5;
         assert_eq!(differences((&lorenz, &store, "a"), (&lorenz, &kept, "b")), ["settings that flags do not show"]);
+        // For a message: the system first, then three more and a count.
+        let henon = RunConfig::preset("henon").unwrap();
+        let summary = differences_summary(differences((&lorenz, &store, "a"), (&henon, &StoreConfig::for_run(&henon), "b")));
+        assert!(summary.starts_with("--system lorenz a, henon b, ") && summary.ends_with(" more"), "{summary}");
+        assert_eq!(differences_summary(vec!["x".into(), "--system a".into()]), "--system a, x");
     }
 
     #[test]

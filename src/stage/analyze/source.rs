@@ -73,11 +73,21 @@ fn frame_source(source: &Path) -> Result<(PathBuf, Option<SweepFile>)> {
     // The same sweep again: GS vectors and V_n where it had them, into a stream (nothing on
     // disk, as `clv run` does it) or into a file, whose size is worth knowing first.
     let again = BackwardOptions { frames_path: Some(write.clone()), no_frames: false, save_every: 1, ..opts.clone() };
-    let same = format!("{}{}", if opts.with_gs { " --with-gs" } else { "" }, if opts.vectors_every > 1 { format!(" --vectors-every {}", opts.vectors_every) } else { String::new() });
-    let size = match crate::store::RunDir::open(source) {
-        Ok((dir, meta)) => format!(" (about {})", crate::store::run::human(crate::stage::backward::frame_file_bytes(&dir, &meta, &again))),
-        Err(_) => String::new(),
-    };
+    let run = crate::store::RunDir::open(source).ok();
+    let mut same = String::new();
+    if opts.with_gs {
+        same += " --with-gs";
+    }
+    if opts.vectors_every > 1 {
+        same += &format!(" --vectors-every {}", opts.vectors_every);
+    }
+    if run.as_ref().is_some_and(|(_, meta)| meta.store.transient != opts.transient) {
+        same += &format!(" --transient {}", opts.transient);
+    }
+    if opts.c_init == crate::stage::backward::CInit::Random {
+        same += " --c-init random";
+    }
+    let size = run.map_or(String::new(), |(dir, meta)| format!(" (about {})", crate::store::run::human(crate::stage::backward::frame_file_bytes(&dir, &meta, &again))));
     Err(Error::Other(format!(
         "{d}: the run's last backward sweep ({flags}) {what}, so there are no frames of it to analyse. Analyse them as they are computed, with nothing written: \
          `clv backward {d}{same} --out - | clv analyze - --out REPORT`; or write a frame file with `clv backward {d}{same} --out {}`{size} and analyse the run again{other}",
