@@ -605,7 +605,7 @@ fn prior_sweep(dir: &RunDir, meta: &RunMeta, opts: &BackwardOptions, resume: boo
                 && tmp_path(f).exists() {
                     // This run's own sweep from before it was made longer: its record went with
                     // the shorter run's results, so it cannot be continued.
-                    let theirs = crate::store::frames::metadata_of(&tmp_path(f)).and_then(|m| serde_json::from_str::<RunMeta>(m.get("run.json")?).ok());
+                    let theirs = crate::store::frames::metadata_of(&tmp_path(f)).ok().flatten().and_then(|m| serde_json::from_str::<RunMeta>(m.get("run.json")?).ok());
                     if let Some(shorter) = theirs.filter(|t| t.config.steps < meta.config.steps && RunConfig { steps: meta.config.steps, ..t.config.clone() }.same_but_threads(&meta.config)) {
                         return Err(Error::Other(format!(
                             "{} holds the frames of an interrupted backward sweep of this run as it was with {} steps, before it was made longer: \

@@ -126,38 +126,29 @@ fn same_sweep(a: &BTreeMap<String, String>, b: &BTreeMap<String, String>) -> boo
     })
 }
 
-/// Whether the frame stream in `path` begins with the metadata of another sweep than
-/// `metadata` describes ([`same_sweep`]); read only up to its metadata.
-/// The metadata a frame file (or an unfinished FILE.tmp) begins with, if it can be read.
-pub fn metadata_of(path: &Path) -> Option<BTreeMap<String, String>> {
+/// The metadata a frame file (or an unfinished FILE.tmp) begins with, if it has any (an
+/// unreadable one as empty).
+pub fn metadata_of(path: &Path) -> Result<Option<BTreeMap<String, String>>> {
     const ENOUGH: &str = "clv: read up to the metadata";
     let mut found = None;
-    let file = File::open(path).ok()?;
-    let _ = read_stream(path, std::io::BufReader::new(file), ReadMode::Salvage, |m| {
-        if m.topic == RUN_METADATA {
-            found = serde_json::from_slice(m.data).ok();
-        }
-        Err(Error::Other(ENOUGH.into()))
-    });
-    found
-}
-
-fn begins_with_other_metadata(path: &Path, metadata: &BTreeMap<String, String>) -> Result<bool> {
-    const ENOUGH: &str = "clv: read up to the metadata";
-    let mut other = false;
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
     let read = read_stream(path, std::io::BufReader::new(file), ReadMode::Salvage, |m| {
         if m.topic == RUN_METADATA {
-            let theirs: BTreeMap<String, String> = serde_json::from_slice(m.data).unwrap_or_default();
-            other = !same_sweep(&theirs, metadata);
+            found = Some(serde_json::from_slice(m.data).unwrap_or_default());
         }
         Err(Error::Other(ENOUGH.into()))
     });
     match read {
-        Err(Error::Other(msg)) if msg == ENOUGH => Ok(other),
+        Err(Error::Other(msg)) if msg == ENOUGH => Ok(found),
         Err(e) => Err(e),
-        Ok(_) => Ok(other),
+        Ok(_) => Ok(found),
     }
+}
+
+/// Whether the frame stream in `path` begins with the metadata of another sweep than
+/// `metadata` describes ([`same_sweep`]); read only up to its metadata.
+fn begins_with_other_metadata(path: &Path, metadata: &BTreeMap<String, String>) -> Result<bool> {
+    Ok(metadata_of(path)?.is_some_and(|theirs| !same_sweep(&theirs, metadata)))
 }
 
 impl FrameFile {
