@@ -412,8 +412,9 @@ impl Modes {
             // of each, reconstructed inside the whole step.
             for &wave in &family.waves {
                 // In the paper's order of figures: the T modes (Fig. 10), then the LP modes
-                // (Figs. 11, 12), each by wave vector, whatever the order of their steps.
-                let order = (kind != ModeKind::T, wave.n_x.abs() + wave.n_y.abs(), wave.n_x.abs());
+                // (Figs. 11, 12), each by wave vector (by |n_x| + |n_y|, then (1,0) before (0,1)),
+                // whatever the order of their steps.
+                let order = (kind != ModeKind::T, wave.n_x.abs() + wave.n_y.abs(), wave.n_y.abs());
                 if kind == ModeKind::T {
                     let (entry, rows) = transverse_figures(cands, frame, &acc.step, family, wave, out)?;
                     fit_rows.extend(rows);
@@ -1244,8 +1245,8 @@ mod tests {
             }
         }
         let t_entries: Vec<&Produced> = produced.iter().filter(|p| p.title.contains("(Fig. 10)")).collect();
-        assert_eq!(t_entries.iter().map(|p| p.title.as_str()).collect::<Vec<_>>(), ["Transverse mode T(0,1) of T(1,0)+T(0,1) (Fig. 10)", "Transverse mode T(1,0) of T(1,0)+T(0,1) (Fig. 10)"]);
-        assert!(t_entries[1].caption.contains("4-dimensional GS (blue) and covariant (vermillion) subspaces of the T(1,0)+T(0,1) step (i = 54..57)") && t_entries[1].caption.contains("GS 1.000, CLV 1.000"), "{}", t_entries[1].caption);
+        assert_eq!(t_entries.iter().map(|p| p.title.as_str()).collect::<Vec<_>>(), ["Transverse mode T(1,0) of T(1,0)+T(0,1) (Fig. 10)", "Transverse mode T(0,1) of T(1,0)+T(0,1) (Fig. 10)"]);
+        assert!(t_entries[0].caption.contains("4-dimensional GS (blue) and covariant (vermillion) subspaces of the T(1,0)+T(0,1) step (i = 54..57)") && t_entries[0].caption.contains("GS 1.000, CLV 1.000"), "{}", t_entries[0].caption);
         // The averaged fits are those of a pair's own vectors: none for a step of two waves.
         assert!(!out.join("modes_fits.csv").exists());
         // Figs. 11 and 12 of each wave vector: pure L and P in the span of the 8-fold step.
