@@ -386,6 +386,30 @@ fn sighup_stops_the_forward_stage_at_a_checkpoint_too() {
     assert!(step < 30000 && shown.contains(&format!("relaxing: step {step} of the 30000 relaxation steps")) && !shown.contains("spectrum so far"), "{shown}");
 }
 
+/// Stopped by SIGTERM inside the window of a --store-r all run, the forward stage writes its
+/// own checkpoint at the stop, with one R_n there, not a second (an outside reader of the
+/// stored R_n saw that step twice; an outside check).
+#[test]
+fn a_stop_inside_a_store_r_all_window_stores_each_r_once() {
+    let run = scratch("faults", "term-r-all").join("run");
+    let args = ["forward", "--quiet", "--n", "16", "--aspect", "1", "--relax-steps", "10", "--steps", "40000", "--clv-steps", "30000", "--transient", "10000", "--checkpoint-every", "50", "--store-r", "all", "--out", run.to_str().unwrap()];
+    let (out, step) = stopped_after_a_segment(&args, &run, libc::SIGTERM);
+    assert!(out.status.code() == Some(128 + libc::SIGTERM) && step > 10 && step % 50 != 0, "{:?} at step {step}: {}", out.status, stderr(&out));
+    let last = clv::store::RunDir { path: run.clone() }.segments().unwrap().pop().unwrap();
+    let mut steps = Vec::new();
+    clv::store::segment::read_segment(&last.path, clv::store::segment::ReadMode::Strict, |m| {
+        if m.topic == clv::store::schema::R.topic {
+            steps.push(m.step);
+        }
+        Ok(())
+    })
+    .unwrap();
+    let mut once = steps.clone();
+    once.dedup();
+    assert!(once == steps && steps.last() == Some(&step), "R_n stored twice, or not at the stop ({step}): {steps:?}");
+    ok(clv(&["forward", "--resume", run.to_str().unwrap(), "--quiet"]));
+}
+
 /// A batch system's time limit sends SIGTERM before SIGKILL: the forward stage stops after
 /// the step it is in, with a checkpoint there and its segment finished, so that the run
 /// resumes from that very step (no interrupted segment, nothing recomputed) to the

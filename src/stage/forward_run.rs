@@ -267,7 +267,9 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
     };
     let total = meta.config.relax_steps + meta.config.steps;
     let Some(last) = newest_intact else {
-        feedback.notice("no intact checkpoint found; starting the run over from step 0".into());
+        // Where triage set segments aside it has said why.
+        let why = if superseded.is_empty() { "no intact checkpoint found; " } else { "" };
+        feedback.notice(format!("{why}starting the run over from step 0"));
         let fwd = Forward::new(&meta.config)?;
         let energy0 = fwd.system.invariants().energy;
         return recomputed(drive(dir, meta, fwd, energy0, 0.0, true, feedback)?, 0);
@@ -361,7 +363,8 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
             feedback.notice(format!("warning: {warning}"));
         }
         let is_cp = store.is_checkpoint(n, total);
-        if is_cp || (store.store_r == StoreR::All && n > window) {
+        let r_sent = is_cp || (store.store_r == StoreR::All && n > window);
+        if r_sent {
             sink.send(R.topic, n, encode_r(n, &fwd.r))?;
         }
         if is_cp {
@@ -371,8 +374,12 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
             bar.set_position(n);
         }
         if let Some(signal) = signals.requested().filter(|_| n < total) {
+            // A checkpoint of its own here, with its R unless that went out above (an outside
+            // reader of --store-r all would see it twice).
             if !is_cp {
-                sink.send(R.topic, n, encode_r(n, &fwd.r))?;
+                if !r_sent {
+                    sink.send(R.topic, n, encode_r(n, &fwd.r))?;
+                }
                 checkpoint(&fwd, &mut sink)?;
             }
             sink.close_at_checkpoint()?;

@@ -145,7 +145,7 @@ pub fn triage(dir: &RunDir, checkpoint_every: u64, needed_from: u64, notice: &mu
             }
             Ok(()) => {
                 let aside = seg.path.with_extension("mcap.superseded");
-                notice(format!("{} follows {cause} and is recomputed with it (kept as {} until then)", seg.path.display(), aside.display()));
+                notice(format!("{} follows {cause} and is recomputed with {} (kept as {} until then)", seg.path.display(), if intact < damaged { "them" } else { "it" }, aside.display()));
                 superseded.push(aside.clone());
                 aside
             }
