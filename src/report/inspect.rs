@@ -172,9 +172,10 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     let named: Vec<&SegmentReport> = segments.iter().filter(|s| !s.misnamed).collect();
     let claimed = |from: u64, to: u64| segments.iter().any(|s| s.misnamed && s.first_step <= to && from <= s.last_step);
     // Before the first segment only the checkpoints the backward stage starts from are
-    // needed (older ones are pruned by design).
+    // needed (older ones are pruned by design); a misnamed file there is set aside by
+    // resume, whatever its name, so it covers nothing.
     let needed = meta.store.window_start(&meta.config) / c * c;
-    let leading = named.first().filter(|s| s.first_step > needed && !claimed(needed, s.first_step - 1)).map(|s| {
+    let leading = named.first().filter(|s| s.first_step > needed).map(|s| {
         format!(
             "the checkpoints of steps {needed}..{}, from where the backward stage recomputes the run, are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes the run from step 0",
             s.first_step - 1,
