@@ -766,12 +766,14 @@ fn transverse_figures(cands: &Candidates, frame: &Frame, step: &Step, family: &F
     let d = frame.d;
     let i = step.start + step.len - 1;
     let x = axes.positions(&frame.phase);
-    let name = Family { waves: vec![wave], k: axes.k }.name(ModeKind::T);
+    // The wave vector's own family (the step's may hold several).
+    let own = Family { waves: vec![wave], k: axes.k };
+    let name = own.name(ModeKind::T);
     let several = family.single().is_none();
     // (source, vector, |cos| of its dq with the pattern where reconstructed)
     let mut sources: Vec<(&str, Vec<f64>, Option<f64>)> = Vec::new();
     if several {
-        let pattern = km::mode_patterns(ModeKind::T, &Family { waves: vec![wave], k: axes.k }, &frame.phase, cands.lx, cands.ly);
+        let pattern = km::mode_patterns(ModeKind::T, &own, &frame.phase, cands.lx, cands.ly);
         let cos = &pattern[..d / 2];
         if let Some(g) = frame.g.as_deref() {
             let r = km::reconstruct(group(g, d, step), d, cos, Part::Position);
