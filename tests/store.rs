@@ -368,14 +368,20 @@ fn damaged_segments_are_named_and_resume_falls_back() {
         assert!(err.contains("moving it aside"), "{what}: {err}");
         assert!(contents(&copy) == *want, "{what}: resumed run differs");
     }
-    // Damage to an older segment of a finished run: resume recomputes it and the segments
-    // after it from the checkpoint before it (bit-identical numbers), and keeps only the damaged
-    // file aside.
+    // Damage to an older segment of a finished run: resume recomputes only its steps, from
+    // the checkpoint before it (bit-identical numbers), leaves the segments after it as they
+    // are (the same files), and keeps only the damaged file aside.
     for trial in 0..4 {
+        use std::os::unix::fs::MetadataExt;
         let copy = base.join(format!("repair-{trial}"));
         copy_dir(&dir, &copy);
         let segs = RunDir { path: copy.clone() }.segments().unwrap();
-        let seg = &segs[rng.below(segs.len() - 1)];
+        // Not the oldest, which has no checkpoint before it (the next case).
+        let seg = &segs[1 + rng.below(segs.len() - 2)];
+        let inodes = |copy: &Path| -> BTreeMap<String, u64> {
+            RunDir { path: copy.to_path_buf() }.segments().unwrap().iter().filter(|s| s.first != seg.first).map(|s| (s.path.file_name().unwrap().to_string_lossy().into_owned(), std::fs::metadata(&s.path).unwrap().ino())).collect()
+        };
+        let others = inodes(&copy);
         let what = damage(&seg.path, &mut rng, trial % 2 == 0);
         if trial == 0 {
             // The repair itself crashes after writing its first segment; the next one ends it.
@@ -385,8 +391,11 @@ fn damaged_segments_are_named_and_resume_falls_back() {
         let out = clv(&["forward", "--resume", copy.to_str().unwrap()]);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(out.status.success(), "{what}: {err}");
-        assert!(trial == 0 || (err.contains("moving it aside") && err.contains("follows a damaged segment")), "{what}: {err}");
+        let i = segs.iter().position(|s| s == seg).unwrap();
+        let recomputing = format!("recomputing steps {}..{} (no intact segment holds the steps between)", segs[i - 1].last, segs[i + 1].first);
+        assert!(trial == 0 || (err.contains("moving it aside") && err.contains(&recomputing) && !err.contains("recomputed with the rest")), "{what}: {err}");
         assert!(contents(&copy) == *want, "{what}: repaired run differs");
+        assert!(inodes(&copy) == others, "{what}: segments other than the damaged one were rewritten");
         let aside: Vec<String> = std::fs::read_dir(&copy).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).filter(|n| !n.ends_with(".mcap") && !n.ends_with(".json") && !n.starts_with('.')).collect();
         assert_eq!(aside, vec![seg.path.with_extension("mcap.corrupt").file_name().unwrap().to_string_lossy().into_owned()]);
         let seen = clv(&["inspect", copy.to_str().unwrap()]);
@@ -516,6 +525,63 @@ fn a_missing_or_foreign_segment_is_named_and_resume_restores_the_run() {
     assert!(contents(&dir) == *want);
 }
 
+/// A hole in the segments is recomputed from the checkpoint before it, and the recomputation
+/// must arrive at the next segment's first checkpoint bit for bit. Here that checkpoint was
+/// altered in a file with valid CRCs (rewritten whole, as another build's numbers would be):
+/// resume sees the difference, names it, and recomputes the segments from there on as well,
+/// back to the undamaged run's numbers. With `--store-r all` the hole ends just before the
+/// next segment's first R_n, not at a checkpoint of the grid.
+#[test]
+fn a_hole_is_recomputed_on_its_own_and_must_arrive_at_the_next_checkpoint() {
+    use clv::store::schema::{CHECKPOINT, RUN_SCHEMAS};
+    use clv::store::segment::{embedded_run_json, read_segment, ReadMode, SegmentWriter, RUN_METADATA};
+    let (dir, want) = reference_copy("hole-differs");
+    let d = dir.to_str().unwrap();
+    let segs = RunDir { path: dir.clone() }.segments().unwrap();
+    let (hole, next) = (&segs[segs.len() - 3], &segs[segs.len() - 2]);
+    std::fs::remove_file(&hole.path).unwrap();
+    let run_json = embedded_run_json(&next.path).unwrap();
+    let mut messages = Vec::new();
+    read_segment(&next.path, ReadMode::Strict, |m| {
+        if m.topic != RUN_METADATA {
+            messages.push((m.topic.to_string(), m.step, m.data.to_vec()));
+        }
+        Ok(())
+    })
+    .unwrap();
+    let first = messages.iter().position(|(t, _, _)| t == CHECKPOINT.topic).unwrap();
+    let mut cp = Checkpoint::decode(&messages[first].2).unwrap();
+    cp.state.g[7] = -cp.state.g[7];
+    messages[first].2 = cp.encode();
+    std::fs::remove_file(&next.path).unwrap();
+    let mut w = SegmentWriter::create(&dir, next.first, &run_json, &RUN_SCHEMAS).unwrap();
+    for (topic, step, data) in &messages {
+        w.write(topic, *step, data).unwrap();
+    }
+    assert_eq!(w.finish().unwrap(), next.path);
+    let err = common::stderr(&ok(clv(&["forward", "--resume", d])));
+    assert!(err.contains(&format!("recomputing steps {}..{}", segs[segs.len() - 4].last, next.first)), "{err}");
+    assert!(err.contains(&format!("do not arrive at the first checkpoint of {} (G_n element 7", next.path.display())) && err.contains("recomputed with the rest of the run"), "{err}");
+    assert!(contents(&dir) == *want, "the run repaired past the altered checkpoint differs");
+    assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".superseded")));
+
+    // --store-r all: the segments of the window begin with an R_n, right after the last step
+    // of the segment before.
+    let run = scratch("hole-r-all").join("run");
+    let r = run.to_str().unwrap();
+    ok(clv(&["forward", "--n", "8", "--aspect", "1", "--steps", "600", "--clv-steps", "200", "--checkpoint-every", "20", "--segment-checkpoints", "3", "--store-r", "all", "--out", r, "--quiet"]));
+    let want = contents(&run);
+    let segs = RunDir { path: run.clone() }.segments().unwrap();
+    let (hole, next) = (&segs[segs.len() - 3], &segs[segs.len() - 2]);
+    assert!(next.first == hole.last + 1 && next.first % 20 != 0, "{segs:?}");
+    std::fs::remove_file(&hole.path).unwrap();
+    let err = common::stderr(&ok(clv(&["forward", "--resume", r])));
+    assert!(err.contains(&format!("recomputing steps {}..{}", segs[segs.len() - 4].last, next.first)) && !err.contains("recomputed with the rest"), "{err}");
+    assert!(contents(&run) == want, "the run repaired with --store-r all differs");
+    let steps = |segs: Vec<clv::store::run::SegmentFile>| segs.iter().map(|s| (s.first, s.last)).collect::<Vec<_>>();
+    assert_eq!(steps(RunDir { path: run.clone() }.segments().unwrap()), steps(segs), "the segments are those of the undamaged run");
+}
+
 /// A segment whose steps are not those its name says: two segments' names swapped, or a
 /// stray copy under another name (which once made `clv inspect` report intact segments, or
 /// steps "2800..2599" missing, while the backward stage stopped at the file and advised a
@@ -570,8 +636,9 @@ fn a_misnamed_segment_is_named_and_resume_restores_the_run() {
         }
         // Swapped names are written anew under their names; the stray copy's name is gone.
         assert_eq!(misnamed.iter().all(|(p, _)| p.exists()), case == "swapped", "{case}");
-        // A stray copy costs no recomputation; swapped names cost the steps from the first on.
-        assert_eq!(err.contains("follows the missing checkpoints"), case == "swapped", "{case}: {err}");
+        // A stray copy costs no recomputation; swapped names cost their own steps.
+        assert_eq!(err.contains(&format!("recomputing steps {}..{}", segs[segs.len() - 4].last, segs[segs.len() - 1].first)), case == "swapped", "{case}: {err}");
+        assert!(!err.contains("resuming") && !err.contains("recomputed with the rest"), "{case}: {err}");
         assert!(contents(&dir) == *want, "{case}: the repaired run differs");
         let seen = clv(&["inspect", d]);
         assert!(seen.status.success(), "{case}: {}", String::from_utf8_lossy(&seen.stdout));
@@ -622,11 +689,12 @@ fn checkpoints_before_the_first_segment_are_missing_only_where_the_backward_stag
     }
     let seen = clv(&["inspect", d]);
     let text = String::from_utf8_lossy(&seen.stdout);
-    assert!(!seen.status.success() && text.contains("from where the backward stage recomputes the run, are missing") && text.contains("recomputes the run from step 0"), "{text}");
+    assert!(!seen.status.success() && text.contains("from where the backward stage recomputes the run, are missing") && text.contains("recomputes them from step 0"), "{text}");
     let out = clv(&["backward", d, "--quiet", "--save-every", "0"]);
     assert!(!out.status.success() && common::stderr(&out).contains(&format!("`clv forward --resume {d}` recomputes it")), "{}", common::stderr(&out));
     let err = common::stderr(&ok(clv(&["forward", "--resume", d])));
-    assert!(err.contains("and the backward stage needs them: recomputing the run from step 0"), "{err}");
+    let next = segs.iter().find(|s| s.first > start).unwrap();
+    assert!(err.contains(&format!("recomputing steps 0..{} (the backward stage needs the checkpoints from step", next.first)) && !err.contains("resuming"), "{err}");
     assert!(contents(&dir) == *want, "the recomputed run differs");
     ok(clv(&["backward", d, "--quiet", "--save-every", "0"]));
     assert!(clv_exponents(&dir) == want_clv, "the CLV spectrum differs from the undamaged run's");

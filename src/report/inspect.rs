@@ -177,7 +177,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     let needed = meta.store.window_start(&meta.config) / c * c;
     let leading = named.first().filter(|s| s.first_step > needed).map(|s| {
         format!(
-            "the checkpoints of steps {needed}..{}, from where the backward stage recomputes the run, are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes the run from step 0",
+            "the checkpoints of steps {needed}..{}, from where the backward stage recomputes the run, are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them from step 0 (there is no checkpoint before them)",
             s.first_step - 1,
             dir.path.display()
         )
@@ -185,9 +185,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     let gaps: Vec<String> = leading
         .into_iter()
         .chain(named.windows(2)
-        // A segment may begin off the grid of every C steps, before the next checkpoint was
-        // due: at the checkpoint of a stop on a signal (forward_run::triage).
-        .filter(|w| !(w[0].last_step < w[1].first_step && w[1].first_step <= (w[0].last_step / c + 1) * c))
+        .filter(|w| !crate::store::run::continues(w[0].last_step, w[1].first_step, c))
         .filter(|w| !claimed(w[0].last_step + 1, w[1].first_step.saturating_sub(1)))
         .map(|w| format!("the checkpoints of steps {}..{} are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them", (w[0].last_step / c + 1) * c, w[1].first_step - 1, dir.path.display())))
         .collect();

@@ -21,7 +21,7 @@
 //!   older end, the accumulated exponents, frames written) is saved: `--resume` continues
 //!   bit for bit from there.
 
-use super::forward::{Forward, ForwardState};
+use super::forward::Forward;
 use crate::statistics::{block_len, Accumulator, Estimate};
 use super::frame::{on_stride, Frame};
 use crate::config::RunConfig;
@@ -371,19 +371,6 @@ impl Segment {
     }
 }
 
-fn describe_mismatch(want: &ForwardState, got: &ForwardState) -> String {
-    let first = |a: &[f64], b: &[f64]| a.iter().zip(b).position(|(x, y)| x.to_bits() != y.to_bits());
-    if want.system.events != got.system.events {
-        format!("collision count {} stored, {} recomputed", want.system.events, got.system.events)
-    } else if let Some(i) = first(&want.system.phase, &got.system.phase) {
-        format!("phase component {i}: {:e} stored, {:e} recomputed", want.system.phase[i], got.system.phase[i])
-    } else if let Some(i) = first(&want.g, &got.g) {
-        format!("G_n element {i}: {:e} stored, {:e} recomputed", want.g[i], got.g[i])
-    } else {
-        "the accumulated exponent sums differ".into()
-    }
-}
-
 /// Threads the sweep (R^-1 C, V = G C) of a run on `threads` threads uses: see [`Cores`].
 pub fn sweep_threads(threads: usize) -> usize {
     (threads / 3).max(1)
@@ -471,7 +458,7 @@ fn recompute(config: &RunConfig, store_r_all: bool, reads_g: &dyn Fn(u64) -> boo
             "recomputation from step {s0} does not reproduce the checkpoint at step {s1} stored in {file}: {}. \
              The run was made by another build or on a CPU with other features (see run.json), or the file was altered; \
              the backward stage refuses to continue with numbers it cannot verify",
-            describe_mismatch(&want, &got)
+            want.first_difference(&got)
         )));
     }
     // The R_n a `--store-r all` run keeps for readers outside clv are checked like the

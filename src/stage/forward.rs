@@ -23,6 +23,22 @@ pub struct ForwardState {
     pub acc: Accumulator,
 }
 
+impl ForwardState {
+    /// Where a recomputed state `got` first differs from this stored one, in words.
+    pub fn first_difference(&self, got: &ForwardState) -> String {
+        let first = |a: &[f64], b: &[f64]| a.iter().zip(b).position(|(x, y)| x.to_bits() != y.to_bits());
+        if self.system.events != got.system.events {
+            format!("collision count {} stored, {} recomputed", self.system.events, got.system.events)
+        } else if let Some(i) = first(&self.system.phase, &got.system.phase) {
+            format!("phase component {i}: {:e} stored, {:e} recomputed", self.system.phase[i], got.system.phase[i])
+        } else if let Some(i) = first(&self.g, &got.g) {
+            format!("G_n element {i}: {:e} stored, {:e} recomputed", self.g[i], got.g[i])
+        } else {
+            "the accumulated exponent sums differ".into()
+        }
+    }
+}
+
 /// The state of a forward pass between two steps.
 pub struct Forward {
     pub system: Box<dyn DynamicalSystem>,

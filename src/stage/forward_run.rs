@@ -12,7 +12,7 @@ use crate::report::{SpectrumReport, Statistics};
 use crate::store::records::{encode_r, Checkpoint, Stats};
 use crate::store::run::{write_atomic, RunDir, RunLock, RunMeta, StoreR};
 use crate::store::schema::{CHECKPOINT, R, STATS};
-use crate::store::repair::{discard_partial_segments, triage, Triage};
+use crate::store::repair::{discard_partial_segments, first_checkpoint, read_last, supersede_from, triage, Hole, Triage};
 use crate::store::sink::{Policy, Sink};
 use crate::system::Invariants;
 use super::signals::StopOnSignals;
@@ -254,7 +254,18 @@ fn is_report(dir: &Path) -> bool {
 fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Result<Outcome> {
     let path = dir.path.as_path();
     discard_partial_segments(dir, &mut |msg| feedback.notice(msg))?;
-    let Triage { newest_intact, superseded } = triage(dir, meta.store.checkpoint_every, meta.store.window_start(&meta.config), &mut |msg| feedback.notice(msg))?;
+    let Triage { holes, mut newest_intact, mut superseded } = triage(dir, &meta.store, &meta.config, &mut |msg| feedback.notice(msg))?;
+    for hole in &holes {
+        if let Some(why) = fill(dir, meta, hole, feedback)? {
+            // Nothing after it can be trusted to continue this build's numbers: the run is
+            // recomputed from the end of the hole on, as a run damaged at its end would be.
+            feedback.notice(format!("the recomputed steps do not arrive at the first checkpoint of {} ({why}); the segments from there on are recomputed too", hole.next.path.display()));
+            superseded.extend(supersede_from(dir, &hole.next, &mut |msg| feedback.notice(msg))?);
+            let newest = dir.segments()?.pop().ok_or_else(|| Error::Other(format!("the segments recomputed before {} are gone", hole.next.path.display())))?;
+            newest_intact = Some(read_last(&newest.path)?.1);
+            break;
+        }
+    }
     let drop_superseded = || -> Result<()> {
         for aside in &superseded {
             std::fs::remove_file(aside).map_err(|e| Error::io(aside, e))?;
@@ -292,10 +303,42 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
             write_spectrum(dir, &report)?;
         }
         drop_superseded()?;
-        return Ok(Outcome { report, resumed_from: Some(step), already_finished: true });
+        return Ok(Outcome { report, resumed_from: Some(step), already_finished: holes.is_empty() });
     }
     feedback.notice(format!("resuming {} at step {step} of {total}", path.display()));
     recomputed(drive(dir, meta, fwd, last.stats.energy_initial, last.stats.wall_seconds, false, feedback)?, step)
+}
+
+/// Recompute the steps of `hole` from the checkpoint before it, writing them as the run
+/// wrote them, and go on (writing nothing) to the first checkpoint of the segment after it.
+/// None when the recomputation arrives there bit for bit; else where it differs (a run made
+/// by another build, or a segment altered with its CRCs).
+fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> Result<Option<String>> {
+    let (fwd, energy0, wall0) = match &hole.after {
+        Some(before) => {
+            let last = read_last(before)?.1;
+            (Forward::resume(&meta.config, &last.checkpoint.state)?, last.stats.energy_initial, last.stats.wall_seconds)
+        }
+        None => {
+            let fwd = Forward::new(&meta.config)?;
+            let energy0 = fwd.system.invariants().energy;
+            (fwd, energy0, 0.0)
+        }
+    };
+    let from = fwd.step;
+    let c = meta.store.checkpoint_every.max(1);
+    let why = match hole.after {
+        Some(_) => "no intact segment holds the steps between".to_string(),
+        None => format!("the backward stage needs the checkpoints from step {} on, no segment holds them, and there is none before them", meta.store.window_start(&meta.config) / c * c),
+    };
+    feedback.notice(format!("recomputing steps {from}..{} ({why}); {} and the segments after it are kept", hole.next.first, hole.next.path.display()));
+    let mut fwd = drive_to(dir, meta, fwd, energy0, wall0, hole.after.is_none(), hole.until, feedback)?;
+    let want = first_checkpoint(&hole.next.path)?.state;
+    while fwd.step < want.step {
+        fwd.step()?;
+    }
+    let got = fwd.state();
+    Ok((got != want).then(|| want.first_difference(&got)))
 }
 
 fn report_of(meta: &RunMeta, fwd: &Forward, energy0: f64, wall: f64) -> SpectrumReport {
@@ -303,7 +346,21 @@ fn report_of(meta: &RunMeta, fwd: &Forward, energy0: f64, wall: f64) -> Spectrum
     SpectrumReport::new(meta.config.clone(), &fwd.acc, Statistics::new(&meta.config, &start, &fwd.system.invariants(), wall))
 }
 
-fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f64, write_first: bool, feedback: &mut Feedback) -> Result<SpectrumReport> {
+fn drive(dir: &RunDir, meta: &RunMeta, fwd: Forward, energy0: f64, wall0: f64, write_first: bool, feedback: &mut Feedback) -> Result<SpectrumReport> {
+    let started = Instant::now();
+    let total = meta.config.relax_steps + meta.config.steps;
+    let fwd = drive_to(dir, meta, fwd, energy0, wall0, write_first, total, feedback)?;
+    crate::store::fault::crash_point("forward-done");
+    let report = report_of(meta, &fwd, energy0, wall0 + started.elapsed().as_secs_f64());
+    write_spectrum(dir, &report)?;
+    Ok(report)
+}
+
+/// Advance `fwd` to step `until`, writing what the run keeps of every step (the checkpoint
+/// it starts from too with `write_first`), and close the segment there: at a checkpoint of
+/// its own where `until` is not one of the grid's (as a stop on a signal does).
+#[allow(clippy::too_many_arguments)]
+fn drive_to(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f64, write_first: bool, until: u64, feedback: &mut Feedback) -> Result<Forward> {
     let (config, store) = (&meta.config, &meta.store);
     let total = config.relax_steps + config.steps;
     let window = store.window_start(config);
@@ -345,7 +402,7 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
         bar.set_length(total);
         bar.set_position(fwd.step);
     }
-    while fwd.step < total {
+    while fwd.step < until {
         fwd.step().map_err(|e| match e {
             Error::Param { name: "tau", msg } => Error::param(
                 "tau",
@@ -387,11 +444,19 @@ fn drive(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f6
             return Err(Error::Stopped { step: n, total, run: dir.path.clone(), signal, then });
         }
     }
-    sink.close()?;
-    crate::store::fault::crash_point("forward-done");
-    let report = report_of(meta, &fwd, energy0, wall0 + started.elapsed().as_secs_f64());
-    write_spectrum(dir, &report)?;
-    Ok(report)
+    if fwd.step < total && !store.is_checkpoint(fwd.step, total) {
+        let n = fwd.step;
+        if !(store.store_r == StoreR::All && n > window) {
+            sink.send(R.topic, n, encode_r(n, &fwd.r))?;
+        }
+        checkpoint(&fwd, &mut sink)?;
+    }
+    if fwd.step < total {
+        sink.close_at_checkpoint()?;
+    } else {
+        sink.close()?;
+    }
+    Ok(fwd)
 }
 
 /// RUN_DIR/spectrum.json: the spectrum of a finished run, written last.

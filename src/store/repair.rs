@@ -1,16 +1,18 @@
-//! Which finished segments of a run a resumed forward stage can continue from, and setting
-//! aside the rest.
+//! Which finished segments of a run a resumed forward stage keeps, which steps it
+//! recomputes, and setting aside the rest.
 //!
 //! A killed run leaves at most one unfinished segment, which is discarded; a damaged disk or
-//! a hand that moved files can leave damaged, missing or misnamed segments anywhere, and
-//! everything from the first of them on is recomputed (the dynamics is deterministic, so
-//! bit for bit).
+//! a hand that moved files can leave damaged, missing or misnamed segments anywhere. Only
+//! the steps they held are recomputed, from the checkpoint before them (the dynamics is
+//! deterministic, so bit for bit): damage early in a week-long run costs the hour of its
+//! segment, not the days after it.
 //! Nothing readable is deleted before its replacement is written: damaged segments are kept
-//! as `.corrupt`, the intact ones after them as `.superseded` until the stage has rewritten
-//! them.
+//! as `.corrupt`; intact ones a repair has to rewrite after all (see `forward_run`) as
+//! `.superseded` until it has.
 
 use super::records::{Checkpoint, Stats};
-use super::run::{RunDir, SegmentFile};
+use super::run::{continues, RunDir, SegmentFile, StoreConfig};
+use crate::config::RunConfig;
 use super::schema::{CHECKPOINT, STATS};
 use super::segment::{read_segment, ReadMode, RUN_METADATA};
 use crate::error::{Error, Result};
@@ -39,125 +41,101 @@ pub fn discard_partial_segments(dir: &RunDir, notice: &mut dyn FnMut(String)) ->
     Ok(())
 }
 
-/// What a resume keeps of the finished segments.
+/// What a resume keeps of the finished segments, and what it recomputes.
 pub struct Triage {
-    /// The last checkpoint of the newest segment before any damage: the run continues
-    /// from it.
+    /// Steps no intact segment holds, with an intact segment after them, oldest first: each
+    /// is recomputed on its own.
+    pub holes: Vec<Hole>,
+    /// The last checkpoint of the newest intact segment: the run continues from it.
     pub newest_intact: Option<LastCheckpoint>,
-    /// Intact segments after the damage, set aside until their replacements are written.
+    /// Intact segments an interrupted repair set aside, deleted once the run is whole.
     pub superseded: Vec<PathBuf>,
 }
 
-/// Read every finished segment whole (CRCs checked). From the oldest damaged one on, the
-/// segments are recomputed from the last intact checkpoint before it: the dynamics is
-/// deterministic, so the new files hold the numbers of the old, bit for bit (only wall
-/// times differ). Damaged segments are moved aside as `.corrupt`, the intact ones after
-/// them as `.superseded`, together with any a repair that was itself interrupted left.
+/// Steps of a run no intact segment holds, between two that do.
+#[derive(Debug)]
+pub struct Hole {
+    /// The intact segment before the hole, whose last checkpoint the recomputation starts
+    /// from; None where there is none (it starts from step 0).
+    pub after: Option<PathBuf>,
+    /// The last step to write: where the segment before `next` ended
+    /// ([`StoreConfig::last_write_before`]).
+    pub until: u64,
+    /// The intact segment after the hole: its first checkpoint is what the recomputation
+    /// must arrive at, bit for bit.
+    pub next: SegmentFile,
+}
+
+/// Read every finished segment whole (CRCs checked), set the damaged ones aside as
+/// `.corrupt`, and find the steps no intact segment holds: the holes the damaged segments
+/// leave, and gaps (a segment moved out or deleted), which the backward stage would stop
+/// at. A hole between two intact segments is recomputed on its own, from the last
+/// checkpoint before it: the dynamics is deterministic, so the new files hold the numbers
+/// of the old, bit for bit (only wall times differ), and the recomputation must arrive at
+/// the next segment's first checkpoint exactly (see `forward_run`). After the newest intact
+/// segment the run simply continues.
 ///
-/// A segment missing between two others (moved out, deleted) is a gap in the checkpoints,
-/// which the backward stage would stop at: the segments after it are recomputed the same way.
-///
-/// So are the checkpoints missing before the first segment, where the backward stage needs
-/// them (from `needed_from`, the first step of its work, on): there is no checkpoint before
-/// them, and the run is recomputed from step 0. Segments before that step are pruned by
-/// design.
+/// Before the first segment only the checkpoints from where the backward stage starts
+/// (`StoreConfig::window_start`) on are needed; older ones are pruned by design. Where those
+/// are missing, there is no checkpoint before them, and the hole is recomputed from step 0.
 ///
 /// A segment whose steps are not those its name says ([`SegmentFile::misnamed`]: renamed,
-/// or copied in under another name) is moved aside as `.corrupt` first, and only the gap it
-/// may leave is recomputed: a stray copy costs nothing, two swapped names the steps from the
-/// first of them on.
-pub fn triage(dir: &RunDir, checkpoint_every: u64, needed_from: u64, notice: &mut dyn FnMut(String)) -> Result<Triage> {
-    let all = dir.segments()?;
-    let mut reads: Vec<Result<()>> = Vec::with_capacity(all.len());
-    let mut misnamed = vec![false; all.len()];
-    // The newest segment read before the first damaged one, with its last checkpoint: the
-    // one the run continues from unless a gap comes earlier.
-    let mut newest_read: Option<(PathBuf, LastCheckpoint)> = None;
-    let mut damage_seen = false;
-    for (i, seg) in all.iter().enumerate() {
-        match read_last(&seg.path) {
+/// or copied in under another name) is set aside the same way, and only the hole it may
+/// leave is recomputed: a stray copy costs nothing, two swapped names their own steps.
+pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mut dyn FnMut(String)) -> Result<Triage> {
+    let mut intact = Vec::new();
+    // The newest intact segment's last checkpoint, read on the way.
+    let mut newest: Option<LastCheckpoint> = None;
+    for seg in dir.segments()? {
+        let why = match read_last(&seg.path) {
             // A file that cannot be read (permissions, a failing disk) is not damaged:
-            // recomputing it and everything after it would cost hours for nothing.
+            // recomputing it would cost hours for nothing.
             Err(e @ Error::Io { .. }) => {
                 return Err(Error::Other(format!("{e}; nothing was changed: make the file readable (its permissions, the disk) and resume again")));
             }
+            Err(e) => e.to_string(),
             Ok((held, last)) => match seg.misnamed(Some(held)) {
-                Some(why) => {
-                    misnamed[i] = true;
-                    reads.push(Err(Error::Other(why)));
-                }
+                Some(why) => why,
                 None => {
-                    if !damage_seen {
-                        newest_read = Some((seg.path.clone(), last));
-                    }
-                    reads.push(Ok(()));
+                    newest = Some(last);
+                    intact.push(seg);
+                    continue;
                 }
             },
-            Err(e) => {
-                damage_seen = true;
-                reads.push(Err(e));
-            }
-        }
+        };
+        let aside = corrupt_aside(&seg.path);
+        notice(format!("{why}; moving it aside to {} (the steps it holds are recomputed where no other segment holds them)", aside.display()));
+        std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
     }
-    // Misnamed segments are set aside now; the gaps they leave are found below.
-    let (mut segments, mut kept): (Vec<SegmentFile>, Vec<Result<()>>) = (Vec::with_capacity(all.len()), Vec::with_capacity(all.len()));
-    for ((seg, read), m) in all.into_iter().zip(reads).zip(misnamed) {
-        match read {
-            Err(e) if m => {
-                let aside = corrupt_aside(&seg.path);
-                notice(format!("{e}; moving it aside to {} (the steps it holds are recomputed where no other segment holds them)", aside.display()));
-                std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
-            }
-            read => {
-                segments.push(seg);
-                kept.push(read);
-            }
-        }
-    }
-    let reads = kept;
-    let damaged = reads.iter().position(Result::is_err).unwrap_or(segments.len());
-    let c = checkpoint_every.max(1);
-    // A segment begins at the checkpoint after the last one of the segment before, or
-    // earlier: at the checkpoint of its own that a stop on a signal wrote (off the grid of
-    // every C steps) before the next one was due.
-    let gap = segments.windows(2).position(|w| !(w[0].last < w[1].first && w[1].first <= (w[0].last / c + 1) * c)).map(|i| i + 1);
-    // The checkpoint the backward stage starts its recomputation from, at the latest.
-    let needed = needed_from / c * c;
-    let leading = segments.first().filter(|s| s.first > needed).map(|s| s.first);
-    if let Some(first) = leading {
-        notice(format!("the checkpoints of steps {needed}..{} are missing (no segment holds them), and the backward stage needs them: recomputing the run from step 0", first - 1));
-    } else if let Some(i) = gap.filter(|&i| i < damaged) {
-        notice(format!("the checkpoints of steps {}..{} are missing (no segment holds them): recomputing them and what follows", (segments[i - 1].last / c + 1) * c, segments[i].first - 1));
-    }
-    let intact = if leading.is_some() { 0 } else { gap.map_or(damaged, |g| g.min(damaged)) };
-    let cause = if intact < damaged { "the missing checkpoints" } else { "a damaged segment" };
-    let mut superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
+    let c = store.checkpoint_every.max(1);
+    let needed = store.window_start(config) / c * c;
+    let leading = intact.first().filter(|s| s.first > needed).map(|s| (None, s));
+    let between = intact.windows(2).filter(|w| !continues(w[0].last, w[1].first, c)).map(|w| (Some(&w[0]), &w[1]));
+    let holes: Vec<Hole> = leading
+        .into_iter()
+        .chain(between)
+        .map(|(before, next)| Hole { after: before.map(|s| s.path.clone()), until: store.last_write_before(next.first, config), next: next.clone() })
+        .collect();
+    let superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
         .map_err(|e| Error::io(&dir.path, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.to_string_lossy().ends_with(".mcap.superseded"))
         .collect();
-    for (seg, read) in segments[intact..].iter().zip(&reads[intact..]) {
-        let aside = match read {
-            Err(e) => {
-                let aside = corrupt_aside(&seg.path);
-                notice(format!("{e}; moving it aside to {} and recomputing from the checkpoint before it", aside.display()));
-                aside
-            }
-            Ok(()) => {
-                let aside = seg.path.with_extension("mcap.superseded");
-                notice(format!("{} follows {cause} and is recomputed with {} (kept as {} until then)", seg.path.display(), if intact < damaged { "them" } else { "it" }, aside.display()));
-                superseded.push(aside.clone());
-                aside
-            }
-        };
+    Ok(Triage { holes, newest_intact: newest, superseded })
+}
+
+/// Set aside the intact segments from `next` on (after a hole whose recomputation did not
+/// arrive at `next`'s first checkpoint): they are recomputed with the rest of the run, and
+/// kept as `.superseded` until then. Returns the paths they are kept at.
+pub fn supersede_from(dir: &RunDir, next: &SegmentFile, notice: &mut dyn FnMut(String)) -> Result<Vec<PathBuf>> {
+    let mut kept = Vec::new();
+    for seg in dir.segments()?.into_iter().filter(|s| s.first >= next.first) {
+        let aside = seg.path.with_extension("mcap.superseded");
+        notice(format!("{} is recomputed with the rest of the run (kept as {} until then)", seg.path.display(), aside.display()));
         std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
+        kept.push(aside);
     }
-    let newest_intact = match (intact.checked_sub(1), newest_read) {
-        (None, _) => None,
-        (Some(i), Some((read, last))) if read == segments[i].path => Some(last),
-        (Some(i), _) => Some(read_last(&segments[i].path)?.1),
-    };
-    Ok(Triage { newest_intact, superseded })
+    Ok(kept)
 }
 
 /// What the newest intact segment says about where the run stands.
@@ -180,7 +158,7 @@ fn corrupt_aside(path: &Path) -> PathBuf {
 
 /// The last checkpoint and stats of a finished segment, reading it whole (CRCs checked),
 /// with the steps the writer named it by: those of its first message and its last checkpoint.
-fn read_last(path: &Path) -> Result<((u64, u64), LastCheckpoint)> {
+pub fn read_last(path: &Path) -> Result<((u64, u64), LastCheckpoint)> {
     let (mut first, mut cp, mut stats) = (None, None, None);
     read_segment(path, ReadMode::Strict, |m| {
         let bad = |e: String| Error::corrupt(path, format!("step {}: {e}", m.step));
@@ -198,6 +176,18 @@ fn read_last(path: &Path) -> Result<((u64, u64), LastCheckpoint)> {
         (Some(first), Some((last, checkpoint)), Some(stats)) if stats.step == checkpoint.state.step => Ok(((first, last), LastCheckpoint { checkpoint, stats })),
         _ => Err(Error::corrupt(path, "no complete checkpoint with its statistics")),
     }
+}
+
+/// The first checkpoint of a finished segment (read whole, CRCs checked).
+pub fn first_checkpoint(path: &Path) -> Result<Checkpoint> {
+    let mut first = None;
+    read_segment(path, ReadMode::Strict, |m| {
+        if m.topic == CHECKPOINT.topic && first.is_none() {
+            first = Some(Checkpoint::decode(m.data).map_err(|e| Error::corrupt(path, format!("step {}: {e}", m.step)))?);
+        }
+        Ok(())
+    })?;
+    first.ok_or_else(|| Error::corrupt(path, "no checkpoint"))
 }
 
 #[cfg(test)]

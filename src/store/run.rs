@@ -177,6 +177,18 @@ impl StoreConfig {
         step.is_multiple_of(self.checkpoint_every) || step == total
     }
 
+    /// The last step before `step` at which the forward stage writes anything (a checkpoint,
+    /// or an R_n of the window with `--store-r all`): where the segment before one beginning
+    /// at `step` ends, at the latest.
+    pub fn last_write_before(&self, step: u64, config: &RunConfig) -> u64 {
+        let before = step.saturating_sub(1);
+        if self.store_r == StoreR::All && before > self.window_start(config) {
+            before
+        } else {
+            before / self.checkpoint_every.max(1) * self.checkpoint_every.max(1)
+        }
+    }
+
     /// Bytes a checkpoint (with its R and stats) takes before compression.
     pub fn checkpoint_bytes(&self, config: &RunConfig) -> u64 {
         // In f64: a system too large for any disk must still get a number (saturated), not a
@@ -403,6 +415,15 @@ impl SegmentFile {
         };
         Some(format!("{}: it {holds}, not steps {}..{} as its name says (renamed, or copied in under another name)", self.path.display(), self.first, self.last))
     }
+}
+
+/// Whether a segment of steps `first..` continues one that ended at `last` with no
+/// checkpoint missing between them: it begins at the checkpoint after `last`, or earlier,
+/// at the checkpoint of its own that a stop on a signal wrote (off the grid of every
+/// `checkpoint_every` steps) before the next one was due.
+pub fn continues(last: u64, first: u64, checkpoint_every: u64) -> bool {
+    let c = checkpoint_every.max(1);
+    last < first && first <= (last / c + 1) * c
 }
 
 pub struct RunDir {
