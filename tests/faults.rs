@@ -408,6 +408,20 @@ fn a_stop_inside_a_store_r_all_window_stores_each_r_once() {
     once.dedup();
     assert!(once == steps && steps.last() == Some(&step), "R_n stored twice, or not at the stop ({step}): {steps:?}");
     ok(clv(&["forward", "--resume", run.to_str().unwrap(), "--quiet"]));
+    // The stop's segment, damaged, is recomputed to the same files: it ends at the stop, off
+    // the grid, and the next one begins right after it, so no gap shows where it was (it
+    // was set aside and never recomputed, the R_n of its steps lost).
+    let segments = || clv::store::RunDir { path: run.clone() }.segments().unwrap();
+    let (want, names) = (contents(&run), segments().iter().map(|s| (s.first, s.last)).collect::<Vec<_>>());
+    let at = segments().iter().position(|s| s.last == step).unwrap();
+    let stopped = segments()[at].clone();
+    let mut bytes = std::fs::read(&stopped.path).unwrap();
+    let middle = bytes.len() / 2;
+    bytes[middle] ^= 0x10;
+    std::fs::write(&stopped.path, bytes).unwrap();
+    let err = stderr(&ok(clv(&["forward", "--resume", run.to_str().unwrap()])));
+    assert!(err.contains(&format!("recomputing steps {}..{}", names[at - 1].1, step + 1)), "{err}");
+    assert!(contents(&run) == want && segments().iter().map(|s| (s.first, s.last)).collect::<Vec<_>>() == names, "{err}");
 }
 
 /// A batch system's time limit sends SIGTERM before SIGKILL: the forward stage stops after

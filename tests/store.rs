@@ -582,6 +582,95 @@ fn a_hole_is_recomputed_on_its_own_and_must_arrive_at_the_next_checkpoint() {
     assert_eq!(steps(RunDir { path: run.clone() }.segments().unwrap()), steps(segs), "the segments are those of the undamaged run");
 }
 
+/// A copy of the segment `seg` written anew into the directory `into` (valid CRCs), with
+/// only the messages `keep` accepts and the checkpoints changed by `change`, under the
+/// name the writer gives it.
+fn rewrite_segment(seg: &Path, into: &Path, keep: impl Fn(u64) -> bool, change: impl Fn(&mut Checkpoint)) -> PathBuf {
+    use clv::store::schema::{CHECKPOINT, RUN_SCHEMAS};
+    use clv::store::segment::{embedded_run_json, read_segment, ReadMode, SegmentWriter, RUN_METADATA};
+    let run_json = embedded_run_json(seg).unwrap();
+    let mut messages = Vec::new();
+    read_segment(seg, ReadMode::Strict, |m| {
+        if m.topic != RUN_METADATA && keep(m.step) {
+            let mut data = m.data.to_vec();
+            if m.topic == CHECKPOINT.topic {
+                let mut cp = Checkpoint::decode(&data).unwrap();
+                change(&mut cp);
+                data = cp.encode();
+            }
+            messages.push((m.topic.to_string(), m.step, data));
+        }
+        Ok(())
+    })
+    .unwrap();
+    std::fs::create_dir_all(into).unwrap();
+    let mut w = SegmentWriter::create(into, messages[0].1, &run_json, &RUN_SCHEMAS).unwrap();
+    for (topic, step, data) in &messages {
+        w.write(topic, *step, data).unwrap();
+    }
+    w.finish().unwrap()
+}
+
+/// A repair changes nothing it cannot verify. Where the recomputation from the checkpoint
+/// before a hole does not arrive at the next segment's first checkpoint, and that starting
+/// checkpoint does not follow from the one before it either (here it was altered, in a file
+/// with valid CRCs), resume stops, naming both files, and rewrites none of the segments
+/// after the hole (it recomputed them all from the altered checkpoint). A copy of some of a
+/// segment's steps put back beside it is set aside at no cost (it was taken for a hole,
+/// then for a mismatch that recomputed the rest of the run).
+#[test]
+fn a_repair_changes_nothing_it_cannot_verify() {
+    use std::os::unix::fs::MetadataExt;
+    let inodes = |segs: &[clv::store::run::SegmentFile]| segs.iter().map(|s| std::fs::metadata(&s.path).map(|m| m.ino()).ok()).collect::<Vec<_>>();
+    let (dir, _) = reference_copy("repair-unverifiable");
+    let segs = RunDir { path: dir.clone() }.segments().unwrap();
+    let (after, hole, next) = (&segs[segs.len() - 4], &segs[segs.len() - 3], &segs[segs.len() - 2]);
+    let altered = rewrite_segment(&after.path, &scratch("repair-unverifiable-altered"), |_| true, |cp| {
+        if cp.state.step == after.last {
+            cp.state.g[3] = -cp.state.g[3];
+        }
+    });
+    std::fs::rename(&altered, &after.path).unwrap();
+    std::fs::remove_file(&hole.path).unwrap();
+    let later = inodes(&segs[segs.len() - 2..]);
+    let out = clv(&["forward", "--resume", dir.to_str().unwrap()]);
+    let err = common::stderr(&out);
+    assert!(!out.status.success() && err.contains(&format!("recomputed from the last checkpoint of {} do not arrive at the first checkpoint of {}", after.path.display(), next.path.display())), "{err}");
+    assert!(err.contains("does not follow from the one before it either (G_n element 3") && err.contains("clv cannot tell which"), "{err}");
+    assert_eq!(inodes(&segs[segs.len() - 2..]), later, "segments after the hole were changed");
+    assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".superseded")));
+
+    let (dir, want) = reference_copy("repair-contained");
+    let segs = RunDir { path: dir.clone() }.segments().unwrap();
+    let seg = &segs[segs.len() - 3];
+    let copy = rewrite_segment(&seg.path, &scratch("repair-contained-copy"), |step| step == seg.last, |_| ());
+    let put_back = dir.join(copy.file_name().unwrap());
+    std::fs::rename(&copy, &put_back).unwrap();
+    let before = inodes(&segs);
+    let err = common::stderr(&ok(clv(&["forward", "--resume", dir.to_str().unwrap()])));
+    assert!(err.contains(&format!("{} holds steps {} holds too", put_back.display(), seg.path.display())) && !err.contains("recomputing"), "{err}");
+    assert!(contents(&dir) == *want && inodes(&segs) == before && !put_back.exists(), "{err}");
+}
+
+/// A damaged segment of a run that is being made longer is repaired on the way: the
+/// extension's command goes through at once, to the numbers of the run extended undamaged
+/// (the old window, prunable once the run is longer, was pruned in the middle of the
+/// repair, the segment it was to arrive at with it).
+#[test]
+fn a_damaged_run_is_repaired_while_it_is_made_longer() {
+    let args = |dir: &Path| ["forward", "--n", "16", "--steps", "2010", "--checkpoint-every", "20", "--segment-checkpoints", "3", "--clv-steps", "800", "--transient", "200", "--quiet", "--out"].iter().map(|s| s.to_string()).chain([dir.display().to_string()]).collect::<Vec<_>>();
+    let (clean, damaged) = (scratch("extend-damaged-clean").join("run"), scratch("extend-damaged").join("run"));
+    for dir in [&clean, &damaged] {
+        ok(clv(&args(dir).iter().map(String::as_str).collect::<Vec<_>>()));
+    }
+    let segs = RunDir { path: damaged.clone() }.segments().unwrap();
+    damage(&segs[segs.len() / 2].path, &mut Rng::new(7), false);
+    ok(clv(&["forward", "--resume", clean.to_str().unwrap(), "--steps", "3010", "--quiet"]));
+    let out = ok(clv(&["forward", "--resume", damaged.to_str().unwrap(), "--steps", "3010"]));
+    assert!(common::stderr(&out).contains("moving it aside"), "{}", common::stderr(&out));
+    assert!(contents(&damaged) == contents(&clean), "the run repaired while extended differs");
+}
+
 /// A segment whose steps are not those its name says: two segments' names swapped, or a
 /// stray copy under another name (which once made `clv inspect` report intact segments, or
 /// steps "2800..2599" missing, while the backward stage stopped at the file and advised a

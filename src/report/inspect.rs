@@ -185,7 +185,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     let gaps: Vec<String> = leading
         .into_iter()
         .chain(named.windows(2)
-        .filter(|w| !crate::store::run::continues(w[0].last_step, w[1].first_step, c))
+        .filter(|w| crate::store::run::gap_between(w[0].last_step, w[1].first_step, c))
         .filter(|w| !claimed(w[0].last_step + 1, w[1].first_step.saturating_sub(1)))
         .map(|w| format!("the checkpoints of steps {}..{} are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them", (w[0].last_step / c + 1) * c, w[1].first_step - 1, dir.path.display())))
         .collect();

@@ -12,7 +12,7 @@ use crate::report::{SpectrumReport, Statistics};
 use crate::store::records::{encode_r, Checkpoint, Stats};
 use crate::store::run::{write_atomic, RunDir, RunLock, RunMeta, StoreR};
 use crate::store::schema::{CHECKPOINT, R, STATS};
-use crate::store::repair::{discard_partial_segments, first_checkpoint, read_last, supersede_from, triage, Hole, Triage};
+use crate::store::repair::{discard_partial_segments, first_checkpoint, last_checkpoints, read_last, supersede_from, triage, Hole, Triage};
 use crate::store::sink::{Policy, Sink};
 use crate::system::Invariants;
 use super::signals::StopOnSignals;
@@ -257,9 +257,23 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
     let Triage { holes, mut newest_intact, mut superseded } = triage(dir, &meta.store, &meta.config, &mut |msg| feedback.notice(msg))?;
     for hole in &holes {
         if let Some(why) = fill(dir, meta, hole, feedback)? {
-            // Nothing after it can be trusted to continue this build's numbers: the run is
-            // recomputed from the end of the hole on, as a run damaged at its end would be.
-            feedback.notice(format!("the recomputed steps do not arrive at the first checkpoint of {} ({why}); the segments from there on are recomputed too", hole.next.path.display()));
+            // One of the two checkpoints is not what this build computes. Where the one
+            // the recomputation started from follows from the checkpoint before it, the
+            // segments from `next` on are the odd ones out: the run is recomputed from
+            // the end of the hole on, as a run damaged at its end would be.
+            let next = hole.next.path.display();
+            if let Some(after) = &hole.after
+                && let Some(also) = follows_from_the_one_before(meta, after)?
+            {
+                return Err(Error::Dynamics(format!(
+                    "the steps recomputed from the last checkpoint of {} do not arrive at the first checkpoint of {next} ({why}), and that last checkpoint \
+                     does not follow from the one before it either ({also}): one of the two files was altered or written by another build, and clv cannot tell which. \
+                     Nothing after the recomputed steps was changed; move the file you do not trust out of {} and resume again",
+                    after.display(),
+                    dir.path.display()
+                )));
+            }
+            feedback.notice(format!("the recomputed steps do not arrive at the first checkpoint of {next} ({why}); the segments from there on are recomputed too"));
             superseded.extend(supersede_from(dir, &hole.next, &mut |msg| feedback.notice(msg))?);
             let newest = dir.segments()?.pop().ok_or_else(|| Error::Other(format!("the segments recomputed before {} are gone", hole.next.path.display())))?;
             newest_intact = Some(read_last(&newest.path)?.1);
@@ -302,8 +316,9 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
             feedback.notice(format!("{e}; rewrote it from the run's last checkpoint (the damaged file is kept as {})", aside.display()));
             write_spectrum(dir, &report)?;
         }
+        let already_finished = holes.is_empty() && superseded.is_empty();
         drop_superseded()?;
-        return Ok(Outcome { report, resumed_from: Some(step), already_finished: holes.is_empty() });
+        return Ok(Outcome { report, resumed_from: Some(step), already_finished });
     }
     feedback.notice(format!("resuming {} at step {step} of {total}", path.display()));
     recomputed(drive(dir, meta, fwd, last.stats.energy_initial, last.stats.wall_seconds, false, feedback)?, step)
@@ -331,7 +346,7 @@ fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> R
         Some(_) => "no intact segment holds the steps between".to_string(),
         None => format!("the backward stage needs the checkpoints from step {} on, no segment holds them, and there is none before them", meta.store.window_start(&meta.config) / c * c),
     };
-    feedback.notice(format!("recomputing steps {from}..{} ({why}); {} and the segments after it are kept", hole.next.first, hole.next.path.display()));
+    feedback.notice(format!("recomputing steps {from}..{} ({why}), to arrive at the first checkpoint of {}", hole.next.first, hole.next.path.display()));
     let mut fwd = drive_to(dir, meta, fwd, energy0, wall0, hole.after.is_none(), hole.until, feedback)?;
     let want = first_checkpoint(&hole.next.path)?.state;
     while fwd.step < want.step {
@@ -339,6 +354,20 @@ fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> R
     }
     let got = fwd.state();
     Ok((got != want).then(|| want.first_difference(&got)))
+}
+
+/// Where the last checkpoint of the segment `path` does not follow from the checkpoint
+/// before it in the same segment, how (or that it cannot be checked, with only one).
+fn follows_from_the_one_before(meta: &RunMeta, path: &Path) -> Result<Option<String>> {
+    let [before, last] = &last_checkpoints(path)?[..] else {
+        return Ok(Some("it holds only one checkpoint, so that cannot be checked".into()));
+    };
+    let mut fwd = Forward::resume(&meta.config, &before.state)?;
+    while fwd.step < last.state.step {
+        fwd.step()?;
+    }
+    let got = fwd.state();
+    Ok((got != last.state).then(|| last.state.first_difference(&got)))
 }
 
 fn report_of(meta: &RunMeta, fwd: &Forward, energy0: f64, wall: f64) -> SpectrumReport {
@@ -401,6 +430,8 @@ fn drive_to(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0:
     if let Some(bar) = &feedback.bar {
         bar.set_length(total);
         bar.set_position(fwd.step);
+        // The rate is that of this drive's steps (a repair's drives start where they must).
+        bar.reset_eta();
     }
     while fwd.step < until {
         fwd.step().map_err(|e| match e {

@@ -11,7 +11,7 @@
 //! `.superseded` until it has.
 
 use super::records::{Checkpoint, Stats};
-use super::run::{continues, RunDir, SegmentFile, StoreConfig};
+use super::run::{gap_between, RunDir, SegmentFile, StoreConfig};
 use crate::config::RunConfig;
 use super::schema::{CHECKPOINT, STATS};
 use super::segment::{read_segment, ReadMode, RUN_METADATA};
@@ -76,52 +76,93 @@ pub struct Hole {
 /// segment the run simply continues.
 ///
 /// Before the first segment only the checkpoints from where the backward stage starts
-/// (`StoreConfig::window_start`) on are needed; older ones are pruned by design. Where those
-/// are missing, there is no checkpoint before them, and the hole is recomputed from step 0.
+/// (`StoreConfig::window_start`) on are needed; older ones are pruned by design, and so
+/// are the segments the rules of pruning would delete now (after an extension, the old
+/// window), before any hole is looked for. Where the needed checkpoints are missing, there
+/// is no checkpoint before them, and the hole is recomputed from step 0.
 ///
 /// A segment whose steps are not those its name says ([`SegmentFile::misnamed`]: renamed,
 /// or copied in under another name) is set aside the same way, and only the hole it may
-/// leave is recomputed: a stray copy costs nothing, two swapped names their own steps.
+/// leave is recomputed: a stray copy costs nothing, two swapped names their own steps. A
+/// segment whose steps the one before it holds too (a copy put back beside a repaired run)
+/// is set aside as `.superseded`.
 pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mut dyn FnMut(String)) -> Result<Triage> {
-    let mut intact = Vec::new();
-    // The newest intact segment's last checkpoint, read on the way.
-    let mut newest: Option<LastCheckpoint> = None;
+    let c = store.checkpoint_every.max(1);
+    let needed = store.window_start(config) / c * c;
+    let mut intact: Vec<SegmentFile> = Vec::new();
+    // Damaged segments, set aside: their names (where they can be believed) say where the
+    // segments that replace them end, and their notices wait until it is known what is
+    // recomputed.
+    let mut damaged: Vec<(SegmentFile, String, PathBuf)> = Vec::new();
+    let mut misnamed = Vec::new();
     for seg in dir.segments()? {
-        let why = match read_last(&seg.path) {
+        let read = match read_last(&seg.path) {
             // A file that cannot be read (permissions, a failing disk) is not damaged:
             // recomputing it would cost hours for nothing.
             Err(e @ Error::Io { .. }) => {
                 return Err(Error::Other(format!("{e}; nothing was changed: make the file readable (its permissions, the disk) and resume again")));
             }
-            Err(e) => e.to_string(),
-            Ok((held, last)) => match seg.misnamed(Some(held)) {
-                Some(why) => why,
-                None => {
-                    newest = Some(last);
-                    intact.push(seg);
-                    continue;
-                }
-            },
+            Err(e) => Err(e.to_string()),
+            Ok((held, _)) => seg.misnamed(Some(held)).map_or(Ok(()), |why| {
+                misnamed.push(seg.path.clone());
+                Err(why)
+            }),
         };
-        let aside = corrupt_aside(&seg.path);
-        notice(format!("{why}; moving it aside to {} (the steps it holds are recomputed where no other segment holds them)", aside.display()));
-        std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
+        match read {
+            Ok(()) => intact.push(seg),
+            Err(why) => {
+                let aside = corrupt_aside(&seg.path);
+                std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
+                damaged.push((seg, why, aside));
+            }
+        }
     }
-    let c = store.checkpoint_every.max(1);
-    let needed = store.window_start(config) / c * c;
-    let leading = intact.first().filter(|s| s.first > needed).map(|s| (None, s));
-    let between = intact.windows(2).filter(|w| !continues(w[0].last, w[1].first, c)).map(|w| (Some(&w[0]), &w[1]));
-    let holes: Vec<Hole> = leading
-        .into_iter()
-        .chain(between)
-        .map(|(before, next)| Hole { after: before.map(|s| s.path.clone()), until: store.last_write_before(next.first, config), next: next.clone() })
-        .collect();
-    let superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
+    let mut superseded: Vec<PathBuf> = std::fs::read_dir(&dir.path)
         .map_err(|e| Error::io(&dir.path, e))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.to_string_lossy().ends_with(".mcap.superseded"))
         .collect();
-    Ok(Triage { holes, newest_intact: newest, superseded })
+    let mut kept: Vec<SegmentFile> = Vec::with_capacity(intact.len());
+    for seg in intact {
+        match kept.last() {
+            Some(before) if seg.last <= before.last => {
+                let aside = seg.path.with_extension("mcap.superseded");
+                notice(format!("{} holds steps {} holds too; moving it aside to {}", seg.path.display(), before.path.display(), aside.display()));
+                std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
+                superseded.push(aside);
+            }
+            _ => kept.push(seg),
+        }
+    }
+    let pruned = super::sink::prune(&dir.path, needed, store.keep_segments)?;
+    kept.retain(|s| !pruned.contains(&s.path));
+    let inside = |a: u64, b: u64| damaged.iter().filter(|(d, _, _)| !misnamed.contains(&d.path) && a < d.first && d.last < b).map(|(d, _, _)| d.last).max();
+    let leading = kept.first().filter(|s| s.first > needed).map(|s| (None, s));
+    let between = kept.windows(2).filter(|w| gap_between(w[0].last, w[1].first, c) || inside(w[0].last, w[1].first).is_some()).map(|w| (Some(&w[0]), &w[1]));
+    let holes: Vec<Hole> = leading
+        .into_iter()
+        .chain(between)
+        .map(|(before, next)| Hole {
+            after: before.map(|s| s.path.clone()),
+            until: inside(before.map_or(0, |s| s.last), next.first).unwrap_or_else(|| store.last_write_before(next.first, config)),
+            next: next.clone(),
+        })
+        .collect();
+    for (seg, why, aside) in &damaged {
+        let fate = if misnamed.contains(&seg.path) {
+            "the steps it holds are recomputed where no other segment holds them".to_string()
+        } else if kept.first().is_some_and(|s| seg.last < s.first) && !holes.iter().any(|h| h.after.is_none()) {
+            format!("its steps come before step {needed}, from where the backward stage needs checkpoints, and are not recomputed")
+        } else {
+            "its steps are recomputed from the checkpoint before it".to_string()
+        };
+        notice(format!("{why}; moving it aside to {} ({fate})", aside.display()));
+    }
+    let newest_intact = match kept.last() {
+        Some(seg) => Some(read_last(&seg.path)?.1),
+        None => None,
+    };
+    Ok(Triage { holes, newest_intact, superseded })
 }
 
 /// Set aside the intact segments from `next` on (after a hole whose recomputation did not
@@ -176,6 +217,22 @@ pub fn read_last(path: &Path) -> Result<((u64, u64), LastCheckpoint)> {
         (Some(first), Some((last, checkpoint)), Some(stats)) if stats.step == checkpoint.state.step => Ok(((first, last), LastCheckpoint { checkpoint, stats })),
         _ => Err(Error::corrupt(path, "no complete checkpoint with its statistics")),
     }
+}
+
+/// The last two checkpoints of a finished segment, older first (read whole, CRCs checked);
+/// one where it holds only one.
+pub fn last_checkpoints(path: &Path) -> Result<Vec<Checkpoint>> {
+    let mut kept: Vec<Vec<u8>> = Vec::new();
+    read_segment(path, ReadMode::Strict, |m| {
+        if m.topic == CHECKPOINT.topic {
+            if kept.len() == 2 {
+                kept.remove(0);
+            }
+            kept.push(m.data.to_vec());
+        }
+        Ok(())
+    })?;
+    kept.iter().map(|data| Checkpoint::decode(data).map_err(|e| Error::corrupt(path, e))).collect()
 }
 
 /// The first checkpoint of a finished segment (read whole, CRCs checked).

@@ -417,13 +417,14 @@ impl SegmentFile {
     }
 }
 
-/// Whether a segment of steps `first..` continues one that ended at `last` with no
-/// checkpoint missing between them: it begins at the checkpoint after `last`, or earlier,
-/// at the checkpoint of its own that a stop on a signal wrote (off the grid of every
-/// `checkpoint_every` steps) before the next one was due.
-pub fn continues(last: u64, first: u64, checkpoint_every: u64) -> bool {
+/// Whether checkpoints are missing between a segment that ends at `last` and the next one,
+/// which begins at `first`: it must begin at the checkpoint after `last`, or earlier (at
+/// the checkpoint of its own that a stop on a signal wrote, off the grid of every
+/// `checkpoint_every` steps, before the next one was due). One that begins at or before
+/// `last` overlaps it, which leaves nothing missing.
+pub fn gap_between(last: u64, first: u64, checkpoint_every: u64) -> bool {
     let c = checkpoint_every.max(1);
-    last < first && first <= (last / c + 1) * c
+    first > (last / c + 1) * c
 }
 
 pub struct RunDir {

@@ -62,7 +62,7 @@ impl Sink {
                     let full = w.checkpoints >= policy.segment_checkpoints || w.bytes >= policy.segment_bytes;
                     if item.topic == CHECKPOINT.topic && (full || item.step == policy.total_steps) {
                         current.take().expect("open").finish()?;
-                        prune(&dir, &policy)?;
+                        prune(&dir, policy.prune_before, policy.keep_segments)?;
                     }
                 }
                 Ok(())
@@ -109,13 +109,17 @@ impl Drop for Sink {
     }
 }
 
-fn prune(dir: &std::path::Path, policy: &Policy) -> Result<()> {
+/// Delete the segments whose last checkpoint is before `prune_before` except the newest
+/// `keep` of them (the backward stage starts at or after `prune_before`); returns their paths.
+pub fn prune(dir: &std::path::Path, prune_before: u64, keep: u64) -> Result<Vec<PathBuf>> {
     let run = RunDir { path: dir.to_path_buf() };
-    let prunable: Vec<_> = run.segments()?.into_iter().filter(|s| s.last < policy.prune_before).collect();
-    let excess = prunable.len().saturating_sub(policy.keep_segments as usize);
+    let prunable: Vec<_> = run.segments()?.into_iter().filter(|s| s.last < prune_before).collect();
+    let excess = prunable.len().saturating_sub(keep as usize);
+    let mut pruned = Vec::with_capacity(excess);
     for s in &prunable[..excess] {
         fs::remove_file(&s.path).map_err(|e| Error::io(&s.path, e))?;
         super::fault::crash_point("segment-pruned");
+        pruned.push(s.path.clone());
     }
-    Ok(())
+    Ok(pruned)
 }
