@@ -240,8 +240,69 @@ read_segment; only the diagonals are kept):
   frames were made from: its run.json config (without threads) must be the frame file's, else
   the script stops. The JSON's "forward_r" says which steps and blocks were used.
 
-Not checked: the notes of modes.json and nullspace_tables.json (fixed texts), and the
-captions (index.html, summary.json).
+Captions (index.html): each section's caption (its <h2> title and the text of its <p>, HTML
+entities undone) is searched for the phrases that state numbers, in the words of their format
+strings in src/stage/analyze/*.rs, and each number is compared with the recomputation above
+at the precision it is printed with: |mine - printed| <= half a unit of its last digit (plus
+1e-9 |mine|: two round-offs of a number on a rounding edge may round either way). Where the
+report has the section and the data call for the phrase (disks, k = D, GS vectors, ...), a
+missing phrase is a disagreement, and so is a list of another length. Checked:
+  Fig. 2      h_KS = the sum of the positive exponents outside the null space of the
+              frames' GS and CLV spectra, with batch-means errors of the per-frame sum of
+              those exponents; the whole run's (forward exponents) and its error (the
+              standard error of the per-block sums of the block means: of R_n with --run,
+              else of spectrum.json's blocks, else spectrum.json's ks_entropy.stderr); the
+              run's steps; the null-shear phrase: s1 = (total - newest step) tau - tau,
+              s2 = (total - oldest step) tau, the prediction (lambda_clv_null_shear's mean)
+              and the measured lambda_clv of i = 2N+1..2N+3, in the words for consecutive
+              frames or not; the sum of the whole run's GS exponents (round-off: summed
+              i = 1..D one at a time from spectrum.json's doubles, as clv sums them);
+  Fig. 8      the plotted range lambda_a..lambda_(2N-3), a = 2N-3 - max(D/6, 8) (at least
+              1), and the medians of the errors of lambda_i and lambda_(D+1-i) over it
+              (GS: the frames' steps' errors, or the whole run's without them; CLV);
+  convergence each spectrum's blocks, block steps, % with |z| > 2, tested, % by chance
+              (Student t, 2 (B/2 - 1) degrees of freedom), largest |z| and its i, z of h_KS
+              and its chance %, r_1 and its limit (those of convergence_tests.csv, recomputed);
+  Fig. 5      the sampled frames and the block length max(floor(T/B), 1) of the errors;
+  Fig. 3      2N-2, and <|g^i . v^i|> at i = 2N+1..2N+3;
+  Figs. 6, 7  max_i |eta_q(i) - eta_p(D+1-i)| (GS), max_i |eta_q(i) - eta_q(D+1-i)| (CLV),
+              eta_q of the CLVs 2N+1..2N+3;
+  Tables I, II  the frame's step and time; the first rows of beta and alpha, the maxima over
+              time of the three null-space angles and the largest |alpha_(i,4..6)| of rows
+              2N-2..2N: round-off mostly, not recomputable digit for digit, so against the
+              report's nullspace_beta.csv, nullspace_alpha.csv, nullspace_series.csv,
+              checked above to 1e-10;
+  domination  the overall swap fraction at the first Delta and at the longest one that fits
+              in the frames, its window count, and the verdict on E^u + E^0 + E^s (never
+              violated; violated at the first Delta with its two split fractions and none
+              from Delta_0 on; or still violated at the longest, with its fractions);
+  Table III   the |k| bound 2 pi 4 / max(L_x, L_y); per step found (in the table's order,
+              as many as rows): name, indices, degeneracy, detection, lambda, spread, fraction,
+              best candidate and excess where unclassified, % of frames agreeing, frames
+              resolving it; the first frame's step, the frames resolving the same steps and
+              the other steps with their counts;
+  dispersion  per kind the least-squares slope through the origin sum(lambda k)/sum(k^2),
+              its number of steps and lambda/k of each;
+  Fig. 14     for the last vector j of each positive mode step (where there are two or
+              more: with fewer clv shows j = 2N-5, 2N-3 and says nothing of it), the largest <|v^j . v^i|>
+              (i != j) inside its step, inside the conjugate step and elsewhere;
+  Fig. 15     E^u, E^s, min and mean of Psi (degrees and radians), "Psi > 0" where it is, and
+              min and mean of Phi of each positive mode step (by its indices);
+  Fig. 16     J, the separations, the density of i - j = 1 in the first bin and the mean of
+              the next four, and the verdict (too few angles, with their count; falls; dips,
+              with its %; does not fall) - skipped if an angle lies at an edge of those bins;
+  Fig. 17     J, the frames and min Theta of i - j = 1.
+A disagreement is one line: "disagreement: caption 'TITLE' WHAT mine X caption Y", or
+"...: no phrase like '...'" (X for a number). The JSON's "captions" lists what was
+checked per caption.
+Not checked: the notes of modes.json and nullspace_tables.json (fixed texts); summary.json
+and the report's head paragraphs; the captions' words that restate settings or selections
+(the indices of Figs. 4, 13 and of the local and finite-time exponents, the candidates'
+list, the Deltas) and their verdict sentences beyond those above (the convergence verdict
+and its AR(1) factor, Fig. 14's order of the paper); Fig. 15's median angle between random
+subspaces (clv's own random draw); Figs. 10-12's numbers (k, the rms ratio of the check
+components, the points off scale) and the dispersion fit's ± (a fit error of few steps);
+the captions of non-disk systems (this script reads hard-disk reports only).
 
 Sampling: the spectrum, the local and finite-time exponents, domination and convergence use
 every frame of the file; the vector statistics (modes, the null space, Psi, Phi and Theta
@@ -298,6 +359,7 @@ import argparse
 import collections
 import csv
 import glob
+import html
 import json
 import math
 import os
@@ -1246,6 +1308,437 @@ def compare_spectrum_json(c, table, mine, spectrum):
         c.compare(table, f"blocks.exponents[{n}]", i, x, theirs(y))
 
 
+# ---------------------------------------------------------------------------------------
+# Captions: the numbers index.html states, against the recomputation above (or, for
+# round-off, against the report's own table that was checked above).
+
+NUMBER = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:e[-+]?\d+)?|NaN|nan|inf|-inf"
+
+
+def caption_sections(path):
+    """{title: caption} of index.html: each <section>'s <h2> and the text of its <p> after the
+    figures (not its "Numbers:" line), HTML entities undone, tags (none so far) dropped."""
+    if not os.path.exists(path):
+        return None
+    with open(path, encoding="utf-8") as f:
+        page = f.read()
+    out = {}
+    for title, body in re.findall(r"<section><h2>(.*?)</h2>(.*?)</section>", page, re.S):
+        paragraphs = [html.unescape(re.sub(r"<[^>]*>", "", p)) for p in re.findall(r"<p>(.*?)</p>", body, re.S)]
+        out[html.unescape(title)] = " ".join(p for p in paragraphs if not p.startswith("Numbers:"))
+    return out
+
+
+def half_unit(printed):
+    """Half a unit of the last digit a number is printed with: "3.0903e-2" -> 5e-7, "75.7" -> 0.05."""
+    mantissa, _, exp = printed.lower().lstrip("+-").partition("e")
+    decimals = len(mantissa.partition(".")[2])
+    return 0.5 * 10.0 ** (int(exp or 0) - decimals)
+
+
+class Captions:
+    """The captions of a report, checked phrase by phrase against the checker's numbers."""
+
+    def __init__(self, checker, sections):
+        self.c, self.sections, self.checked = checker, sections, {}
+
+    def has(self, title):
+        return title in self.sections
+
+    def find(self, title, pattern, what, every=False):
+        """The match of the regular expression `pattern` in the caption of `title` (all of
+        them with every=True); a caption without it is a disagreement (None, or [])."""
+        text = self.sections.get(title, "")
+        found = list(re.finditer(pattern, text)) if every else re.search(pattern, text)
+        if not found:
+            said = re.sub(r"\\(.)", r"\1", pattern.replace(NUMBER, "X"))
+            self.c.bad.append(f"disagreement: caption '{title}' {what}: no phrase like '{said[:120]}'")
+        self.checked.setdefault(title, [])
+        return found
+
+    def number(self, title, what, mine, printed, rel=1e-9, half=None):
+        """A number as the caption prints it agrees with mine rounded to that precision:
+        |mine - printed| <= half a unit of its last digit (or `half`, for a number printed
+        with its trailing zeros trimmed), + rel |mine| for the round-off of two computations
+        of the same value (a number on a rounding edge may go either way)."""
+        self.checked.setdefault(title, []).append(what)
+        mine = float(mine)
+        if printed.lower().lstrip("+-") in ("nan", "inf"):
+            ok = printed.lower() == repr(mine).lower() or (math.isnan(mine) and printed.lower() == "nan")
+        else:
+            ok = math.isfinite(mine) and abs(mine - float(printed)) <= (half or half_unit(printed)) * (1 + 1e-9) + rel * abs(mine)
+        if not ok:
+            self.c.bad.append(f"disagreement: caption '{title}' {what} mine {mine!r} caption {printed}")
+
+    def numbers(self, title, what, mine, printed_list, rel=1e-9):
+        """The numbers of a list ("a, b, c" split by the caller) against mine, one by one;
+        a list of another length is a disagreement."""
+        if len(mine) != len(printed_list):
+            self.c.bad.append(f"disagreement: caption '{title}' {what}: {len(printed_list)} numbers, mine {len(mine)}")
+            return
+        for k, (m, p) in enumerate(zip(mine, printed_list)):
+            self.number(title, f"{what} [{k + 1}]", m, p, rel)
+
+    def text(self, title, what, mine, printed):
+        """A word or an index as printed must be mine exactly."""
+        self.checked.setdefault(title, []).append(what)
+        if str(mine) != str(printed):
+            self.c.bad.append(f"disagreement: caption '{title}' {what} mine {mine} caption {printed}")
+
+
+def split_numbers(s):
+    return re.findall(NUMBER, s)
+
+
+def h_ks(x, neutral, blocks):
+    """h_KS = the sum of the positive exponents outside `neutral` (0-based) of the time means
+    of x (rows: frames, increasing step), and its batch-means error: that of the per-frame sum
+    of the same exponents (clv: the per-block sums of those whose mean is positive)."""
+    mean = x.mean(axis=0)
+    keep = [i for i in range(x.shape[1]) if mean[i] > 0 and i not in neutral]
+    return mean[keep].sum() + 0.0, batch_stderr(x[:, keep].sum(axis=1)[:, None], blocks)[0]
+
+
+def check_captions(c, caps, f):
+    """Check the numbers of the captions against `f`, the facts recomputed in main()."""
+    n, d, k, blocks, frames = f["n"], f["d"], f["k"], f["blocks"], f["frames"]
+    local, gs_local, forward, config = f["local"], f["gs_local"], f["forward"], f["config"]
+    neutral = range(max(2 * n - 3, 0), 2 * n + 3)
+    disks_full = k == d and n >= 2
+
+    # Fig. 2: h_KS of the window's GS and CLV spectra and of the whole run, the shear model of
+    # the last three null-space exponents, the sum of the whole run's GS exponents.
+    t = "Lyapunov spectrum (Fig. 2)"
+    if caps.has(t):
+        same = gs_local is not None
+        m = caps.find(t, rf"Kolmogorov-Sinai entropy h_KS, the sum of the positive exponents \(Pesin's identity\): ({NUMBER})(?: ± ({NUMBER}))? \(GS\), ({NUMBER})(?: ± ({NUMBER}))? \(CLV\)", "h_KS")
+        if m:
+            clv_h, clv_e = h_ks(local, neutral, blocks)
+            caps.number(t, "h_KS (CLV)", clv_h, m.group(3))
+            if m.group(4) or math.isfinite(clv_e):
+                caps.number(t, "h_KS error (CLV)", clv_e, m.group(4) or "nan")
+            if same:
+                gs_h, gs_e = h_ks(gs_local, neutral, blocks)
+                caps.number(t, "h_KS (GS, frames' steps)", gs_h, m.group(1))
+                if m.group(2) or math.isfinite(gs_e):
+                    caps.number(t, "h_KS error (GS, frames' steps)", gs_e, m.group(2) or "nan")
+        run = f["forward_exponents"]
+        run_h = None
+        if run is not None:
+            run_h = sum(x for i, x in enumerate(run) if x > 0 and i not in neutral) + 0.0
+        if same and run is not None:
+            m = caps.find(t, rf"The GS spectrum over the whole forward run \((\d+) steps\) is more precise .*?: h_KS = ({NUMBER})(?: ± ({NUMBER}))?\.", "h_KS (whole run)")
+            if m:
+                caps.text(t, "whole run's steps", config.get("steps"), m.group(1))
+                caps.number(t, "h_KS (GS, whole run)", run_h, m.group(2))
+                if m.group(3):
+                    caps.number(t, "h_KS error (GS, whole run)", f["forward_h_ks_stderr"], m.group(3))
+        elif run is not None and m:  # frames without GS exponents: "(GS)" is the whole run's
+            caps.number(t, "h_KS (GS, whole run)", run_h, m.group(1))
+            if m.group(2):
+                caps.number(t, "h_KS error (GS, whole run)", f["forward_h_ks_stderr"], m.group(2))
+        if f["shear"] is not None and k >= 2 * n + 3:
+            s1, s2, mean, consecutive = f["shear"]
+            if consecutive:
+                m = caps.find(t, rf"so over s = ({NUMBER})\.\.({NUMBER}) they average -ln\(\(1 \+ s2²\)/\(1 \+ s1²\)\) / \(2 \(s2 - s1\)\) = ({NUMBER}); measured ((?:{NUMBER})(?:, (?:{NUMBER}))*)\.", "null-shear prediction")
+            else:
+                m = caps.find(t, rf"so over the (\d+) frames' steps, within s = ({NUMBER})\.\.({NUMBER}), the mean of each step's -ln\(\(1 \+ s²\)/\(1 \+ \(s - τ\)²\)\) / \(2τ\) is ({NUMBER}); measured ((?:{NUMBER})(?:, (?:{NUMBER}))*)\.", "null-shear prediction")
+                if m:
+                    caps.text(t, "null-shear frames", frames, m.group(1))
+            if m:  # the last four groups of either phrase: s1, s2, the prediction, the measured
+                g = m.groups()[-4:]
+                caps.number(t, "null-shear s1", s1, g[0])
+                caps.number(t, "null-shear s2", s2, g[1])
+                caps.number(t, "null-shear prediction", mean, g[2])
+                caps.numbers(t, "null-shear measured lambda_2N+1..2N+3", local.mean(axis=0)[2 * n : 2 * n + 3], split_numbers(g[3]))
+        if forward is not None and k == d and len(forward["exponents"]) == d:
+            m = caps.find(t, rf"Sum of the whole run's GS exponents: ({NUMBER}), exactly 0 \(phase-space volume is kept\)\.", "sum of the GS exponents")
+            if m:  # round-off (~1e-13 of exponents ~5) printed with 3 digits: only the same
+                # doubles (spectrum.json's, which spectrum.csv's lambda_gs copies) summed in
+                # the same order (i = 1..D, one at a time, as clv does) give its digits
+                caps.number(t, "sum of the whole run's GS exponents", sum(float(x) for x in forward["exponents"]), m.group(1), rel=0.0)
+
+    # Fig. 8: the plotted range and the median errors of the plotted exponents.
+    t = "Mode region of the spectrum (Fig. 8)"
+    if caps.has(t) and disks_full:
+        last = 2 * n - 4
+        first = max(last - max(d // 6, 8), 0)
+        m = caps.find(t, r"The positive exponents λ_(\d+)\.\.λ_(\d+) next to the null space", "plotted range")
+        if m:
+            caps.text(t, "first plotted index", first + 1, m.group(1))
+            caps.text(t, "last plotted index", last + 1, m.group(2))
+        shown = [i for j in range(first, last + 1) for i in (j, d - 1 - j)]
+        clv_err = batch_stderr(local, blocks)
+        gs_err = batch_stderr(gs_local, blocks) if gs_local is not None else f["forward_stderr"]
+        med = lambda e: np.median([x for x in np.asarray(e, float)[shown] if np.isfinite(x)]) if e is not None and np.isfinite(np.asarray(e, float)[shown]).any() else np.nan  # noqa: E731
+        if math.isfinite(med(gs_err)):
+            m = caps.find(t, rf"Median standard errors of the plotted exponents: ({NUMBER}) \(GS\), ({NUMBER}) \(CLV\)", "median errors")
+            if m:
+                caps.number(t, "median stderr (GS)", med(gs_err), m.group(1))
+                caps.number(t, "median stderr (CLV)", med(clv_err), m.group(2))
+        elif math.isfinite(med(clv_err)):
+            m = caps.find(t, rf"Median standard error of the plotted CLV exponents: ({NUMBER})", "median error")
+            if m:
+                caps.number(t, "median stderr (CLV)", med(clv_err), m.group(1))
+
+    # Convergence: each spectrum's test numbers (those of convergence_tests.csv).
+    t = "Convergence of the spectra (beyond the paper)"
+    if caps.has(t):
+        for test in f["tests"]:
+            label = "GS" if test["spectrum_0gs_1clv"] == "0" else "CLV"
+            m = caps.find(t, rf"{label}: (\d+) blocks of (\d+) steps; ({NUMBER}) % of (\d+) exponents have \|z\| > 2 \(by chance ({NUMBER}) %; largest \|z\| = ({NUMBER}), i = (\d+)\); (?:h_KS|sum of the k \(all positive\) exponents): z = ({NUMBER}) \(as large by chance: ({NUMBER}) %\); r_1 = ({NUMBER}) \(limit ({NUMBER})\)", f"{label} tests")
+            if not m:
+                continue
+            nb = test["blocks"]
+            caps.text(t, f"{label} blocks", nb, m.group(1))
+            caps.text(t, f"{label} block steps", int(test["block_steps"]), m.group(2))
+            caps.number(t, f"{label} drifting %", 100 * test["drifting_fraction"], m.group(3))
+            caps.text(t, f"{label} tested", test["tested"], m.group(4))
+            caps.number(t, f"{label} chance %", 100 * student_t_two_sided(2.0, 2 * (nb // 2 - 1)), m.group(5))
+            caps.number(t, f"{label} largest |z|", test["max_abs_z"], m.group(6))
+            caps.text(t, f"{label} largest |z| index", test["max_z_index"], m.group(7))
+            caps.number(t, f"{label} z of h_KS", test["h_ks_z"], m.group(8))
+            caps.number(t, f"{label} h_KS chance %", 100 * test["h_ks_chance"], m.group(9))
+            caps.number(t, f"{label} r_1", test["r1"], m.group(10))
+            caps.number(t, f"{label} r_1 limit", test["r1_limit"], m.group(11))
+
+    # Fig. 5: the frames and the blocks of the errors.
+    t = "Localization (Fig. 5)"
+    sampled = f["sampled"]
+    if caps.has(t):
+        m = caps.find(t, r"averaged over (\d+) frames for (?:GS and )?covariant vectors", "frames")
+        if m:
+            caps.text(t, "frames", len(sampled), m.group(1))
+        b = max(len(sampled) // blocks, 1)
+        caps.find(t, rf"standard errors from blocks of {b} frames" if len(sampled) >= 2 * b else rf"they need at least two blocks of {b} frames", f"blocks of {b} frames")
+
+    v, g = f["v"], f["g"]
+    shear = range(2 * n, 2 * n + 3)
+    # Fig. 3: <|g^i . v^i|> at i = 2N+1..2N+3.
+    t = "Gram-Schmidt versus covariant vectors (Fig. 3)"
+    if caps.has(t) and g is not None and k >= 2 * n + 3:
+        m = caps.find(t, rf"It is 1 at i = 1 and i = 2N-2 = (\d+), .*? At i = (\d+)\.\.(\d+) \(black open rings: not converged\) it is ([^:]*\d):", "<|g.v|> of the sheared null vectors")
+        if m:
+            caps.text(t, "2N-2", 2 * n - 2, m.group(1))
+            caps.text(t, "2N+1..2N+3", f"{2 * n + 1}..{2 * n + 3}", f"{m.group(2)}..{m.group(3)}")
+            mean = np.abs(np.einsum("tdi,tdi->ti", g, v)).mean(axis=0)
+            caps.numbers(t, "<|g.v|> at 2N+1..2N+3", mean[list(shear)], split_numbers(m.group(4)))
+
+    # Figs. 6, 7: the conjugate symmetry of eta_q, eta_p and eta_q of the sheared null CLVs.
+    for t, x, sym in (("Position and momentum content of the GS vectors (Fig. 6)", g, "η_p"), ("Position and momentum content of the covariant vectors (Fig. 7)", v, "η_q")):
+        if not caps.has(t) or x is None:
+            continue
+        means, _ = projections(x, n)
+        q, other = means["eta_q"], means["eta_p" if sym == "η_p" else "eta_q"]
+        if k == d:
+            m = caps.find(t, rf"Conjugate symmetry: max_i \|η_q\(i\) - {sym}\(4N\+1-i\)\| = ({NUMBER})", "conjugate symmetry")
+            if m:
+                caps.number(t, "conjugate asymmetry", np.max(np.abs(q - other[::-1])), m.group(1))
+        if sym == "η_q" and k >= 2 * n + 3:
+            m = caps.find(t, rf"and the last three, i = {2 * n + 1}\.\.{2 * n + 3} \(η_q = ([^)]*)\)", "eta_q of the sheared null vectors")
+            if m:
+                caps.numbers(t, "eta_q at 2N+1..2N+3", q[list(shear)], split_numbers(m.group(1)))
+
+    # Tables I, II: the first row of beta and alpha, the frame, the largest angles over time
+    # and alpha's corner. Round-off (e_4..e_6 entries, the angles, the corner) is not
+    # recomputable digit for digit: against the report's own tables, checked above.
+    t = "Null space (Tables I, II)"
+    if caps.has(t) and k >= 2 * n + 3:
+        at = sampled[0]
+        m = caps.find(t, r"onto e_1\.\.e_6 at the earliest consumed frame \(step (\d+), t = ([^;]*); ", "frame")
+        if m:
+            caps.text(t, "step", at["step"], m.group(1))
+            caps.number(t, "time", at["time"], m.group(2), half=5e-7)  # {:.6} with its trailing zeros trimmed
+        m = caps.find(t, r"Row i = (\d+): β = \[([^\]]*)\](?:, α = \[([^\]]*)\])?\.", "first row")
+        for name, table, group in (("beta", "nullspace_beta.csv", 2), ("alpha", "nullspace_alpha.csv", 3)):
+            rows = read_csv(os.path.join(f["report"], table))
+            if not m or rows is None or not len(rows.get("i", [])):
+                continue
+            caps.text(t, "row", int(rows["i"][0]), m.group(1))
+            if m.group(group) is None:
+                caps.c.bad.append(f"disagreement: caption '{t}' first row of {name}: not there")
+                continue
+            caps.numbers(t, f"{name} row {int(rows['i'][0])}", [rows[f"e{q + 1}"][0] for q in range(6)], split_numbers(m.group(group)))
+        ns = read_csv(os.path.join(f["report"], "nullspace_series.csv"))
+        if ns is not None and len(ns.get("step", [])):
+            m = caps.find(t, rf"Maxima over time: CLV angle ({NUMBER})(?:, GS angle ({NUMBER}), GS-CLV angle ({NUMBER}))?", "largest angles")
+            if m:
+                for col, group in (("angle_clv", 1), ("angle_gs", 2), ("angle_gs_clv", 3)):
+                    if m.group(group) is not None:
+                        caps.number(t, f"largest {col}", np.nanmax(ns[col]), m.group(group))
+        alpha = read_csv(os.path.join(f["report"], "nullspace_alpha.csv"))
+        if alpha is not None and len(alpha.get("i", [])) >= 3:
+            m = caps.find(t, rf"The entries α_\(i,4\.\.6\) of rows i = (\d+)\.\.(\d+), which the paper prints at about 1e-6, are at most ({NUMBER}) here", "alpha corner")
+            if m:
+                caps.number(t, "largest |alpha_(i,4..6)|", max(abs(alpha[f"e{q}"][r]) for r in range(3) for q in (4, 5, 6)), m.group(3))
+
+    # Domination: the overall swap fraction at the first and the longest Delta, and the verdict
+    # on E^u + E^0 + E^s.
+    t = "Domination of the Oseledec splitting (Sec. 6)"
+    deltas = f["deltas"]
+    if caps.has(t) and deltas:
+        m = caps.find(t, rf"Overall fraction at Δ = (\d+): ({NUMBER})(?:; at Δ = (\d+): ({NUMBER}) \(from (\d+) windows)?", "overall fractions")
+        fits = [dl for dl in deltas if dl <= len(local)]
+        if m:
+            caps.text(t, "first Δ", deltas[0], m.group(1))
+            caps.number(t, f"overall at Δ = {deltas[0]}", domination(windows(local, deltas[0]), n)["overall"], m.group(2))
+            longest = max((w for w in range(len(deltas)) if deltas[w] <= len(local)), default=0)
+            if longest > 0:
+                dl = deltas[longest]
+                x = windows(local, dl)
+                if m.group(3) is None:
+                    caps.c.bad.append(f"disagreement: caption '{t}' overall fraction at Δ = {dl}: not there")
+                else:
+                    caps.text(t, "longest Δ", dl, m.group(3))
+                    caps.number(t, f"overall at Δ = {dl}", domination(x, n)["overall"], m.group(4))
+                    caps.text(t, f"windows at Δ = {dl}", len(x), m.group(5))
+        if k == d and d >= 8 and fits:
+            splits = [[domination(windows(local, dl), n)[col] for col in ("split_unstable_null", "split_null_stable")] for dl in fits]
+            quiet = [all(x == 0 for x in s) for s in splits]
+            since = next((p for p in range(len(fits)) if all(quiet[p:])), None)
+            pair = rf"({NUMBER}) and ({NUMBER})"
+            if since == 0:
+                caps.find(t, r"never violated, not even in single steps; it is dominated in these frames", "splitting verdict")
+            elif since is not None:
+                m = caps.find(t, rf"violated in {pair} of the windows at Δ = (\d+) and in none from Δ = (\d+) on", "splitting verdict")
+                if m:
+                    caps.numbers(t, f"split fractions at Δ = {fits[0]}", splits[0], [m.group(1), m.group(2)])
+                    caps.text(t, "first Δ", fits[0], m.group(3))
+                    caps.text(t, "Δ_0", fits[since], m.group(4))
+            else:
+                m = caps.find(t, rf"still violated at Δ = (\d+), in {pair} of the windows", "splitting verdict")
+                if m:
+                    caps.text(t, "longest Δ", fits[-1], m.group(1))
+                    caps.numbers(t, f"split fractions at Δ = {fits[-1]}", splits[-1], [m.group(2), m.group(3)])
+
+    # Table III: each step found, and how many frames resolve the same steps.
+    t = "Lyapunov modes (Table III)"
+    modes = f["modes"]
+    if caps.has(t) and modes is not None and modes["modes.csv"]:
+        lx, ly = f["lx"], f["ly"]
+        m = caps.find(t, rf"with \|k\| ≤ 2π·{MAX_N}/max\(L_x, L_y\) = ({NUMBER})", "|k| bound")
+        if m:
+            caps.number(t, "largest |k|", 2 * math.pi * MAX_N / max(lx, ly), m.group(1))
+        found = caps.find(t, rf"(\S+) at i = (\d+)\.\.(\d+) \((\d+)-fold(?:, (\w+))?, λ = ({NUMBER})(?: with its exponents spread over ({NUMBER}))?, fraction ({NUMBER})(?: of the best candidate (\S+), ({NUMBER}) beyond chance, below {MIN_FRACTION})?, ({NUMBER})% of frames agree, (\d+) of (\d+) find the step on their own\)", "steps found", every=True)
+        rows = modes["modes.csv"]
+        if found and len(found) != len(rows):
+            caps.c.bad.append(f"disagreement: caption '{t}' steps found: {len(found)}, mine {len(rows)}")
+        for r, m in zip(rows, found):
+            at = f"i = {r['first']}..{r['last']}"
+            caps.text(t, f"{at} step", f"{r['name']} at i = {r['first']}..{r['last']} ({r['degeneracy']}-fold", f"{m.group(1)} at i = {m.group(2)}..{m.group(3)} ({m.group(4)}-fold")
+            caps.text(t, f"{at} detection", "" if r["detection"] == "degenerate" else r["detection"], m.group(5) or "")
+            caps.number(t, f"{at} lambda", r["lambda"], m.group(6))
+            if r["detection"] != "degenerate":
+                caps.number(t, f"{at} spread", r["spread"], m.group(7) or "nan")
+            caps.number(t, f"{at} fraction", r["fraction_gs"] if np.isfinite(r["fraction_gs"]) else r["fraction_clv"], m.group(8))
+            if r["name"] != r["best"]:
+                caps.text(t, f"{at} best candidate", r["best"], m.group(9))
+                caps.number(t, f"{at} beyond chance", r["beyond_chance"], m.group(10) or "nan")
+            caps.number(t, f"{at} agreement %", 100 * r["agreement"], m.group(11))
+            caps.text(t, f"{at} frames resolving it", round(r["resolved"] * int(r["frames"])), m.group(12))
+            caps.text(t, f"{at} frames", r["frames"], m.group(13))
+        head = modes["modes.json"]
+        m = caps.find(t, r"resolved at the first sampled frame read \(step (\d+), the newest: the backward stream delivers it first\); resolved at each frame on its own, (\d+) of (\d+) frames give the same steps \((no frame finds another step|other steps found by some frames: ([^;]*))", "resolution")
+        if m:
+            caps.text(t, "first frame's step", f["first_step"], m.group(1))
+            caps.text(t, "frames resolving the same steps", head["resolved_alike"], m.group(2))
+            caps.text(t, "frames", head["frames"], m.group(3))
+            others = ";".join(f"{a}..{b}:{c_}" for a, b, c_ in re.findall(r"i = (\d+)\.\.(\d+) in (\d+)", m.group(5) or ""))
+            caps.text(t, "other steps", head["other_steps"], others)
+
+    # Dispersion: the slope through the origin of each kind and lambda/k of each step.
+    t = "Dispersion of the Lyapunov modes (beyond the paper)"
+    if caps.has(t) and modes is not None and modes["modes_dispersion.csv"]:
+        rows = modes["modes_dispersion.csv"]
+        for kind in sorted({r["kind"] for r in rows}):
+            of = [r for r in rows if r["kind"] == kind]
+            ks, lam = np.array([r["k"] for r in of]), np.array([r["lambda"] for r in of])
+            m = caps.find(t, rf"{kind}: c = ({NUMBER})(?: ± {NUMBER})? from (\d+) step\(s\), λ/k = ([^f]*?) for ", f"{kind} fit")
+            if m:
+                caps.number(t, f"{kind} slope c", (ks * lam).sum() / (ks**2).sum(), m.group(1))
+                caps.text(t, f"{kind} steps", len(of), m.group(2))
+                caps.numbers(t, f"{kind} lambda/k", lam / ks, split_numbers(m.group(3)))
+
+    # Fig. 14: the largest average overlap of each positive step's last vector inside its step,
+    # inside the conjugate step and elsewhere.
+    t = "Scalar products of mode vectors (Fig. 14)"
+    steps = [st for st, _ in f["steps"] if st[0] + st[1] <= d // 2 - 3]
+    if caps.has(t) and k == d and len(steps) >= 2:  # with fewer, clv shows j = 2N-5, 2N-3 without this
+        m = caps.find(t, r"inside the conjugate step and anywhere else: (.*?)\. In ", "overlaps")
+        said = dict(re.findall(r"j = (\d+): ([^;]*)", m.group(1))) if m else {}
+        for a, ln in steps:
+            j = a + ln - 1
+            mean = np.abs(np.einsum("td,tdi->ti", v[:, :, j], v)).mean(axis=0)
+            own, conj = set(range(a, a + ln)), set(range(d - a - ln, d - a))
+            top = lambda keep: max((mean[i] for i in range(d) if i != j and keep(i)), default=np.nan)  # noqa: E731
+            mine = [top(lambda i: i in own), top(lambda i: i in conj), top(lambda i: i not in own and i not in conj)]
+            if str(j + 1) not in said:
+                if m:
+                    caps.c.bad.append(f"disagreement: caption '{t}' j = {j + 1}: not there")
+                continue
+            caps.numbers(t, f"j = {j + 1} largest overlaps", mine, split_numbers(said[str(j + 1)]))
+
+    # Fig. 15: Psi's minimum and mean, and Phi's of each positive mode step.
+    t = "Transversality of conjugate subspaces (Fig. 15)"
+    if caps.has(t) and f["transversality"] is not None:
+        names, angles = f["transversality"]
+        deg = math.degrees
+        m = caps.find(t, rf"Ψ between E\^u = v\^1\.\.v\^(\d+) and E\^s = v\^(\d+)\.\.v\^(\d+) \(min ({NUMBER})° = ({NUMBER}) rad, mean ({NUMBER})° = ({NUMBER}) rad", "Psi")
+        psi = angles[:, 0][np.isfinite(angles[:, 0])]
+        if m:
+            caps.text(t, "E^u, E^s", f"1..{2 * n - 3}, {2 * n + 4}..{4 * n}", f"1..{m.group(1)}, {m.group(2)}..{m.group(3)}")
+            for what, x, group in (("min Psi (deg)", deg(psi.min()), 4), ("min Psi (rad)", psi.min(), 5), ("mean Psi (deg)", deg(psi.mean()), 6), ("mean Psi (rad)", psi.mean(), 7)):
+                caps.number(t, what, x, m.group(group))
+            if psi.min() > 0:
+                caps.find(t, r"Ψ > 0 in every frame: E\^u and E\^s are transversal", "Psi > 0")
+        for col, x in zip(names[1:], angles.T[1:]):
+            a, b = col.split("_")[1:]
+            x = x[np.isfinite(x)]
+            m = caps.find(t, rf"Φ for [^;]*?\(i = {a}\.\.{b}\): min ({NUMBER})° \(({NUMBER}) rad\), mean ({NUMBER})° \(({NUMBER}) rad\)", f"Phi of i = {a}..{b}")
+            if m:
+                for what, y, group in (("min", deg(x.min()), 1), ("min rad", x.min(), 2), ("mean", deg(x.mean()), 3), ("mean rad", x.mean(), 4)):
+                    caps.number(t, f"Phi i = {a}..{b} {what}", y, m.group(group))
+        if len(names) == 1:
+            caps.find(t, r"\(no mode steps were detected\)", "no mode steps")
+
+    # Figs. 16, 17: F^(J), the separations, the first bin of i - j = 1 against the next four,
+    # and the smallest Theta of i - j = 1.
+    j = f["theta_j"]
+    t = "Angles between covariant vectors (Fig. 16)"
+    if caps.has(t) and j is not None and j >= 2:
+        m = caps.find(t, r"pairs of covariant vectors in F\^\((\d+)\) = v\^1\.\.v\^(\d+) .*? with index separations i - j = ([\d, ]+) \(", "F^(J) and separations")
+        if m:
+            caps.text(t, "J", j, m.group(1))
+            caps.text(t, "separations", ", ".join(map(str, theta_separations(d, j))), m.group(3).strip())
+        counts, total, maybe = theta_histogram(thetas(v, 1, j))
+        w = math.pi / 2 / THETA_BINS
+        if not maybe[:5].any():
+            density = counts / (total * w)
+            mean = density[1:5].mean()
+            m = caps.find(t, rf"For i - j = 1 the density in the first bin \(Θ < ({NUMBER})°\) is ({NUMBER}), against ({NUMBER}) in the next (\d+) bins: ", "first bin")
+            if m:
+                caps.number(t, "first bin density", density[0], m.group(2))
+                caps.number(t, "next bins' density", mean, m.group(3))
+                held = int(counts[:5].sum())
+                if held < 50:
+                    caps.find(t, rf"{held} angles in these bins are too few", "angles in the first bins")
+                elif density[0] < 0.5 * mean:
+                    caps.find(t, r"it falls toward Θ = 0, as the paper's", "first bin verdict")
+                elif density[0] < 0.85 * mean:
+                    mm = caps.find(t, rf"it dips in the first bin \(({NUMBER}) % below\)", "first bin verdict")
+                    if mm:
+                        caps.number(t, "first bin dip %", 100 * (1 - density[0] / mean), mm.group(1))
+                else:
+                    caps.find(t, r"it does not fall toward Θ = 0 here", "first bin verdict")
+    t = "Minimum angle between covariant vectors (Fig. 17)"
+    if caps.has(t) and j is not None and j >= 2:
+        m = caps.find(t, rf"over all pairs in F\^\((\d+)\) and (\d+) frames .*?min Θ for i - j = 1: ({NUMBER}) rad", "min Theta")
+        if m:
+            caps.text(t, "J", j, m.group(1))
+            caps.text(t, "frames", len(sampled), m.group(2))
+            caps.number(t, "min Theta (i - j = 1)", thetas(v, 1, j).min(), m.group(3))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("report")
@@ -1532,6 +2025,7 @@ def main():
         mine, steps = mode_tables(sampled, first, forward, float(system["lx"]), float(system["ly"]), d)
     else:  # clv writes an empty mode table (and says why)
         mine = {"modes.csv": [], "modes_fits.csv": [], "modes_lp.csv": [], "modes_dispersion.csv": [], "patterns": {}}
+    modes = mine if full else None
     span = lambda r: f"i = {r['first']}..{r['last']}"  # noqa: E731
     mt = read_rows(os.path.join(args.report, "modes.csv"))
     if mt is not None:
@@ -1575,6 +2069,7 @@ def main():
     # Fig. 15 in every sampled frame: Psi, the smallest principal angle between
     # E^u = v^1..v^m and E^s = v^(D-m+1)..v^D (m = 2N - 3), and Phi, the smallest between
     # each positive mode step (resolved above) and its conjugate vectors D+1-i.
+    transversality = None
     tr = read_rows(os.path.join(args.report, "transversality.csv"))
     if tr is not None and v.shape[2] == d:
         cols = list(tr[0]) if tr else []
@@ -1595,6 +2090,7 @@ def main():
             for col, x in zip(names, mine.T):
                 if col in cols:
                     c.compare("transversality.csv", col, step, x, np.array([float(r[col]) for r in tr]))
+            transversality = (names, mine)
 
     # Figs. 16-17: Theta over the pairs of F^(J), J as clv chooses it (before the first
     # positive mode step): min and mean per separation, and the histograms of Fig. 16.
@@ -1638,6 +2134,38 @@ def main():
 
     if not c.checked:
         sys.exit(f"{args.report}: none of the tables this script checks is there")
+    # The captions of index.html: their numbers against the recomputation above.
+    sections = caption_sections(os.path.join(args.report, "index.html"))
+    caps = Captions(c, sections or {})
+    if sections is None:
+        c.bad.append(f"disagreement: {args.report}/index.html is not there")
+    else:
+        steps_ = [fr["step"] for fr in frames]
+        total = int(config.get("relax_steps", 0)) + int(config.get("steps", 0))
+        run_exponents, run_stderr, run_block_means = None, None, None
+        if forward_r is not None:
+            run_exponents, run_stderr, run_block_means = forward_r["exponents"], forward_r["stderr"], np.asarray(forward_r["block_means"], float)
+        elif forward is not None:
+            run_exponents = np.asarray(forward["exponents"], float)
+            run_stderr = np.array([np.nan if x is None else x for x in forward["stderr"]], float)
+            if (forward.get("blocks") or {}).get("exponents"):
+                run_block_means = np.asarray(forward["blocks"]["exponents"], float)
+        run_h_err = np.nan
+        if run_exponents is not None:
+            positive = [i for i, x in enumerate(run_exponents) if x > 0 and not 2 * n - 3 <= i < 2 * n + 3]
+            if run_block_means is not None and len(run_block_means) >= 2:  # the per-block sums' standard error
+                run_h_err = sample_std(run_block_means[:, positive].sum(axis=1)[:, None])[0] / math.sqrt(len(run_block_means))
+            elif forward is not None and forward.get("ks_entropy"):
+                run_h_err = forward["ks_entropy"].get("stderr") or np.nan
+        check_captions(c, caps, {
+            "n": n, "d": d, "k": local.shape[1], "blocks": blocks, "frames": len(frames), "local": local,
+            "gs_local": np.array([fr["gs_local"] for fr in frames]) if all(fr["gs_local"] is not None for fr in frames) else None,
+            "forward": forward, "config": config, "forward_exponents": run_exponents, "forward_stderr": run_stderr, "forward_h_ks_stderr": run_h_err,
+            "shear": None if "tau" not in config else ((total - steps_[-1]) * tau - tau, (total - steps_[0]) * tau, null_shear_mean(steps_, total, tau), len(steps_) == steps_[-1] - steps_[0] + 1),
+            "tests": tests, "sampled": sampled, "v": v, "g": g, "report": args.report, "deltas": [int(x) for x in summary["options"].get("deltas", [])],
+            "modes": modes, "lx": float(system.get("lx", np.nan)), "ly": float(system.get("ly", np.nan)), "first_step": first["step"],
+            "steps": steps, "transversality": transversality, "theta_j": j,
+        })
     # Every row and column of the tables compared column by column above: the rows are
     # named by their keys, which the comparisons take from the report itself.
     k = local.shape[1]
@@ -1659,7 +2187,7 @@ def main():
         c.expect_keys("finite_time_exponents.csv", zip(ft["i"].astype(int), ft["delta"].astype(int)), [(j, dl) for j in js for dl in deltas])
         c.expect_columns("finite_time_exponents.csv", ft, ("i", "delta"))
 
-    print(json.dumps({"agree": not c.bad, "checked": c.checked, "checked_std": c.checked_std, "columns": c.columns, "frames": len(frames), "sampled": len(sampled), "every": every, "blocks": blocks, "tolerance": TOL, "tolerance_errors": TOL_ERR, "mode_steps": [[st[0] + 1, st[0] + st[1], how] for st, how in steps], "theta_j": j, "theta_at_bin_edges": ambiguous}
+    print(json.dumps({"agree": not c.bad, "checked": c.checked, "checked_std": c.checked_std, "columns": c.columns, "frames": len(frames), "sampled": len(sampled), "every": every, "blocks": blocks, "tolerance": TOL, "tolerance_errors": TOL_ERR, "mode_steps": [[st[0] + 1, st[0] + st[1], how] for st, how in steps], "theta_j": j, "theta_at_bin_edges": ambiguous, "captions": caps.checked}
                      | ({} if forward_r is None else {"forward_r": {k: forward_r[k] for k in ("steps", "block_steps", "planned_block_steps", "plan_from")} | {"blocks": len(forward_r["block_means"])}})))
     if c.bad:
         for line in c.bad:

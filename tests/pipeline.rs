@@ -920,7 +920,9 @@ fn hard_disk_vectors_are_covariant_by_finite_differences() {
 /// null space, Theta minima and histograms, local and finite-time exponents, domination,
 /// convergence, and the Lyapunov modes of a second, larger system that has them), on the
 /// frames of every 3rd step as the report samples them; a report with one number of any of
-/// these tables altered (relative 1e-6) is exactly that one disagreement.
+/// these tables altered (relative 1e-6) is exactly that one disagreement. The captions' numbers
+/// are checked too, and one altered in index.html (or a phrase reworded) is exactly one
+/// disagreement naming the caption.
 #[test]
 fn an_independent_recomputation_agrees_with_the_report_tables() {
     if !common::python_has("mcap, cbor2, numpy") {
@@ -1129,6 +1131,61 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     json["modes"][0]["lambda"] = serde_json::json!(x * (1.0 + 1e-6));
     std::fs::write(modes_altered.join("modes.json"), serde_json::to_vec_pretty(&json).unwrap()).unwrap();
     is_the_one(&verify(&modes_altered, &modes_frames), "modes.json lambda 1");
+    std::fs::copy(modes_report.join("modes.json"), modes_altered.join("modes.json")).unwrap();
+
+    // The captions' numbers are checked too (against the recomputation, at their printed
+    // precision): h_KS, the null-shear prediction, the median errors, the convergence tests,
+    // Psi, Phi and Theta, the null space, the modes found and their overlaps.
+    let captions = |v: &serde_json::Value, title: &str, what: &str| {
+        assert!(v["captions"][title].as_array().is_some_and(|c| c.iter().any(|c| c.as_str().is_some_and(|c| c.starts_with(what)))), "{title}: {what}: {v}");
+    };
+    for (title, what) in [
+        ("Lyapunov spectrum (Fig. 2)", "h_KS (CLV)"),
+        ("Lyapunov spectrum (Fig. 2)", "h_KS error (GS, whole run)"),
+        ("Lyapunov spectrum (Fig. 2)", "null-shear prediction"),
+        ("Lyapunov spectrum (Fig. 2)", "null-shear measured"),
+        ("Mode region of the spectrum (Fig. 8)", "median stderr (CLV)"),
+        ("Convergence of the spectra (beyond the paper)", "CLV z of h_KS"),
+        ("Null space (Tables I, II)", "largest angle_clv"),
+        ("Transversality of conjugate subspaces (Fig. 15)", "min Psi (rad)"),
+        ("Angles between covariant vectors (Fig. 16)", "first bin density"),
+        ("Minimum angle between covariant vectors (Fig. 17)", "min Theta"),
+        ("Domination of the Oseledec splitting (Sec. 6)", "overall at"),
+    ] {
+        captions(&v, title, what);
+    }
+    captions(&s, "Lyapunov spectrum (Fig. 2)", "null-shear frames"); // the words for frames of every third step
+    for (title, what) in [("Lyapunov modes (Table III)", "i = "), ("Scalar products of mode vectors (Fig. 14)", "j = "), ("Transversality of conjugate subspaces (Fig. 15)", "Phi i = "), ("Dispersion of the Lyapunov modes (beyond the paper)", "T slope c")] {
+        captions(&m, title, what);
+    }
+    // A number of a caption altered in its last printed digit, or a phrase reworded, in a
+    // copy of index.html: exactly that one disagreement, naming the caption, and exit 1.
+    let caption_altered = |(report, altered, frames): (&Path, &Path, &Path), from: &str, to: &str, what: &str| {
+        let page = read(&report.join("index.html"));
+        assert_eq!(page.matches(from).count(), 1, "{from}");
+        std::fs::write(altered.join("index.html"), page.replace(from, to)).unwrap();
+        let out = verify(altered, frames);
+        std::fs::copy(report.join("index.html"), altered.join("index.html")).unwrap();
+        is_the_one(&out, &format!("caption '{what}'"));
+    };
+    // The text of a page between the first `start` and the next `end`.
+    let between = |page: &str, start: &str, end: &str| -> String {
+        let a = page.find(start).unwrap_or_else(|| panic!("{start}")) + start.len();
+        page[a..a + page[a..].find(end).unwrap()].to_string()
+    };
+    let page = read(&report.join("index.html"));
+    // h_KS of the CLV spectrum ("X ± E (GS), Y ± E (CLV)"), 6 decimals: the last one off by 2.
+    let h = between(&page, " (GS), ", " ± ");
+    caption_altered(small, &format!(" (GS), {h} ± "), &format!(" (GS), {:.6} ± ", h.parse::<f64>().unwrap() + 2e-6), "Lyapunov spectrum (Fig. 2)");
+    // The null-shear prediction "= X;" (4 decimals of its mantissa).
+    let p = between(&page, "(2 (s2 - s1)) = ", "e");
+    caption_altered(small, &format!("(2 (s2 - s1)) = {p}e"), &format!("(2 (s2 - s1)) = {:.4}e", p.parse::<f64>().unwrap() - 2e-4), "Lyapunov spectrum (Fig. 2)");
+    caption_altered(small, "Median standard errors of the plotted exponents", "Median errors of the plotted exponents", "Mode region of the spectrum (Fig. 8)");
+    let psi = between(&page, "(min ", "° = ");
+    caption_altered(small, &format!("(min {psi}° = "), &format!("(min {:.2}° = ", psi.parse::<f64>().unwrap() + 0.02), "Transversality of conjugate subspaces (Fig. 15)");
+    let modes_page = read(&modes_report.join("index.html"));
+    let lambda = between(&modes_page, ", λ = ", " ");
+    caption_altered(with_modes, &format!(", λ = {lambda} "), &format!(", λ = {:.4} ", lambda.parse::<f64>().unwrap() + 2e-4), "Lyapunov modes (Table III)");
 }
 
 /// Frames of the k < D leading vectors: the report says once what needs all D and is left
