@@ -420,7 +420,7 @@ fn a_stop_inside_a_store_r_all_window_stores_each_r_once() {
     bytes[middle] ^= 0x10;
     std::fs::write(&stopped.path, bytes).unwrap();
     let err = stderr(&ok(clv(&["forward", "--resume", run.to_str().unwrap()])));
-    assert!(err.contains(&format!("recomputing steps {}..{}", names[at - 1].1, step + 1)), "{err}");
+    assert!(err.contains(&format!("recomputing steps {}..{}", names[at - 1].1, (step / 50 + 1) * 50)), "{err}");
     assert!(contents(&run) == want && segments().iter().map(|s| (s.first, s.last)).collect::<Vec<_>>() == names, "{err}");
 }
 

@@ -565,6 +565,15 @@ fn a_hole_is_recomputed_on_its_own_and_must_arrive_at_the_next_checkpoint() {
     assert!(contents(&dir) == *want, "the run repaired past the altered checkpoint differs");
     assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".superseded")));
 
+    // A damaged segment with the one after it gone: the hole reaches to the next segment,
+    // not only to the damaged file's last step (one resume left the second one missing).
+    let (dir, want) = reference_copy("hole-damaged-and-gone");
+    let segs = RunDir { path: dir.clone() }.segments().unwrap();
+    damage(&segs[segs.len() - 4].path, &mut Rng::new(3), true);
+    std::fs::remove_file(&segs[segs.len() - 3].path).unwrap();
+    ok(clv(&["forward", "--resume", dir.to_str().unwrap(), "--quiet"]));
+    assert!(contents(&dir) == *want && clv(&["inspect", dir.to_str().unwrap()]).status.success(), "one resume did not restore the run");
+
     // --store-r all: the segments of the window begin with an R_n, right after the last step
     // of the segment before.
     let run = scratch("hole-r-all").join("run");
@@ -576,7 +585,7 @@ fn a_hole_is_recomputed_on_its_own_and_must_arrive_at_the_next_checkpoint() {
     assert!(next.first == hole.last + 1 && next.first % 20 != 0, "{segs:?}");
     std::fs::remove_file(&hole.path).unwrap();
     let err = common::stderr(&ok(clv(&["forward", "--resume", r])));
-    assert!(err.contains(&format!("recomputing steps {}..{}", segs[segs.len() - 4].last, next.first)) && !err.contains("recomputed with the rest"), "{err}");
+    assert!(err.contains(&format!("recomputing steps {}..{}", segs[segs.len() - 4].last, (next.first / 20 + 1) * 20)) && !err.contains("recomputed with the rest"), "{err}");
     assert!(contents(&run) == want, "the run repaired with --store-r all differs");
     let steps = |segs: Vec<clv::store::run::SegmentFile>| segs.iter().map(|s| (s.first, s.last)).collect::<Vec<_>>();
     assert_eq!(steps(RunDir { path: run.clone() }.segments().unwrap()), steps(segs), "the segments are those of the undamaged run");
@@ -639,6 +648,22 @@ fn a_repair_changes_nothing_it_cannot_verify() {
     assert!(err.contains("does not follow from the one before it either (G_n element 3") && err.contains("clv cannot tell which"), "{err}");
     assert_eq!(inodes(&segs[segs.len() - 2..]), later, "segments after the hole were changed");
     assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().ends_with(".superseded")));
+    // Nor is the hole filled with steps grown from the checkpoint in doubt: a second resume
+    // stops the same way (it found the hole filled and the run complete).
+    assert!(!hole.path.exists() && !dir.join(clv::store::repair::UNVERIFIED).exists());
+    let again = clv(&["forward", "--resume", dir.to_str().unwrap()]);
+    assert!(!again.status.success() && common::stderr(&again).contains("clv cannot tell which"), "{}", common::stderr(&again));
+
+    // A file that cannot be read stops the resume before anything is moved: the damaged
+    // segment beside it keeps its name.
+    let (dir, _) = reference_copy("repair-unreadable");
+    let segs = RunDir { path: dir.clone() }.segments().unwrap();
+    damage(&segs[1].path, &mut Rng::new(5), false);
+    std::fs::remove_file(&segs[3].path).unwrap();
+    std::os::unix::fs::symlink(dir.join("nowhere"), &segs[3].path).unwrap();
+    let out = clv(&["forward", "--resume", dir.to_str().unwrap()]);
+    let err = common::stderr(&out);
+    assert!(!out.status.success() && err.contains("nothing was changed") && segs[1].path.exists() && !segs[1].path.with_extension("mcap.corrupt").exists(), "{err}");
 
     let (dir, want) = reference_copy("repair-contained");
     let segs = RunDir { path: dir.clone() }.segments().unwrap();

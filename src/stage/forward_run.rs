@@ -12,7 +12,8 @@ use crate::report::{SpectrumReport, Statistics};
 use crate::store::records::{encode_r, Checkpoint, Stats};
 use crate::store::run::{write_atomic, RunDir, RunLock, RunMeta, StoreR};
 use crate::store::schema::{CHECKPOINT, R, STATS};
-use crate::store::repair::{discard_partial_segments, first_checkpoint, last_checkpoints, read_last, supersede_from, triage, Hole, Triage};
+use crate::store::run::gap_between;
+use crate::store::repair::{discard_partial_segments, UNVERIFIED, first_checkpoint, last_checkpoints, read_last, supersede_from, triage, Hole, Triage};
 use crate::store::sink::{Policy, Sink};
 use crate::system::Invariants;
 use super::signals::StopOnSignals;
@@ -254,26 +255,13 @@ fn is_report(dir: &Path) -> bool {
 fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Result<Outcome> {
     let path = dir.path.as_path();
     discard_partial_segments(dir, &mut |msg| feedback.notice(msg))?;
-    let Triage { holes, mut newest_intact, mut superseded } = triage(dir, &meta.store, &meta.config, &mut |msg| feedback.notice(msg))?;
+    let Triage { holes, mut newest_intact, mut superseded, set_aside } = triage(dir, &meta.store, &meta.config, &mut |msg| feedback.notice(msg))?;
     for hole in &holes {
         if let Some(why) = fill(dir, meta, hole, feedback)? {
-            // One of the two checkpoints is not what this build computes. Where the one
-            // the recomputation started from follows from the checkpoint before it, the
-            // segments from `next` on are the odd ones out: the run is recomputed from
+            // The checkpoint the recomputation started from is right (`fill` checked it), so
+            // the segments from `next` on are the odd ones out: the run is recomputed from
             // the end of the hole on, as a run damaged at its end would be.
-            let next = hole.next.path.display();
-            if let Some(after) = &hole.after
-                && let Some(also) = follows_from_the_one_before(meta, after)?
-            {
-                return Err(Error::Dynamics(format!(
-                    "the steps recomputed from the last checkpoint of {} do not arrive at the first checkpoint of {next} ({why}), and that last checkpoint \
-                     does not follow from the one before it either ({also}): one of the two files was altered or written by another build, and clv cannot tell which. \
-                     Nothing after the recomputed steps was changed; move the file you do not trust out of {} and resume again",
-                    after.display(),
-                    dir.path.display()
-                )));
-            }
-            feedback.notice(format!("the recomputed steps do not arrive at the first checkpoint of {next} ({why}); the segments from there on are recomputed too"));
+            feedback.notice(format!("the recomputed steps do not arrive at the first checkpoint of {} ({why}); the segments from there on are recomputed too", hole.next.path.display()));
             superseded.extend(supersede_from(dir, &hole.next, &mut |msg| feedback.notice(msg))?);
             let newest = dir.segments()?.pop().ok_or_else(|| Error::Other(format!("the segments recomputed before {} are gone", hole.next.path.display())))?;
             newest_intact = Some(read_last(&newest.path)?.1);
@@ -316,7 +304,7 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
             feedback.notice(format!("{e}; rewrote it from the run's last checkpoint (the damaged file is kept as {})", aside.display()));
             write_spectrum(dir, &report)?;
         }
-        let already_finished = holes.is_empty() && superseded.is_empty();
+        let already_finished = holes.is_empty() && superseded.is_empty() && set_aside == 0;
         drop_superseded()?;
         return Ok(Outcome { report, resumed_from: Some(step), already_finished });
     }
@@ -325,9 +313,12 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
 }
 
 /// Recompute the steps of `hole` from the checkpoint before it, writing them as the run
-/// wrote them, and go on (writing nothing) to the first checkpoint of the segment after it.
-/// None when the recomputation arrives there bit for bit; else where it differs (a run made
-/// by another build, or a segment altered with its CRCs).
+/// wrote them but into [`UNVERIFIED`], and go on (writing nothing) to the first checkpoint
+/// of the segment after it. Where the recomputation arrives there bit for bit, or the
+/// checkpoint it started from is shown to follow from the one before it (then the segments
+/// from the next one on are the odd ones out: their difference is returned), its segments
+/// are moved into the run; else they are discarded and the resume stops, with nothing
+/// after the hole changed.
 fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> Result<Option<String>> {
     let (fwd, energy0, wall0) = match &hole.after {
         Some(before) => {
@@ -340,34 +331,73 @@ fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> R
             (fwd, energy0, 0.0)
         }
     };
+    let want = first_checkpoint(&hole.next.path)?.state;
     let from = fwd.step;
     let c = meta.store.checkpoint_every.max(1);
     let why = match hole.after {
         Some(_) => "no intact segment holds the steps between".to_string(),
         None => format!("the backward stage needs the checkpoints from step {} on, no segment holds them, and there is none before them", meta.store.window_start(&meta.config) / c * c),
     };
-    feedback.notice(format!("recomputing steps {from}..{} ({why}), to arrive at the first checkpoint of {}", hole.next.first, hole.next.path.display()));
-    let mut fwd = drive_to(dir, meta, fwd, energy0, wall0, hole.after.is_none(), hole.until, feedback)?;
-    let want = first_checkpoint(&hole.next.path)?.state;
+    let next = hole.next.path.display();
+    feedback.notice(format!("recomputing steps {from}..{} ({why}), to arrive at the first checkpoint of {next}", want.step));
+    let staging = dir.path.join(UNVERIFIED);
+    std::fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+    let span = Span { energy0, wall0, write_first: hole.after.is_none(), until: hole.until, into: staging.clone() };
+    let mut fwd = drive_to(dir, meta, fwd, &span, feedback)?;
+    let signals = StopOnSignals::install();
     while fwd.step < want.step {
         fwd.step()?;
+        if let Some(signal) = signals.requested() {
+            let then = format!("the recomputation of steps {from}..{} was not finished; continue with `clv forward --resume {}`", want.step, dir.path.display());
+            return Err(Error::Stopped { step: from, total: meta.config.relax_steps + meta.config.steps, run: dir.path.clone(), signal, then });
+        }
     }
     let got = fwd.state();
-    Ok((got != want).then(|| want.first_difference(&got)))
+    let differs = (got != want).then(|| want.first_difference(&got));
+    if let (Some(why), Some(after)) = (&differs, &hole.after)
+        && let Some(also) = follows_from_the_one_before(dir, meta, after)?
+    {
+        std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+        return Err(Error::Dynamics(format!(
+            "the steps recomputed from the last checkpoint of {} do not arrive at the first checkpoint of {next} ({why}), and {also}: \
+             one of the two files was altered or written by another build, and clv cannot tell which. \
+             Nothing was changed; move the file you do not trust out of {} and resume again",
+            after.display(),
+            dir.path.display()
+        )));
+    }
+    let mut staged: Vec<PathBuf> = std::fs::read_dir(&staging).map_err(|e| Error::io(&staging, e))?.filter_map(|e| e.ok().map(|e| e.path())).collect();
+    staged.sort();
+    for path in staged {
+        let to = dir.path.join(path.file_name().unwrap_or_default());
+        std::fs::rename(&path, &to).map_err(|e| Error::io(&to, e))?;
+    }
+    crate::store::segment::sync_dir(&dir.path)?;
+    std::fs::remove_dir(&staging).map_err(|e| Error::io(&staging, e))?;
+    crate::store::sink::prune(&dir.path, meta.store.window_start(&meta.config) / c * c, meta.store.keep_segments)?;
+    Ok(differs)
 }
 
 /// Where the last checkpoint of the segment `path` does not follow from the checkpoint
-/// before it in the same segment, how (or that it cannot be checked, with only one).
-fn follows_from_the_one_before(meta: &RunMeta, path: &Path) -> Result<Option<String>> {
-    let [before, last] = &last_checkpoints(path)?[..] else {
-        return Ok(Some("it holds only one checkpoint, so that cannot be checked".into()));
-    };
+/// before it (in the segment, or the last of the segment before it), why, in words.
+fn follows_from_the_one_before(dir: &RunDir, meta: &RunMeta, path: &Path) -> Result<Option<String>> {
+    let mut checkpoints = last_checkpoints(path)?;
+    if checkpoints.len() < 2 {
+        let c = meta.store.checkpoint_every;
+        let first = checkpoints.first().map_or(0, |cp| cp.state.step);
+        let before = dir.segments()?.into_iter().rfind(|s| s.last < first && !gap_between(s.last, first, c));
+        match before {
+            Some(seg) => checkpoints.insert(0, read_last(&seg.path)?.1.checkpoint),
+            None => return Ok(Some("whether that checkpoint is right cannot be checked (no checkpoint just before it is kept)".into())),
+        }
+    }
+    let (before, last) = (&checkpoints[checkpoints.len() - 2], &checkpoints[checkpoints.len() - 1]);
     let mut fwd = Forward::resume(&meta.config, &before.state)?;
     while fwd.step < last.state.step {
         fwd.step()?;
     }
     let got = fwd.state();
-    Ok((got != last.state).then(|| last.state.first_difference(&got)))
+    Ok((got != last.state).then(|| format!("that checkpoint does not follow from the one before it either ({})", last.state.first_difference(&got))))
 }
 
 fn report_of(meta: &RunMeta, fwd: &Forward, energy0: f64, wall: f64) -> SpectrumReport {
@@ -378,18 +408,33 @@ fn report_of(meta: &RunMeta, fwd: &Forward, energy0: f64, wall: f64) -> Spectrum
 fn drive(dir: &RunDir, meta: &RunMeta, fwd: Forward, energy0: f64, wall0: f64, write_first: bool, feedback: &mut Feedback) -> Result<SpectrumReport> {
     let started = Instant::now();
     let total = meta.config.relax_steps + meta.config.steps;
-    let fwd = drive_to(dir, meta, fwd, energy0, wall0, write_first, total, feedback)?;
+    let span = Span { energy0, wall0, write_first, until: total, into: dir.path.clone() };
+    let fwd = drive_to(dir, meta, fwd, &span, feedback)?;
     crate::store::fault::crash_point("forward-done");
     let report = report_of(meta, &fwd, energy0, wall0 + started.elapsed().as_secs_f64());
     write_spectrum(dir, &report)?;
     Ok(report)
 }
 
-/// Advance `fwd` to step `until`, writing what the run keeps of every step (the checkpoint
-/// it starts from too with `write_first`), and close the segment there: at a checkpoint of
-/// its own where `until` is not one of the grid's (as a stop on a signal does).
-#[allow(clippy::too_many_arguments)]
-fn drive_to(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0: f64, write_first: bool, until: u64, feedback: &mut Feedback) -> Result<Forward> {
+/// What a drive of the forward pass writes, and where.
+struct Span {
+    /// The energy at step 0, which the run's energy must keep.
+    energy0: f64,
+    /// Wall seconds the run took before this drive.
+    wall0: f64,
+    /// Write the checkpoint the drive starts from too (step 0 of a new run).
+    write_first: bool,
+    /// The step the drive ends at.
+    until: u64,
+    /// The directory the segments go to: the run's, or a repair's before it is verified.
+    into: PathBuf,
+}
+
+/// Advance `fwd` to step `span.until`, writing what the run keeps of every step, and close
+/// the segment there: at a checkpoint of its own where `until` is not one of the grid's (as
+/// a stop on a signal does).
+fn drive_to(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, span: &Span, feedback: &mut Feedback) -> Result<Forward> {
+    let Span { energy0, wall0, write_first, until, .. } = *span;
     let (config, store) = (&meta.config, &meta.store);
     let total = config.relax_steps + config.steps;
     let window = store.window_start(config);
@@ -401,7 +446,7 @@ fn drive_to(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, energy0: f64, wall0:
         prune_before: window / c * c,
         keep_segments: store.keep_segments,
     };
-    let mut sink = Sink::spawn(dir.path.clone(), RunDir::meta_json(meta), policy)?;
+    let mut sink = Sink::spawn(span.into.clone(), RunDir::meta_json(meta), policy)?;
     let started = Instant::now();
     let (d, k) = (fwd.system.dim(), config.vectors);
     let checkpoint = |fwd: &Forward, sink: &mut Sink| -> Result<()> {

@@ -18,9 +18,19 @@ use super::segment::{read_segment, ReadMode, RUN_METADATA};
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 
+/// The directory a repair writes the steps it recomputes into, until they are verified
+/// (`forward_run`): segments there are never the run's.
+pub const UNVERIFIED: &str = "repair-unverified";
+
 /// Remove the segments a killed run left unfinished (`.tmp`), saying what each held: the
-/// run continues from a finished segment's checkpoint, and recomputes what they held.
+/// run continues from a finished segment's checkpoint, and recomputes what they held. So
+/// is a repair's recomputation that was killed before it was verified.
 pub fn discard_partial_segments(dir: &RunDir, notice: &mut dyn FnMut(String)) -> Result<()> {
+    let unverified = dir.path.join(UNVERIFIED);
+    if unverified.is_dir() {
+        notice(format!("discarding {}, the recomputation of an interrupted repair (not yet verified); it is done again", unverified.display()));
+        std::fs::remove_dir_all(&unverified).map_err(|e| Error::io(&unverified, e))?;
+    }
     for partial in dir.partial_segments()? {
         let mut checkpoints = 0u64;
         let mut last = None;
@@ -50,6 +60,8 @@ pub struct Triage {
     pub newest_intact: Option<LastCheckpoint>,
     /// Intact segments an interrupted repair set aside, deleted once the run is whole.
     pub superseded: Vec<PathBuf>,
+    /// Damaged or misnamed segments set aside now.
+    pub set_aside: usize,
 }
 
 /// Steps of a run no intact segment holds, between two that do.
@@ -95,10 +107,13 @@ pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mu
     // recomputed.
     let mut damaged: Vec<(SegmentFile, String, PathBuf)> = Vec::new();
     let mut misnamed = Vec::new();
+    // Every segment is read before any is moved: a file that cannot be read stops the
+    // resume with nothing changed.
+    let mut reads = Vec::new();
     for seg in dir.segments()? {
         let read = match read_last(&seg.path) {
-            // A file that cannot be read (permissions, a failing disk) is not damaged:
-            // recomputing it would cost hours for nothing.
+            // Not damage (permissions, a failing disk): recomputing it would cost hours for
+            // nothing.
             Err(e @ Error::Io { .. }) => {
                 return Err(Error::Other(format!("{e}; nothing was changed: make the file readable (its permissions, the disk) and resume again")));
             }
@@ -108,6 +123,9 @@ pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mu
                 Err(why)
             }),
         };
+        reads.push((seg, read));
+    }
+    for (seg, read) in reads {
         match read {
             Ok(()) => intact.push(seg),
             Err(why) => {
@@ -144,14 +162,19 @@ pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mu
         .chain(between)
         .map(|(before, next)| Hole {
             after: before.map(|s| s.path.clone()),
-            until: inside(before.map_or(0, |s| s.last), next.first).unwrap_or_else(|| store.last_write_before(next.first, config)),
+            // The damaged file's name, where it ends off the grid (at a stop), or the last step
+            // before `next` that the run writes, where more than that file is missing.
+            until: inside(before.map_or(0, |s| s.last), next.first).unwrap_or(0).max(store.last_write_before(next.first, config)),
             next: next.clone(),
         })
         .collect();
     for (seg, why, aside) in &damaged {
+        let from_zero = kept.is_empty() || holes.iter().any(|h| h.after.is_none() && seg.first < h.next.first);
         let fate = if misnamed.contains(&seg.path) {
             "the steps it holds are recomputed where no other segment holds them".to_string()
-        } else if kept.first().is_some_and(|s| seg.last < s.first) && !holes.iter().any(|h| h.after.is_none()) {
+        } else if from_zero {
+            "its steps are recomputed from step 0, as no checkpoint before them is kept".to_string()
+        } else if kept.first().is_some_and(|s| seg.last < s.first) {
             format!("its steps come before step {needed}, from where the backward stage needs checkpoints, and are not recomputed")
         } else {
             "its steps are recomputed from the checkpoint before it".to_string()
@@ -162,7 +185,7 @@ pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mu
         Some(seg) => Some(read_last(&seg.path)?.1),
         None => None,
     };
-    Ok(Triage { holes, newest_intact, superseded })
+    Ok(Triage { holes, newest_intact, superseded, set_aside: damaged.len() })
 }
 
 /// Set aside the intact segments from `next` on (after a hole whose recomputation did not
