@@ -23,6 +23,9 @@ pub struct SegmentReport {
     /// None if intact, else what is wrong (CRC, truncation, undecodable message, steps not
     /// those its name says).
     pub damage: Option<String>,
+    /// With `--store-r all`, the step after which its run stored every step's R_n.
+    #[serde(skip)]
+    pub r_every_step_from: Option<u64>,
 }
 
 #[derive(Debug, Serialize)]
@@ -141,6 +144,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             checkpoints,
             r_matrices: rs,
             damage,
+            r_every_step_from: seg.r_every_step_from(),
         });
     }
     // Where other segments agree with run.json, the ones that disagree are the odd ones out.
@@ -185,9 +189,14 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     let gaps: Vec<String> = leading
         .into_iter()
         .chain(named.windows(2)
-        .filter(|w| crate::store::run::gap_between(w[0].last_step, w[1].first_step, c))
-        .filter(|w| !claimed(w[0].last_step + 1, w[1].first_step.saturating_sub(1)))
-        .map(|w| format!("the checkpoints of steps {}..{} are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them", (w[0].last_step / c + 1) * c, w[1].first_step - 1, dir.path.display())))
+        .filter_map(|w| {
+            let r_from = w[0].r_every_step_from.zip(w[1].r_every_step_from).map(|(a, b)| a.max(b));
+            let from = crate::store::run::next_write_after(w[0].last_step, c, r_from);
+            (w[1].first_step > from && !claimed(w[0].last_step + 1, w[1].first_step - 1)).then(|| {
+                let what = if from == w[0].last_step + 1 && r_from.is_some() { "checkpoints and R_n" } else { "checkpoints" };
+                format!("the {what} of steps {from}..{} are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them", w[1].first_step - 1, dir.path.display())
+            })
+        }))
         .collect();
     previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));
     let total_steps = meta.config.relax_steps + meta.config.steps;

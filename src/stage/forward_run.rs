@@ -385,7 +385,8 @@ fn follows_from_the_one_before(dir: &RunDir, meta: &RunMeta, path: &Path) -> Res
     if checkpoints.len() < 2 {
         let c = meta.store.checkpoint_every;
         let first = checkpoints.first().map_or(0, |cp| cp.state.step);
-        let before = dir.segments()?.into_iter().rfind(|s| s.last < first && !gap_between(s.last, first, c));
+        // Not checked for a gap of R_n alone: only the checkpoints matter here.
+        let before = dir.segments()?.into_iter().rfind(|s| s.last < first && !gap_between(s.last, first, c, None));
         match before {
             Some(seg) => checkpoints.insert(0, read_last(&seg.path)?.1.checkpoint),
             None => return Ok(Some("whether that checkpoint is right cannot be checked (no checkpoint just before it is kept)".into())),

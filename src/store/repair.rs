@@ -11,7 +11,7 @@
 //! `.superseded` until it has.
 
 use super::records::{Checkpoint, Stats};
-use super::run::{gap_between, RunDir, SegmentFile, StoreConfig};
+use super::run::{gap_between, r_every_step_between, RunDir, SegmentFile, StoreConfig};
 use crate::config::RunConfig;
 use super::schema::{CHECKPOINT, STATS};
 use super::segment::{read_segment, ReadMode, RUN_METADATA};
@@ -156,7 +156,7 @@ pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mu
     kept.retain(|s| !pruned.contains(&s.path));
     let inside = |a: u64, b: u64| damaged.iter().filter(|(d, _, _)| !misnamed.contains(&d.path) && a < d.first && d.last < b).map(|(d, _, _)| d.last).max();
     let leading = kept.first().filter(|s| s.first > needed).map(|s| (None, s));
-    let between = kept.windows(2).filter(|w| gap_between(w[0].last, w[1].first, c) || inside(w[0].last, w[1].first).is_some()).map(|w| (Some(&w[0]), &w[1]));
+    let between = kept.windows(2).filter(|w| gap_between(w[0].last, w[1].first, c, r_every_step_between(&w[0], &w[1])) || inside(w[0].last, w[1].first).is_some()).map(|w| (Some(&w[0]), &w[1]));
     let holes: Vec<Hole> = leading
         .into_iter()
         .chain(between)

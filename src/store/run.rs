@@ -415,16 +415,42 @@ impl SegmentFile {
         };
         Some(format!("{}: it {holds}, not steps {}..{} as its name says (renamed, or copied in under another name)", self.path.display(), self.first, self.last))
     }
+
+    /// With `--store-r all`, the step after which the run that wrote this segment stored
+    /// every step's R_n (its window's start), from the run.json the segment carries; None
+    /// for a run that stores R_n at checkpoints only, or where the copy cannot be read. A run
+    /// made longer moves its window: the segments written before keep the old one.
+    pub fn r_every_step_from(&self) -> Option<u64> {
+        let meta = serde_json::from_str::<RunMeta>(&super::segment::embedded_run_json(&self.path)?).ok()?;
+        (meta.store.store_r == StoreR::All).then(|| meta.store.window_start(&meta.config))
+    }
 }
 
-/// Whether checkpoints are missing between a segment that ends at `last` and the next one,
-/// which begins at `first`: it must begin at the checkpoint after `last`, or earlier (at
-/// the checkpoint of its own that a stop on a signal wrote, off the grid of every
-/// `checkpoint_every` steps, before the next one was due). One that begins at or before
-/// `last` overlaps it, which leaves nothing missing.
-pub fn gap_between(last: u64, first: u64, checkpoint_every: u64) -> bool {
+/// The step after which both of two consecutive segments' runs stored every step's R_n
+/// (see [`gap_between`]), None where either did not.
+pub fn r_every_step_between(a: &SegmentFile, b: &SegmentFile) -> Option<u64> {
+    Some(a.r_every_step_from()?.max(b.r_every_step_from()?))
+}
+
+/// Whether steps are missing between a segment that ends at `last` and the next one, which
+/// begins at `first`. It must begin at the next step the run wrote: the checkpoint after
+/// `last`, or with `--store-r all` the step after it once `last` is past `r_from`, the
+/// window's start from which every step's R_n is stored ([`SegmentFile::r_every_step_from`]);
+/// or earlier, at the checkpoint of its own that a stop on a signal wrote (off the grid of
+/// every `checkpoint_every` steps) before the next one was due. One that begins at or
+/// before `last` overlaps it, which leaves nothing missing.
+pub fn gap_between(last: u64, first: u64, checkpoint_every: u64, r_from: Option<u64>) -> bool {
+    first > next_write_after(last, checkpoint_every, r_from)
+}
+
+/// The first step after `last` at which the run writes anything (see [`gap_between`]).
+pub fn next_write_after(last: u64, checkpoint_every: u64, r_from: Option<u64>) -> u64 {
     let c = checkpoint_every.max(1);
-    first > (last / c + 1) * c
+    let next = (last / c + 1) * c;
+    match r_from {
+        Some(window) if last >= window => next.min(last + 1),
+        _ => next,
+    }
 }
 
 pub struct RunDir {
