@@ -806,7 +806,12 @@ fn checkpoints_before_the_first_segment_are_missing_only_where_the_backward_stag
     assert!(!seen.status.success() && text.contains("from where the backward stage recomputes the run, are missing") && text.contains("recomputes them from step 0"), "{text}");
     let out = clv(&["backward", d, "--quiet", "--save-every", "0"]);
     assert!(!out.status.success() && common::stderr(&out).contains(&format!("`clv forward --resume {d}` recomputes it")), "{}", common::stderr(&out));
+    // The repair stopped (killed) after it wrote two segments aside goes on from there.
+    let crashed = common::clv_env(&["forward", "--resume", d], &[("CLV_FAULT_CRASH_AT", "segment-renamed#2")]);
+    assert_eq!(crashed.status.code(), Some(clv::store::fault::CRASH_STATUS), "{}", common::stderr(&crashed));
+    assert!(dir.join(clv::store::repair::UNVERIFIED).is_dir() && !segs.iter().any(|s| s.path.exists() && s.first <= start), "the unverified steps went into the run");
     let err = common::stderr(&ok(clv(&["forward", "--resume", d])));
+    assert!(err.contains("going on from step") && err.contains("where a stopped repair left it"), "{err}");
     let next = segs.iter().find(|s| s.first > start).unwrap();
     assert!(err.contains(&format!("recomputing steps 0..{} (the backward stage needs the checkpoints from step", next.first)) && !err.contains("resuming"), "{err}");
     assert!(contents(&dir) == *want, "the recomputed run differs");

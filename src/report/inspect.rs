@@ -193,7 +193,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             let r_from = w[0].r_every_step_from.zip(w[1].r_every_step_from).map(|(a, b)| a.max(b));
             let from = crate::store::run::next_write_after(w[0].last_step, c, r_from);
             (w[1].first_step > from && !claimed(w[0].last_step + 1, w[1].first_step - 1)).then(|| {
-                let what = if from == w[0].last_step + 1 && r_from.is_some() { "checkpoints and R_n" } else { "checkpoints" };
+                let what = if r_from.is_some_and(|w| from > w) { "checkpoints and R_n" } else { "checkpoints" };
                 format!("the {what} of steps {from}..{} are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them", w[1].first_step - 1, dir.path.display())
             })
         }))

@@ -13,7 +13,7 @@ use crate::store::records::{encode_r, Checkpoint, Stats};
 use crate::store::run::{write_atomic, RunDir, RunLock, RunMeta, StoreR};
 use crate::store::schema::{CHECKPOINT, R, STATS};
 use crate::store::run::gap_between;
-use crate::store::repair::{discard_partial_segments, UNVERIFIED, first_checkpoint, last_checkpoints, read_last, supersede_from, triage, Hole, Triage};
+use crate::store::repair::{discard_partial_segments, staged_chain, UNVERIFIED, first_checkpoint, last_checkpoints, read_last, supersede_from, triage, Hole, Triage};
 use crate::store::sink::{Policy, Sink};
 use crate::system::Invariants;
 use super::signals::StopOnSignals;
@@ -254,6 +254,8 @@ fn is_report(dir: &Path) -> bool {
 /// [`resume`] once the run's lock is held and `meta` is what run.json says.
 fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Result<Outcome> {
     let path = dir.path.as_path();
+    // One guard for the whole resume: a signal between its drives is not lost.
+    let _signals = StopOnSignals::install();
     discard_partial_segments(dir, &mut |msg| feedback.notice(msg))?;
     let Triage { holes, mut newest_intact, mut superseded, set_aside } = triage(dir, &meta.store, &meta.config, &mut |msg| feedback.notice(msg))?;
     for hole in &holes {
@@ -267,6 +269,11 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
             newest_intact = Some(read_last(&newest.path)?.1);
             break;
         }
+    }
+    let staging = dir.path.join(UNVERIFIED);
+    if staging.is_dir() {
+        feedback.notice(format!("discarding {}: no repair is due any more", staging.display()));
+        std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
     }
     let drop_superseded = || -> Result<()> {
         for aside in &superseded {
@@ -313,56 +320,64 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
 }
 
 /// Recompute the steps of `hole` from the checkpoint before it, writing them as the run
-/// wrote them but into [`UNVERIFIED`], and go on (writing nothing) to the first checkpoint
-/// of the segment after it. Where the recomputation arrives there bit for bit, or the
-/// checkpoint it started from is shown to follow from the one before it (then the segments
-/// from the next one on are the odd ones out: their difference is returned), its segments
-/// are moved into the run; else they are discarded and the resume stops, with nothing
-/// after the hole changed.
+/// wrote them but into [`UNVERIFIED`] (going on from what a stopped repair left there),
+/// and go on (writing nothing) to the first checkpoint of the segment after it. Where the
+/// recomputation arrives there bit for bit, or the checkpoint it started from is shown to
+/// follow from the one before it (then the segments from the next one on are the odd ones
+/// out: their difference is returned), its segments are moved into the run; else they are
+/// discarded and the resume stops, with nothing after the hole changed.
 fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> Result<Option<String>> {
-    let (fwd, energy0, wall0) = match &hole.after {
-        Some(before) => {
-            let last = read_last(before)?.1;
-            (Forward::resume(&meta.config, &last.checkpoint.state)?, last.stats.energy_initial, last.stats.wall_seconds)
-        }
+    let c = meta.store.checkpoint_every.max(1);
+    let staging = dir.path.join(UNVERIFIED);
+    let want = first_checkpoint(&hole.next.path)?.state;
+    let next = hole.next.path.display();
+    let why = match hole.after {
+        Some(_) => "no intact segment holds the steps between".to_string(),
+        None => format!("the backward stage needs the checkpoints from step {} on, no segment holds them, and there is none before them", meta.store.window_start(&meta.config) / c * c),
+    };
+    let staged = staged_chain(&staging, hole, c, &mut |msg| feedback.notice(msg))?;
+    let start = match staged {
+        Some((_, last)) => Some(last),
+        None => hole.after.as_ref().map(|a| read_last(&a.path).map(|(_, last)| last)).transpose()?,
+    };
+    let fresh = start.is_none();
+    let (fwd, energy0, wall0) = match start {
+        Some(last) => (Forward::resume(&meta.config, &last.checkpoint.state)?, last.stats.energy_initial, last.stats.wall_seconds),
         None => {
             let fwd = Forward::new(&meta.config)?;
             let energy0 = fwd.system.invariants().energy;
             (fwd, energy0, 0.0)
         }
     };
-    let want = first_checkpoint(&hole.next.path)?.state;
-    let from = fwd.step;
-    let c = meta.store.checkpoint_every.max(1);
-    let why = match hole.after {
-        Some(_) => "no intact segment holds the steps between".to_string(),
-        None => format!("the backward stage needs the checkpoints from step {} on, no segment holds them, and there is none before them", meta.store.window_start(&meta.config) / c * c),
-    };
-    let next = hole.next.path.display();
-    feedback.notice(format!("recomputing steps {from}..{} ({why}), to arrive at the first checkpoint of {next}", want.step));
-    let staging = dir.path.join(UNVERIFIED);
+    let from = hole.after.as_ref().map_or(0, |a| a.last);
+    let so_far = if fwd.step > from { format!(", going on from step {} where a stopped repair left it in {}", fwd.step, staging.display()) } else { String::new() };
+    feedback.notice(format!("recomputing steps {from}..{} ({why}), to arrive at the first checkpoint of {next}{so_far}", want.step));
     std::fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
-    let span = Span { energy0, wall0, write_first: hole.after.is_none(), until: hole.until, into: staging.clone() };
-    let mut fwd = drive_to(dir, meta, fwd, &span, feedback)?;
+    let mut fwd = if fwd.step < hole.until || fresh {
+        let span = Span { energy0, wall0, write_first: fresh, until: hole.until, into: staging.clone() };
+        drive_to(dir, meta, fwd, &span, feedback)?
+    } else {
+        fwd
+    };
     let signals = StopOnSignals::install();
     while fwd.step < want.step {
-        fwd.step()?;
         if let Some(signal) = signals.requested() {
-            let then = format!("the recomputation of steps {from}..{} was not finished; continue with `clv forward --resume {}`", want.step, dir.path.display());
-            return Err(Error::Stopped { step: from, total: meta.config.relax_steps + meta.config.steps, run: dir.path.clone(), signal, then });
+            let then = format!("the recomputation is kept in {} and checked when `clv forward --resume {}` goes on", staging.display(), dir.path.display());
+            return Err(Error::Stopped { step: fwd.step, total: meta.config.relax_steps + meta.config.steps, run: dir.path.clone(), signal, then });
         }
+        fwd.step()?;
     }
     let got = fwd.state();
     let differs = (got != want).then(|| want.first_difference(&got));
     if let (Some(why), Some(after)) = (&differs, &hole.after)
-        && let Some(also) = follows_from_the_one_before(dir, meta, after)?
+        && let Some(also) = follows_from_the_one_before(dir, meta, &after.path)?
     {
         std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
         return Err(Error::Dynamics(format!(
             "the steps recomputed from the last checkpoint of {} do not arrive at the first checkpoint of {next} ({why}), and {also}: \
              one of the two files was altered or written by another build, and clv cannot tell which. \
              Nothing was changed; move the file you do not trust out of {} and resume again",
-            after.display(),
+            after.path.display(),
             dir.path.display()
         )));
     }

@@ -10,12 +10,16 @@
 //! A signal the process was started to ignore (SIGINT of a shell's background job) stays
 //! ignored under both.
 
-use std::sync::atomic::{AtomicI32, AtomicPtr, Ordering};
+use std::sync::atomic::{AtomicI32, AtomicPtr, AtomicUsize, Ordering};
 
 const SIGNALS: [libc::c_int; 3] = [libc::SIGTERM, libc::SIGINT, libc::SIGHUP];
 
 /// The signal that asked for a stop; 0 for none.
 static STOP: AtomicI32 = AtomicI32::new(0);
+
+/// [`StopOnSignals`] guards alive: a stop asked for under an outer one is kept for the
+/// inner ones (a resume's repair, then its continuation).
+static GUARDS: AtomicUsize = AtomicUsize::new(0);
 
 extern "C" fn request_stop(sig: libc::c_int) {
     STOP.store(sig, Ordering::SeqCst);
@@ -66,19 +70,28 @@ impl Drop for Installed {
 }
 
 /// While this lives, SIGTERM and SIGINT only ask for a stop, which the loop polls with
-/// [`StopOnSignals::requested`] (the signal's number, once one came).
+/// [`StopOnSignals::requested`] (the signal's number, once one came). Guards nest: a stop
+/// asked for while an outer one lives is seen by the inner ones.
 pub struct StopOnSignals {
     _handlers: Installed,
 }
 
 impl StopOnSignals {
     pub fn install() -> Self {
-        STOP.store(0, Ordering::SeqCst);
+        if GUARDS.fetch_add(1, Ordering::SeqCst) == 0 {
+            STOP.store(0, Ordering::SeqCst);
+        }
         StopOnSignals { _handlers: Installed::new(request_stop) }
     }
 
     pub fn requested(&self) -> Option<i32> {
         Some(STOP.load(Ordering::SeqCst)).filter(|&sig| sig != 0)
+    }
+}
+
+impl Drop for StopOnSignals {
+    fn drop(&mut self) {
+        GUARDS.fetch_sub(1, Ordering::SeqCst);
     }
 }
 

@@ -19,17 +19,17 @@ use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 
 /// The directory a repair writes the steps it recomputes into, until they are verified
-/// (`forward_run`): segments there are never the run's.
+/// (`forward_run`): segments there are never the run's. A repair that was stopped goes on
+/// from the newest of them ([`staged_chain`]).
 pub const UNVERIFIED: &str = "repair-unverified";
 
 /// Remove the segments a killed run left unfinished (`.tmp`), saying what each held: the
 /// run continues from a finished segment's checkpoint, and recomputes what they held. So
-/// is a repair's recomputation that was killed before it was verified.
+/// does a repair from the finished segments it had written aside.
 pub fn discard_partial_segments(dir: &RunDir, notice: &mut dyn FnMut(String)) -> Result<()> {
-    let unverified = dir.path.join(UNVERIFIED);
-    if unverified.is_dir() {
-        notice(format!("discarding {}, the recomputation of an interrupted repair (not yet verified); it is done again", unverified.display()));
-        std::fs::remove_dir_all(&unverified).map_err(|e| Error::io(&unverified, e))?;
+    let unverified = RunDir { path: dir.path.join(UNVERIFIED) };
+    if unverified.path.is_dir() {
+        discard_partial_segments(&unverified, notice)?;
     }
     for partial in dir.partial_segments()? {
         let mut checkpoints = 0u64;
@@ -69,7 +69,7 @@ pub struct Triage {
 pub struct Hole {
     /// The intact segment before the hole, whose last checkpoint the recomputation starts
     /// from; None where there is none (it starts from step 0).
-    pub after: Option<PathBuf>,
+    pub after: Option<SegmentFile>,
     /// The last step to write: where the segment before `next` ended
     /// ([`StoreConfig::last_write_before`]).
     pub until: u64,
@@ -161,7 +161,7 @@ pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mu
         .into_iter()
         .chain(between)
         .map(|(before, next)| Hole {
-            after: before.map(|s| s.path.clone()),
+            after: before.cloned(),
             // The damaged file's name, where it ends off the grid (at a stop), or the last step
             // before `next` that the run writes, where more than that file is missing.
             until: inside(before.map_or(0, |s| s.last), next.first).unwrap_or(0).max(store.last_write_before(next.first, config)),
@@ -186,6 +186,34 @@ pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mu
         None => None,
     };
     Ok(Triage { holes, newest_intact, superseded, set_aside: damaged.len() })
+}
+
+/// The newest segment a stopped recomputation of `hole` wrote into `staging` (all of them
+/// read back whole), to go on from; None, with `staging` emptied, where there is none or
+/// what is there is not one unbroken stretch of the hole's steps (another hole's, say).
+pub fn staged_chain(staging: &Path, hole: &Hole, checkpoint_every: u64, notice: &mut dyn FnMut(String)) -> Result<Option<(SegmentFile, LastCheckpoint)>> {
+    if !staging.is_dir() {
+        return Ok(None);
+    }
+    let segs = RunDir { path: staging.to_path_buf() }.segments()?;
+    let start = hole.after.as_ref().map(|a| a.last);
+    let unbroken = segs.windows(2).all(|w| !gap_between(w[0].last, w[1].first, checkpoint_every, None));
+    let inside = segs.iter().all(|s| s.last <= hole.until && start.is_none_or(|a| s.first > a));
+    let joined = match (start, segs.first()) {
+        (Some(a), Some(first)) => !gap_between(a, first.first, checkpoint_every, None),
+        _ => true,
+    };
+    let newest = match segs.last() {
+        Some(newest) if unbroken && inside && joined => read_last(&newest.path).ok().map(|(_, last)| (newest.clone(), last)),
+        _ => None,
+    };
+    if newest.is_none() && !segs.is_empty() {
+        notice(format!("discarding {}: it holds steps of another recomputation than the one due now", staging.display()));
+    }
+    if newest.is_none() {
+        std::fs::remove_dir_all(staging).map_err(|e| Error::io(staging, e))?;
+    }
+    Ok(newest)
 }
 
 /// Set aside the intact segments from `next` on (after a hole whose recomputation did not

@@ -434,8 +434,8 @@ pub fn r_every_step_between(a: &SegmentFile, b: &SegmentFile) -> Option<u64> {
 
 /// Whether steps are missing between a segment that ends at `last` and the next one, which
 /// begins at `first`. It must begin at the next step the run wrote: the checkpoint after
-/// `last`, or with `--store-r all` the step after it once `last` is past `r_from`, the
-/// window's start from which every step's R_n is stored ([`SegmentFile::r_every_step_from`]);
+/// `last`, or with `--store-r all` the step after it once `last` is at or past `r_from`, the
+/// window's start after which every step's R_n is stored (before it, the step after the start) ([`SegmentFile::r_every_step_from`]);
 /// or earlier, at the checkpoint of its own that a stop on a signal wrote (off the grid of
 /// every `checkpoint_every` steps) before the next one was due. One that begins at or
 /// before `last` overlaps it, which leaves nothing missing.
@@ -448,8 +448,9 @@ pub fn next_write_after(last: u64, checkpoint_every: u64, r_from: Option<u64>) -
     let c = checkpoint_every.max(1);
     let next = (last / c + 1) * c;
     match r_from {
-        Some(window) if last >= window => next.min(last + 1),
-        _ => next,
+        // The first R_n of the window is that of the step after its start.
+        Some(window) => next.min(last.max(window) + 1),
+        None => next,
     }
 }
 
@@ -814,7 +815,22 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use super::{differences, differences_summary, free_bytes, short_of_space, StoreConfig};
+    use super::{differences, differences_summary, free_bytes, gap_between, short_of_space, StoreConfig};
+
+    /// A gap is a step the run wrote that no segment holds; the one after a stop's own
+    /// checkpoint may begin anywhere up to the next write.
+    #[test]
+    fn a_gap_is_a_written_step_that_no_segment_holds() {
+        // Checkpoints every 20 steps only.
+        assert!(!gap_between(40, 60, 20, None) && !gap_between(40, 47, 20, None) && gap_between(40, 61, 20, None));
+        assert!(!gap_between(40, 30, 20, None), "an overlap leaves nothing missing");
+        // --store-r all, window from step 45: its first R_n is step 46's.
+        assert!(!gap_between(40, 46, 20, Some(45)) && gap_between(40, 47, 20, Some(45)) && gap_between(40, 60, 20, Some(45)));
+        assert!(!gap_between(45, 46, 20, Some(45)) && gap_between(45, 47, 20, Some(45)));
+        assert!(!gap_between(50, 51, 20, Some(45)) && gap_between(50, 52, 20, Some(45)));
+        // A window starting after the next checkpoint does not matter yet.
+        assert!(!gap_between(0, 20, 20, Some(45)) && gap_between(0, 21, 20, Some(45)));
+    }
     use crate::config::{RunConfig, SystemConfig};
 
     /// Runs that differ are told apart by the flags that set them: --lorenz-rho, not the
