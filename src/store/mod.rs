@@ -14,7 +14,7 @@
 //!                                   moved aside when it was made longer
 //! RUN_DIR/run.json.from-segments    the newest segment's copy of an edited or damaged run.json
 //! RUN_DIR/*.corrupt, *.superseded   damaged or misnamed segments set aside, and those a repair replaced (repair.rs)
-//! RUN_DIR/repair-unverified/        the steps a repair recomputes, until they meet the next segment (a leftover means a crash)
+//! RUN_DIR/repair-unverified/        the steps a repair recomputes, until they meet the next segment (a leftover: a stopped repair)
 //! ```
 //!
 //! Why this shape: the Ginelli backward pass needs, newest first, what the forward pass
