@@ -506,6 +506,23 @@ fn a_missing_or_foreign_segment_is_named_and_resume_restores_the_run() {
     ok(clv(&["forward", "--resume", d, "--quiet"]));
     assert!(contents(&dir) == *want, "the run recomputed across the gap differs");
 
+    // The newest segment deleted from a complete run (inspect called it unfinished and
+    // intact), and a write of spectrum.json killed before its rename (its .tmp was kept).
+    let newest = segments.last().unwrap();
+    std::fs::remove_file(&newest.path).unwrap();
+    std::fs::write(dir.join("spectrum.tmp"), b"{").unwrap();
+    let out = clv(&["inspect", d]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(!out.status.success() && text.contains(&format!("no segment holds its steps after {}", segments[segments.len() - 2].last)), "{text}");
+    let err = common::stderr(&ok(clv(&["forward", "--resume", d])));
+    assert!(contents(&dir) == *want && !dir.join("spectrum.tmp").exists() && !err.contains("already complete"), "{err}");
+    std::fs::write(dir.join("spectrum.tmp"), b"{").unwrap();
+    let err = common::stderr(&ok(clv(&["forward", "--resume", d])));
+    assert!(!dir.join("spectrum.tmp").exists() && err.contains("already complete"), "{err}");
+    std::fs::remove_file(dir.join("spectrum.json")).unwrap();
+    let err = common::stderr(&ok(clv(&["forward", "--resume", d])));
+    assert!(err.contains("was not written yet; writing it") && !err.contains("already complete") && contents(&dir) == *want, "{err}");
+
     // Another run's segment of the same steps in place of this one's.
     let other = scratch("gap-other").join("run");
     ok(clv(&[&RUN[..], &["--seed", "99", "--out", other.to_str().unwrap()]].concat()));

@@ -198,8 +198,21 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             })
         }))
         .collect();
-    previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));
     let total_steps = meta.config.relax_steps + meta.config.steps;
+    // A complete run's spectrum beside segments that end early: the newest are gone.
+    let mut gaps = gaps;
+    if let Some(newest_named) = named.last().filter(|s| s.last_step < total_steps)
+        && dir.spectrum_path().exists()
+        && !dir.extension_interrupted(meta.config.steps)
+    {
+        gaps.push(format!(
+            "the run was complete ({} is there), but no segment holds its steps after {}: they were moved out or deleted; `clv forward --resume {}` recomputes them",
+            dir.spectrum_path().display(),
+            newest_named.last_step,
+            dir.path.display()
+        ));
+    }
+    previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));
     // During the relaxation nothing is accumulated: its zeros are no spectrum.
     let accumulating = newest.as_ref().filter(|(s, _)| s.step > meta.config.relax_steps);
     let (exponents, stderr) = accumulating.map(|(s, _)| (s.exponents.clone(), s.stderr.clone())).unwrap_or_default();

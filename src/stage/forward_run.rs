@@ -299,6 +299,9 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
     if step >= total {
         let report = report_of(meta, &fwd, last.stats.energy_initial, last.stats.wall_seconds);
         let spectrum = dir.spectrum_path();
+        // A write of it that was killed before its rename (rewritten whole below if needed).
+        let _ = std::fs::remove_file(spectrum.with_extension("tmp"));
+        let written = !spectrum.exists() || crate::report::SpectrumSummary::read(&spectrum).is_err();
         if !spectrum.exists() {
             // Killed after its last segment was finished, before the spectrum was written.
             feedback.notice(format!("the run was complete but {} was not written yet; writing it", spectrum.display()));
@@ -311,7 +314,7 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
             feedback.notice(format!("{e}; rewrote it from the run's last checkpoint (the damaged file is kept as {})", aside.display()));
             write_spectrum(dir, &report)?;
         }
-        let already_finished = holes.is_empty() && superseded.is_empty() && set_aside == 0;
+        let already_finished = holes.is_empty() && superseded.is_empty() && set_aside == 0 && !written;
         drop_superseded()?;
         return Ok(Outcome { report, resumed_from: Some(step), already_finished });
     }
