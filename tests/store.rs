@@ -542,6 +542,12 @@ fn a_missing_or_foreign_segment_is_named_and_resume_restores_the_run() {
     assert!(contents(&dir) == *want);
 }
 
+/// Resume `dir` and compare it with `want`.
+fn contents_after_resume_is(dir: &Path, want: &Contents) -> bool {
+    ok(clv(&["forward", "--resume", dir.to_str().unwrap(), "--quiet"]));
+    contents(dir) == *want
+}
+
 /// A hole in the segments is recomputed from the checkpoint before it, and the recomputation
 /// must arrive at the next segment's first checkpoint bit for bit. Here that checkpoint was
 /// altered in a file with valid CRCs (rewritten whole, as another build's numbers would be):
@@ -570,6 +576,22 @@ fn a_hole_is_recomputed_on_its_own_and_must_arrive_at_the_next_checkpoint() {
     let mut cp = Checkpoint::decode(&messages[first].2).unwrap();
     cp.state.g[7] = -cp.state.g[7];
     messages[first].2 = cp.encode();
+    std::fs::remove_file(&next.path).unwrap();
+    let mut w = SegmentWriter::create(&dir, next.first, &run_json, &RUN_SCHEMAS).unwrap();
+    for (topic, step, data) in &messages {
+        w.write(topic, *step, data).unwrap();
+    }
+    assert_eq!(w.finish().unwrap(), next.path);
+    // Killed once the segments from the altered one on are set aside, before the recomputed
+    // ones go in: the next resume continues the run from the checkpoint before the hole.
+    let crashed = common::clv_env(&["forward", "--resume", d], &[("CLV_FAULT_CRASH_AT", "repair-set-aside")]);
+    assert_eq!(crashed.status.code(), Some(clv::store::fault::CRASH_STATUS), "{}", common::stderr(&crashed));
+    assert!(contents_after_resume_is(&dir, want), "a repair killed between setting aside and moving in differs");
+    let (dir, want) = reference_copy("hole-differs-2");
+    let d = dir.to_str().unwrap();
+    let segs = RunDir { path: dir.clone() }.segments().unwrap();
+    let (hole, next) = (&segs[segs.len() - 3], &segs[segs.len() - 2]);
+    std::fs::remove_file(&hole.path).unwrap();
     std::fs::remove_file(&next.path).unwrap();
     let mut w = SegmentWriter::create(&dir, next.first, &run_json, &RUN_SCHEMAS).unwrap();
     for (topic, step, data) in &messages {

@@ -259,12 +259,10 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
     discard_partial_segments(dir, &mut |msg| feedback.notice(msg))?;
     let Triage { holes, mut newest_intact, mut superseded, set_aside } = triage(dir, &meta.store, &meta.config, &mut |msg| feedback.notice(msg))?;
     for hole in &holes {
-        if let Some(why) = fill(dir, meta, hole, feedback)? {
-            // The checkpoint the recomputation started from is right (`fill` checked it), so
-            // the segments from `next` on are the odd ones out: the run is recomputed from
-            // the end of the hole on, as a run damaged at its end would be.
-            feedback.notice(format!("the recomputed steps do not arrive at the first checkpoint of {} ({why}); the segments from there on are recomputed too", hole.next.path.display()));
-            superseded.extend(supersede_from(dir, &hole.next, &mut |msg| feedback.notice(msg))?);
+        if let Some(aside) = fill(dir, meta, hole, feedback)? {
+            // The segments from the hole's next one on were set aside: the run is recomputed
+            // from the end of the hole on, as a run damaged at its end would be.
+            superseded.extend(aside);
             let newest = dir.segments()?.pop().ok_or_else(|| Error::Other(format!("the segments recomputed before {} are gone", hole.next.path.display())))?;
             newest_intact = Some(read_last(&newest.path)?.1);
             break;
@@ -327,9 +325,10 @@ fn continue_locked(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Res
 /// and go on (writing nothing) to the first checkpoint of the segment after it. Where the
 /// recomputation arrives there bit for bit, or the checkpoint it started from is shown to
 /// follow from the one before it (then the segments from the next one on are the odd ones
-/// out: their difference is returned), its segments are moved into the run; else they are
-/// discarded and the resume stops, with nothing after the hole changed.
-fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> Result<Option<String>> {
+/// out: they are set aside first, and where they are kept is returned), its segments are
+/// moved into the run; else they are discarded and the resume stops, with nothing after
+/// the hole changed.
+fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> Result<Option<Vec<PathBuf>>> {
     let c = meta.store.checkpoint_every.max(1);
     let staging = dir.path.join(UNVERIFIED);
     let want = first_checkpoint(&hole.next.path)?.state;
@@ -384,6 +383,17 @@ fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> R
             dir.path.display()
         )));
     }
+    // Set aside before the new files go in: killed in between, the next resume finds no
+    // segment after them to arrive at, and continues the run from them.
+    let aside = match &differs {
+        Some(why) => {
+            feedback.notice(format!("the recomputed steps do not arrive at the first checkpoint of {next} ({why}); the segments from there on are recomputed too"));
+            let aside = supersede_from(dir, &hole.next, &mut |msg| feedback.notice(msg))?;
+            crate::store::fault::crash_point("repair-set-aside");
+            Some(aside)
+        }
+        None => None,
+    };
     let mut staged: Vec<PathBuf> = std::fs::read_dir(&staging).map_err(|e| Error::io(&staging, e))?.filter_map(|e| e.ok().map(|e| e.path())).collect();
     staged.sort();
     for path in staged {
@@ -393,7 +403,7 @@ fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> R
     crate::store::segment::sync_dir(&dir.path)?;
     std::fs::remove_dir(&staging).map_err(|e| Error::io(&staging, e))?;
     crate::store::sink::prune(&dir.path, meta.store.window_start(&meta.config) / c * c, meta.store.keep_segments)?;
-    Ok(differs)
+    Ok(aside)
 }
 
 /// Where the last checkpoint of the segment `path` does not follow from the checkpoint

@@ -100,6 +100,9 @@ pub const CRASH_POINTS: &[&str] = &[
     "salvage-copied",
     // an extension: one of the shorter run's results moved into previous-S-steps/
     "result-moved",
+    // a repair whose steps did not arrive at the next segment: the segments from there on
+    // set aside, its own recomputed ones not yet moved into the run
+    "repair-set-aside",
 ];
 
 /// The exit status of a process stopped at a crash point.
