@@ -178,7 +178,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     // Before the first segment only the checkpoints the backward stage starts from are
     // needed (older ones are pruned by design); a misnamed file there is set aside by
     // resume, whatever its name, so it covers nothing.
-    let needed = meta.store.window_start(&meta.config) / c * c;
+    let needed = meta.store.first_needed_checkpoint(&meta.config);
     let leading = named.first().filter(|s| s.first_step > needed).map(|s| {
         format!(
             "the checkpoints of steps {needed}..{}, from where the backward stage recomputes the run, are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them from step 0 (there is no checkpoint before them)",

@@ -335,7 +335,7 @@ fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> R
     let next = hole.next.path.display();
     let why = match hole.after {
         Some(_) => "no intact segment holds the steps between".to_string(),
-        None => format!("the backward stage needs the checkpoints from step {} on, no segment holds them, and there is none before them", meta.store.window_start(&meta.config) / c * c),
+        None => format!("the backward stage needs the checkpoints from step {} on, no segment holds them, and there is none before them", meta.store.first_needed_checkpoint(&meta.config)),
     };
     let staged = staged_chain(&staging, hole, c, &mut |msg| feedback.notice(msg))?;
     let start = match staged {
@@ -402,7 +402,7 @@ fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> R
     }
     crate::store::segment::sync_dir(&dir.path)?;
     std::fs::remove_dir(&staging).map_err(|e| Error::io(&staging, e))?;
-    crate::store::sink::prune(&dir.path, meta.store.window_start(&meta.config) / c * c, meta.store.keep_segments)?;
+    crate::store::sink::prune(&dir.path, meta.store.first_needed_checkpoint(&meta.config), meta.store.keep_segments)?;
     Ok(aside)
 }
 
@@ -467,12 +467,11 @@ fn drive_to(dir: &RunDir, meta: &RunMeta, mut fwd: Forward, span: &Span, feedbac
     let (config, store) = (&meta.config, &meta.store);
     let total = config.relax_steps + config.steps;
     let window = store.window_start(config);
-    let c = store.checkpoint_every;
     let policy = Policy {
         segment_checkpoints: store.segment_checkpoints,
         segment_bytes: store.segment_bytes,
         total_steps: total,
-        prune_before: window / c * c,
+        prune_before: store.first_needed_checkpoint(config),
         keep_segments: store.keep_segments,
     };
     let mut sink = Sink::spawn(span.into.clone(), RunDir::meta_json(meta), policy)?;

@@ -4,7 +4,7 @@
 //! A killed run leaves at most one unfinished segment, which is discarded; a damaged disk or
 //! a hand that moved files can leave damaged, missing or misnamed segments anywhere. Only
 //! the steps they held are recomputed, from the checkpoint before them (the dynamics is
-//! deterministic, so bit for bit): damage early in a week-long run costs the hour of its
+//! deterministic, so bit for bit): damage early in a week-long run costs the steps of its
 //! segment, not the days after it.
 //! Nothing readable is deleted before its replacement is written: damaged segments are kept
 //! as `.corrupt`; intact ones a repair has to rewrite after all (see `forward_run`) as
@@ -100,13 +100,12 @@ pub struct Hole {
 /// is set aside as `.superseded`.
 pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mut dyn FnMut(String)) -> Result<Triage> {
     let c = store.checkpoint_every.max(1);
-    let needed = store.window_start(config) / c * c;
+    let needed = store.first_needed_checkpoint(config);
     let mut intact: Vec<SegmentFile> = Vec::new();
-    // Damaged segments, set aside: their names (where they can be believed) say where the
+    // Damaged and misnamed segments, set aside: the names of the damaged ones say where the
     // segments that replace them end, and their notices wait until it is known what is
     // recomputed.
-    let mut damaged: Vec<(SegmentFile, String, PathBuf)> = Vec::new();
-    let mut misnamed = Vec::new();
+    let mut damaged: Vec<SetAside> = Vec::new();
     // Every segment is read before any is moved: a file that cannot be read stops the
     // resume with nothing changed.
     let mut reads = Vec::new();
@@ -117,21 +116,18 @@ pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mu
             Err(e @ Error::Io { .. }) => {
                 return Err(Error::Other(format!("{e}; nothing was changed: make the file readable (its permissions, the disk) and resume again")));
             }
-            Err(e) => Err(e.to_string()),
-            Ok((held, _)) => seg.misnamed(Some(held)).map_or(Ok(()), |why| {
-                misnamed.push(seg.path.clone());
-                Err(why)
-            }),
+            Err(e) => Err((e.to_string(), false)),
+            Ok((held, _)) => seg.misnamed(Some(held)).map_or(Ok(()), |why| Err((why, true))),
         };
         reads.push((seg, read));
     }
     for (seg, read) in reads {
         match read {
             Ok(()) => intact.push(seg),
-            Err(why) => {
+            Err((why, misnamed)) => {
                 let aside = corrupt_aside(&seg.path);
                 std::fs::rename(&seg.path, &aside).map_err(|e| Error::io(&seg.path, e))?;
-                damaged.push((seg, why, aside));
+                damaged.push(SetAside { seg, why, aside, misnamed });
             }
         }
     }
@@ -154,7 +150,7 @@ pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mu
     }
     let pruned = super::sink::prune(&dir.path, needed, store.keep_segments)?;
     kept.retain(|s| !pruned.contains(&s.path));
-    let inside = |a: u64, b: u64| damaged.iter().filter(|(d, _, _)| !misnamed.contains(&d.path) && a < d.first && d.last < b).map(|(d, _, _)| d.last).max();
+    let inside = |a: u64, b: u64| damaged.iter().filter(|d| !d.misnamed && a < d.seg.first && d.seg.last < b).map(|d| d.seg.last).max();
     let leading = kept.first().filter(|s| s.first > needed).map(|s| (None, s));
     let between = kept.windows(2).filter(|w| gap_between(w[0].last, w[1].first, c, r_every_step_between(&w[0], &w[1])) || inside(w[0].last, w[1].first).is_some()).map(|w| (Some(&w[0]), &w[1]));
     let holes: Vec<Hole> = leading
@@ -168,9 +164,9 @@ pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mu
             next: next.clone(),
         })
         .collect();
-    for (seg, why, aside) in &damaged {
+    for SetAside { seg, why, aside, misnamed } in &damaged {
         let from_zero = kept.is_empty() || holes.iter().any(|h| h.after.is_none() && seg.first < h.next.first);
-        let fate = if misnamed.contains(&seg.path) {
+        let fate = if *misnamed {
             "the steps it holds are recomputed where no other segment holds them".to_string()
         } else if from_zero {
             "its steps are recomputed from step 0, as no checkpoint before them is kept".to_string()
@@ -186,6 +182,15 @@ pub fn triage(dir: &RunDir, store: &StoreConfig, config: &RunConfig, notice: &mu
         None => None,
     };
     Ok(Triage { holes, newest_intact, superseded, set_aside: damaged.len() })
+}
+
+/// A damaged or misnamed segment moved aside (to `aside`), and why.
+struct SetAside {
+    seg: SegmentFile,
+    why: String,
+    aside: PathBuf,
+    /// Its steps are not those its name says: the name bounds no hole.
+    misnamed: bool,
 }
 
 /// The newest segment a stopped recomputation of `hole` wrote into `staging` (all of them

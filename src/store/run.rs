@@ -172,6 +172,13 @@ impl StoreConfig {
         total - self.clv_steps - self.transient
     }
 
+    /// The checkpoint the backward stage recomputes its first segment from (at or before
+    /// [`StoreConfig::window_start`]): segments that end before it are prunable.
+    pub fn first_needed_checkpoint(&self, config: &RunConfig) -> u64 {
+        let c = self.checkpoint_every.max(1);
+        self.window_start(config) / c * c
+    }
+
     /// Steps at which checkpoints are written: 0, C, 2C, ... and always the last step.
     pub fn is_checkpoint(&self, step: u64, total: u64) -> bool {
         step.is_multiple_of(self.checkpoint_every) || step == total
