@@ -281,6 +281,13 @@ missing phrase is a disagreement, and so is a list of another length. Checked:
               best candidate and excess where unclassified, % of frames agreeing, frames
               resolving it; the first frame's step, the frames resolving the same steps and
               the other steps with their counts;
+  Figs. 10-12 per pattern table: the frame's step and the step's indices; Fig. 10 of a pair:
+              the vector shown and k = |k| (4 decimals); of several wave vectors: k and the
+              |cos| of each source's reconstructed dq with the pattern; Figs. 11-12: the rms
+              of L's check component over its component along k (from the Fig. 11 columns),
+              and for each of the four figures whether points lie off its scale, how many of
+              how many, and the range (5th and 95th percentiles of the finite values, at least
+              20, widened by their distance on either side);
   dispersion  per kind the least-squares slope through the origin sum(lambda k)/sum(k^2),
               its number of steps and lambda/k of each;
   Fig. 14     for the last vector j of each positive mode step (where there are two or
@@ -300,8 +307,7 @@ and the report's head paragraphs; the captions' words that restate settings or s
 (the indices of Figs. 4, 13 and of the local and finite-time exponents, the candidates'
 list, the Deltas) and their verdict sentences beyond those above (the convergence verdict
 and its AR(1) factor, Fig. 14's order of the paper); Fig. 15's median angle between random
-subspaces (clv's own random draw); Figs. 10-12's numbers (k, the rms ratio of the check
-components, the points off scale) and the dispersion fit's ± (a fit error of few steps);
+subspaces (clv's own random draw); the dispersion fit's ± (a fit error of few steps);
 the captions of non-disk systems (this script reads hard-disk reports only).
 
 Sampling: the spectrum, the local and finite-time exponents, domination and convergence use
@@ -1012,7 +1018,7 @@ def mode_tables(sampled, first, spectrum, lx, ly, d):
             "candidates": ",".join(mode_name("T", f).replace("T", "") for f in families), "source": "GS vectors" if first["g"] is not None else "covariant vectors (the frames carry no GS vectors)",
             "resolved_alike": alike,
             "other_steps": ";".join(f"{st[0] + 1}..{st[0] + st[1]}:{n}" for st, n in sorted(found.items()) if st not in {x for x, _ in steps})}
-    out = {"modes.csv": rows, "modes.json": head, "modes_fits.csv": [], "modes_lp.csv": [], "patterns": {}}
+    out = {"modes.csv": rows, "modes.json": head, "modes_fits.csv": [], "modes_lp.csv": [], "patterns": {}, "pattern_captions": []}
     # modes_fits.csv, scope "mean": the two-fold steps classified T of one wave vector.
     for (st, _), c, a in zip(steps, chosen, (acc[st] for st, _ in steps)):
         if c is None or KINDS[c % 4] != "T" or len(families[c // 4][0]) != 1 or st[1] != 2:
@@ -1067,6 +1073,8 @@ def mode_tables(sampled, first, spectrum, lx, ly, d):
                         for src, vec in sources:
                             cols[f"dq{a_name}_{src.lower()}"] = vec[part].reshape(n, 2) @ along
                 out["patterns"][f"fig10_{stem('T')}_i{i + 1}.csv"] = cols
+                name, family = mode_name("T", ([w], k)), mode_name("T", families[c // 4])
+                out["pattern_captions"].append({"title": f"Transverse mode {name} of {family} (Fig. 10)" if several else f"Transverse mode {name} (Fig. 10)", "kind": "T", "name": name, "several": several, "i": i + 1, "first": st[0] + 1, "last": st[0] + st[1], "step": first["step"], "k": k, "overlaps": [(src, reconstructed(group, slice(0, 2 * n), cos)[1]) for src, group in groups] if several else []})
                 if not several:
                     for src, vec in sources:
                         out["modes_fits.csv"].append(dict(zip(FIT_KEYS, [str(st[0] + 1), str(st[0] + st[1]), str(i + 1), src, str(w[0]), str(w[1]), f"step {first['step']}"])) | dict(zip(FIT_COLS, fit_values(*across_fits(vec, phase, w, lx, ly)))))
@@ -1089,11 +1097,35 @@ def mode_tables(sampled, first, spectrum, lx, ly, d):
                             amp, ph, res = fit_sine(x, y, k)
                             out["modes_lp.csv"].append({"first": str(st[0] + 1), "last": str(st[0] + st[1]), "n_x": str(w[0]), "n_y": str(w[1]), "source": src, "figure": str(fig), "pattern": f"{which}_{pattern}", "overlap": overlap, "amplitude": amp, "phase": ph, "residual": res})
                 out["patterns"][f"{stem('LP')}_i{st[0] + 1}.csv"] = cols
+                name, family = mode_name("LP", ([w], k)), mode_name("LP", families[c // 4])
+                rms = lambda y: math.sqrt(np.mean(np.asarray(y) ** 2))  # noqa: E731
+                srcs = [src for src, _ in groups]
+                off = []
+                for fig in (11, 12):
+                    for which in ("L", "P"):
+                        ys = [y for col, y in cols.items() if col.startswith(f"fig{fig}_{which}_")]
+                        r = robust_range(np.concatenate(ys))
+                        if r is not None:
+                            off.append((fig, which) + r)
+                out["pattern_captions"].append({"title": f"Longitudinal-momentum mode {name} (Figs. 11, 12)" if not several else f"Longitudinal-momentum mode {name} of {family} (Figs. 11, 12)", "kind": "LP", "name": name, "several": several, "first": st[0] + 1, "last": st[0] + st[1], "step": first["step"], "rms": [(src, rms(cols[f"fig11_L_dq{t_name}_{src.lower()}"]) / rms(cols[f"fig11_L_dq{a_name}_{src.lower()}"])) for src in srcs], "off": off})
     # modes_dispersion.csv: the positive, consistently classified steps by kind, then |k|.
     disp = [r for r in rows if r["side"] == "+" and r["consistent"] == "true" and np.isfinite(r["k"]) and np.isfinite(r["lambda"])]
     disp.sort(key=lambda r: (r["kind"], r["k"]))
     out["modes_dispersion.csv"] = [{"kind": r["kind"], "name": r["name"], "n_x": r["n_x"], "n_y": r["n_y"], "k": r["k"], "lambda": r["lambda"], "stderr": s[int(r["first"]) - 1 : int(r["last"])].sum() / int(r["degeneracy"]), "spread": r["spread"], "lambda_over_k": r["lambda"] / r["k"]} for r in disp]
     return out, steps
+
+
+def robust_range(values):
+    """The y range of a pattern figure: 5th and 95th percentiles (of the finite values, at
+    least 20), widened by their distance on either side; (lo, hi, points beyond, finite
+    points) where a point lies beyond it, else None."""
+    v = sorted(x for x in values if math.isfinite(x))
+    if len(v) < 20:
+        return None
+    p5, p95 = v[len(v) // 20], v[len(v) - 1 - len(v) // 20]
+    lo, hi = p5 - (p95 - p5), p95 + (p95 - p5)
+    off = sum(1 for x in v if x < lo or x > hi)
+    return (lo, hi, off, len(v)) if off else None
 
 
 FIT_KEYS = ("first", "last", "i", "source", "n_x", "n_y", "scope")
@@ -1646,6 +1678,43 @@ def check_captions(c, caps, f):
             others = ";".join(f"{a}..{b}:{c_}" for a, b, c_ in re.findall(r"i = (\d+)\.\.(\d+) in (\d+)", m.group(5) or ""))
             caps.text(t, "other steps", head["other_steps"], others)
 
+    # Figs. 10-12: the vector, step and frame shown, k, and for several wave vectors the
+    # overlaps with the pattern; L's rms check ratio and the points drawn off scale.
+    for pc in modes["pattern_captions"] if modes is not None else []:
+        t = pc["title"]
+        if not caps.has(t):
+            caps.c.bad.append(f"disagreement: no caption '{t}'")
+            continue
+        span = rf"\(i = (\d+)\.\.(\d+)\)"
+        if pc["kind"] == "T" and not pc["several"]:
+            m = caps.find(t, rf"of vector i = (\d+) of the {re.escape(pc['name'])} pair {span} against s = .*? at step (\d+), .*?, k = ({NUMBER})\. ", "vector, step, k")
+            if m:
+                caps.text(t, "vector i", pc["i"], m.group(1))
+                caps.text(t, "step", f"{pc['first']}..{pc['last']}", f"{m.group(2)}..{m.group(3)}")
+                caps.text(t, "frame's step", pc["step"], m.group(4))
+                caps.number(t, "k", pc["k"], m.group(5))
+        elif pc["kind"] == "T":
+            m = caps.find(t, rf"reconstructed at step (\d+) inside the (\d+)-dimensional .*? step {span} .*?, k = ({NUMBER})\. \|cos\| between the reconstructed δq and the pattern \(1 where the pattern lies in the span\): (.*?)\. δq", "step, k, overlaps")
+            if m:
+                caps.text(t, "frame's step", pc["step"], m.group(1))
+                caps.text(t, "step", f"{pc['last'] - pc['first'] + 1}: {pc['first']}..{pc['last']}", f"{m.group(2)}: {m.group(3)}..{m.group(4)}")
+                caps.number(t, "k", pc["k"], m.group(5))
+                caps.text(t, "overlap sources", [src for src, _ in pc["overlaps"]], re.findall(r"(GS|CLV) ", m.group(6)))
+                caps.numbers(t, "overlaps", [o for _, o in pc["overlaps"]], split_numbers(m.group(6)))
+        else:
+            m = caps.find(t, rf"reconstructed at step (\d+) inside the (\w+)-dimensional .*? {span} by least squares.*? here rms δq_\w / rms δq_\w = (.*?), and ", "step, rms check")
+            if m:
+                caps.text(t, "frame's step", pc["step"], m.group(1))
+                caps.text(t, "step", f"{pc['first']}..{pc['last']}", f"{m.group(3)}..{m.group(4)}")
+                caps.text(t, "rms sources", [src for src, _ in pc["rms"]], re.findall(r"(GS|CLV) ", m.group(5)))
+                caps.numbers(t, "rms across / along", [r for _, r in pc["rms"]], split_numbers(m.group(5)))
+            said = re.search(r"Off scale, so that the sinusoid is seen: (.*?) \(every value", caps.sections[t])
+            listed = re.findall(rf"Fig\. (\d+) (L|P): (\d+) of (\d+) points beyond ({NUMBER})\.\.({NUMBER})", said.group(1)) if said else []
+            caps.text(t, "figures with points off scale", [f"{fig} {which}" for fig, which, *_ in pc["off"]], [f"{fig} {which}" for fig, which, *_ in listed])
+            for (fig, which, lo, hi, off, total), got in zip(pc["off"], listed):
+                caps.text(t, f"Fig. {fig} {which} points off scale", f"{off} of {total}", f"{got[2]} of {got[3]}")
+                caps.numbers(t, f"Fig. {fig} {which} range", [lo, hi], [got[4], got[5]])
+
     # Dispersion: the slope through the origin of each kind and lambda/k of each step.
     t = "Dispersion of the Lyapunov modes (beyond the paper)"
     if caps.has(t) and modes is not None and modes["modes_dispersion.csv"]:
@@ -2024,7 +2093,7 @@ def main():
     if full:
         mine, steps = mode_tables(sampled, first, forward, float(system["lx"]), float(system["ly"]), d)
     else:  # clv writes an empty mode table (and says why)
-        mine = {"modes.csv": [], "modes_fits.csv": [], "modes_lp.csv": [], "modes_dispersion.csv": [], "patterns": {}}
+        mine = {"modes.csv": [], "modes_fits.csv": [], "modes_lp.csv": [], "modes_dispersion.csv": [], "patterns": {}, "pattern_captions": []}
     modes = mine if full else None
     span = lambda r: f"i = {r['first']}..{r['last']}"  # noqa: E731
     mt = read_rows(os.path.join(args.report, "modes.csv"))

@@ -1155,9 +1155,18 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
         captions(&v, title, what);
     }
     captions(&s, "Lyapunov spectrum (Fig. 2)", "null-shear frames"); // the words for frames of every third step
-    for (title, what) in [("Lyapunov modes (Table III)", "i = "), ("Scalar products of mode vectors (Fig. 14)", "j = "), ("Transversality of conjugate subspaces (Fig. 15)", "Phi i = "), ("Dispersion of the Lyapunov modes (beyond the paper)", "T slope c")] {
+    for (title, what) in [
+        ("Lyapunov modes (Table III)", "i = "),
+        ("Scalar products of mode vectors (Fig. 14)", "j = "),
+        ("Transversality of conjugate subspaces (Fig. 15)", "Phi i = "),
+        ("Dispersion of the Lyapunov modes (beyond the paper)", "T slope c"),
+        ("Transverse mode T(1,0) (Fig. 10)", "k"),
+        ("Longitudinal-momentum mode LP(1,0) (Figs. 11, 12)", "rms across / along"),
+        ("Longitudinal-momentum mode LP(1,0) (Figs. 11, 12)", "figures with points off scale"),
+    ] {
         captions(&m, title, what);
     }
+    captions(&sq, "Transverse mode T(1,0) of T(1,0)+T(0,1) (Fig. 10)", "overlaps");
     // A number of a caption altered in its last printed digit, or a phrase reworded, in a
     // copy of index.html: exactly that one disagreement, naming the caption, and exit 1.
     let caption_altered = |(report, altered, frames): (&Path, &Path, &Path), from: &str, to: &str, what: &str| {
@@ -1186,6 +1195,11 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     let modes_page = read(&modes_report.join("index.html"));
     let lambda = between(&modes_page, ", λ = ", " ");
     caption_altered(with_modes, &format!(", λ = {lambda} "), &format!(", λ = {:.4} ", lambda.parse::<f64>().unwrap() + 2e-4), "Lyapunov modes (Table III)");
+    // Fig. 10's k (4 decimals) and Figs. 11-12's rms check of the GS vector (2 decimals).
+    let k = between(&modes_page, "in the same colours, k = ", ". Fits");
+    caption_altered(with_modes, &format!("colours, k = {k}. Fits"), &format!("colours, k = {:.4}. Fits", k.parse::<f64>().unwrap() + 2e-4), "Transverse mode T(1,0) (Fig. 10)");
+    let rms = between(&modes_page, "rms δq_y / rms δq_x = GS ", ",");
+    caption_altered(with_modes, &format!("rms δq_y / rms δq_x = GS {rms},"), &format!("rms δq_y / rms δq_x = GS {:.2},", rms.parse::<f64>().unwrap() + 0.02), "Longitudinal-momentum mode LP(1,0) (Figs. 11, 12)");
 }
 
 /// Frames of the k < D leading vectors: the report says once what needs all D and is left
