@@ -278,6 +278,34 @@ fn an_extended_run_is_the_longer_run_and_keeps_the_shorter_ones_results() {
     assert!(contents(&full) == want, "the extension continued after a full disk");
 }
 
+/// With `--store-r all`, an extension whose window starts earlier than the one the run had
+/// leaves the R_n of the steps in between unstored (they were computed before the window
+/// reached them): `clv inspect` says which, as a note, not as damage; an extension that
+/// keeps its window after the old one's start says nothing.
+#[test]
+fn inspect_names_the_r_n_an_earlier_window_never_stored() {
+    let run = scratch("r-window-earlier").join("run");
+    let r = run.to_str().unwrap();
+    let inspect = |r: &str| -> (String, serde_json::Value) {
+        let text = String::from_utf8(ok(clv(&["inspect", r])).stdout).unwrap();
+        (text, serde_json::from_slice(&ok(clv(&["inspect", r, "--json"])).stdout).unwrap())
+    };
+    // 100 relaxation steps + 300: the window of 100 CLV steps + 50 of transient starts at 250.
+    ok(clv(&["forward", "--n", "8", "--aspect", "1", "--steps", "300", "--clv-steps", "100", "--checkpoint-every", "20", "--store-r", "all", "--out", r, "--quiet"]));
+    let (text, json) = inspect(r);
+    assert!(!text.contains("note:") && json.get("r_not_stored").is_none(), "{text}");
+    // Made longer with the window's length: it starts at 350, after the old start.
+    let later = scratch("r-window-later").join("run");
+    copy_dir(&run, &later);
+    ok(clv(&["forward", "--resume", later.to_str().unwrap(), "--steps", "400", "--quiet"]));
+    assert!(!inspect(later.to_str().unwrap()).0.contains("note:"));
+    // 100 + 400 steps with 250 + 125: the window starts at 125, the run stored R_n from 251.
+    ok(clv(&["forward", "--resume", r, "--steps", "400", "--clv-steps", "250", "--quiet"]));
+    let (text, json) = inspect(r);
+    assert!(text.contains("note: the R_n of steps 126..250 are not stored (but at the checkpoints)") && text.contains("window to step 125"), "{text}");
+    assert!(json["intact"] == true && json["r_not_stored"].as_str().is_some_and(|n| n.contains("126..250")), "{json}");
+}
+
 /// run.json edited by hand (or damaged) so that it describes another trajectory is refused
 /// by both stages and named by `clv inspect`, against the copy every segment carries; the
 /// copy put beside it restores the run. Lengths and windows may differ (an extension).

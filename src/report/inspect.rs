@@ -2,7 +2,7 @@
 
 use crate::error::Result;
 use crate::store::records::{Checkpoint, Stats};
-use crate::store::run::{human, RunDir, RunMeta};
+use crate::store::run::{human, RunDir, RunMeta, StoreR};
 use crate::store::schema::{CHECKPOINT, R, STATS};
 use crate::store::segment::{read_segment, RUN_METADATA};
 use serde::Serialize;
@@ -69,6 +69,10 @@ pub struct Inspection {
     pub gaps: Vec<String>,
     /// The backward sweep its progress record (backward.json) describes, if any.
     pub backward_sweep: Option<String>,
+    /// With `--store-r all`, the steps of the window whose R_n no segment holds: they were
+    /// computed before an extension moved the window's start earlier.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub r_not_stored: Option<String>,
 }
 
 /// [`crate::stage::analyze::kernels::convergence`] over the blocks completed so far.
@@ -212,6 +216,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             dir.path.display()
         ));
     }
+    let r_not_stored = r_not_stored(&meta, &segments);
     previous.sort_by_key(|n| n.trim_start_matches("previous-").trim_end_matches("-steps").parse::<u64>().unwrap_or(0));
     // During the relaxation nothing is accumulated: its zeros are no spectrum.
     let accumulating = newest.as_ref().filter(|(s, _)| s.step > meta.config.relax_steps);
@@ -236,6 +241,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         damaged_records,
         gaps,
         backward_sweep,
+        r_not_stored,
         segments,
         partial_segments,
         set_aside,
@@ -247,6 +253,28 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         convergence,
         run: meta,
     })
+}
+
+/// With `--store-r all`, the steps after the window's start whose R_n the intact segments
+/// do not hold (but at their checkpoints): each segment stored them after the start of the
+/// window its run had when it was written, and an extension can move that start earlier.
+/// Nothing recomputes them: the backward stage does not read them.
+fn r_not_stored(meta: &RunMeta, segments: &[SegmentReport]) -> Option<String> {
+    if meta.store.store_r != StoreR::All {
+        return None;
+    }
+    let now = meta.store.window_start(&meta.config);
+    let (from, to) = segments
+        .iter()
+        .filter(|s| s.damage.is_none())
+        .filter_map(|s| {
+            let (from, to) = ((now + 1).max(s.first_step), s.r_every_step_from?.min(s.last_step));
+            (from <= to).then_some((from, to))
+        })
+        .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))?;
+    Some(format!(
+        "the R_n of steps {from}..{to} are not stored (but at the checkpoints): the run computed them before an extension moved the start of the --store-r all window to step {now}. The backward stage recomputes every R_n and does not need them; a run made at once with its final --steps and --clv-steps stores them all"
+    ))
 }
 
 /// The last backward sweep as its progress record tells it: finished, or interrupted (which,
@@ -411,6 +439,9 @@ impl Inspection {
         }
         if let Some(b) = &self.backward_sweep {
             let _ = writeln!(s, "backward sweep: {b}");
+        }
+        if let Some(r) = &self.r_not_stored {
+            let _ = writeln!(s, "note: {r}");
         }
         if let Some(m) = &self.meta_mismatch {
             let _ = writeln!(s, "DAMAGE: {m}");
