@@ -289,7 +289,8 @@ missing phrase is a disagreement, and so is a list of another length. Checked:
               how many, and the range (5th and 95th percentiles of the finite values, at least
               20, widened by their distance on either side);
   dispersion  per kind the least-squares slope through the origin sum(lambda k)/sum(k^2),
-              its number of steps and lambda/k of each;
+              its error sqrt(sum of squared residuals / (m - 1) / sum(k^2)) where there are
+              m >= 2 steps (and none printed with one), its number of steps and lambda/k of each;
   Fig. 14     for the last vector j of each positive mode step (where there are two or
               more: with fewer clv shows j = 2N-5, 2N-3 and says nothing of it), the largest <|v^j . v^i|>
               (i != j) inside its step, inside the conjugate step and elsewhere;
@@ -307,7 +308,7 @@ and the report's head paragraphs; the captions' words that restate settings or s
 (the indices of Figs. 4, 13 and of the local and finite-time exponents, the candidates'
 list, the Deltas) and their verdict sentences beyond those above (the convergence verdict
 and its AR(1) factor, Fig. 14's order of the paper); Fig. 15's median angle between random
-subspaces (clv's own random draw); the dispersion fit's ± (a fit error of few steps);
+subspaces (clv's own random draw);
 the captions of non-disk systems (this script reads hard-disk reports only).
 
 Sampling: the spectrum, the local and finite-time exponents, domination and convergence use
@@ -563,17 +564,26 @@ def windows(local, delta):
     the null-space exponents vanish, their differences are round-off, and whether such a pair
     swaps in domination.csv depends on the order of summation (numpy's mean missed one swap
     of 1860 at delta = 5 in the test's run; this order matches all)."""
+    return window_sums(local, delta) / delta
+
+
+def window_sums(local, delta):
+    """The sums of local over the windows of `windows`, in its order. The domination test
+    compares these, as clv does: dividing two sums an ulp apart by delta can round them to
+    one mean (the paper's run: one window of 5000 at delta = 5 for the null-space pair
+    398/399, whose shear exponents are equal to round-off)."""
     t = local.shape[0]
     count = t // delta
     x = local[t - count * delta :].reshape((count, delta) + local.shape[1:])
     total = np.zeros((count,) + local.shape[1:])
     for k in range(delta - 1, -1, -1):
         total = total + x[:, k]
-    return total / delta
+    return total
 
 
 def domination(x, n):
-    """Swap fractions of the finite-time exponents x (W windows, k) of N disks.
+    """Swap fractions of the finite-time exponents of N disks, given as their window sums x
+    (W windows, k; `window_sums`).
 
     A pair (i, i + 1) swaps in a window where exponent i + 1 exceeds exponent i. overall:
     mean over all windows and pairs; outside_null: the same over the pairs not both inside
@@ -1613,11 +1623,11 @@ def check_captions(c, caps, f):
         fits = [dl for dl in deltas if dl <= len(local)]
         if m:
             caps.text(t, "first Δ", deltas[0], m.group(1))
-            caps.number(t, f"overall at Δ = {deltas[0]}", domination(windows(local, deltas[0]), n)["overall"], m.group(2))
+            caps.number(t, f"overall at Δ = {deltas[0]}", domination(window_sums(local, deltas[0]), n)["overall"], m.group(2))
             longest = max((w for w in range(len(deltas)) if deltas[w] <= len(local)), default=0)
             if longest > 0:
                 dl = deltas[longest]
-                x = windows(local, dl)
+                x = window_sums(local, dl)
                 if m.group(3) is None:
                     caps.c.bad.append(f"disagreement: caption '{t}' overall fraction at Δ = {dl}: not there")
                 else:
@@ -1625,7 +1635,7 @@ def check_captions(c, caps, f):
                     caps.number(t, f"overall at Δ = {dl}", domination(x, n)["overall"], m.group(4))
                     caps.text(t, f"windows at Δ = {dl}", len(x), m.group(5))
         if k == d and d >= 8 and fits:
-            splits = [[domination(windows(local, dl), n)[col] for col in ("split_unstable_null", "split_null_stable")] for dl in fits]
+            splits = [[domination(window_sums(local, dl), n)[col] for col in ("split_unstable_null", "split_null_stable")] for dl in fits]
             quiet = [all(x == 0 for x in s) for s in splits]
             since = next((p for p in range(len(fits)) if all(quiet[p:])), None)
             pair = rf"({NUMBER}) and ({NUMBER})"
@@ -1722,11 +1732,17 @@ def check_captions(c, caps, f):
         for kind in sorted({r["kind"] for r in rows}):
             of = [r for r in rows if r["kind"] == kind]
             ks, lam = np.array([r["k"] for r in of]), np.array([r["lambda"] for r in of])
-            m = caps.find(t, rf"{kind}: c = ({NUMBER})(?: ± {NUMBER})? from (\d+) step\(s\), λ/k = ([^f]*?) for ", f"{kind} fit")
+            m = caps.find(t, rf"{kind}: c = ({NUMBER})(?: ± ({NUMBER}))? from (\d+) step\(s\), λ/k = ([^f]*?) for ", f"{kind} fit")
             if m:
-                caps.number(t, f"{kind} slope c", (ks * lam).sum() / (ks**2).sum(), m.group(1))
-                caps.text(t, f"{kind} steps", len(of), m.group(2))
-                caps.numbers(t, f"{kind} lambda/k", lam / ks, split_numbers(m.group(3)))
+                c_fit = (ks * lam).sum() / (ks**2).sum()
+                caps.number(t, f"{kind} slope c", c_fit, m.group(1))
+                # the slope's standard error from the scatter about the line, m - 1 degrees of freedom
+                se = math.sqrt(((lam - c_fit * ks) ** 2).sum() / (len(of) - 1) / (ks**2).sum()) if len(of) >= 2 else math.nan
+                caps.text(t, f"{kind} slope error given", math.isfinite(se), m.group(2) is not None)
+                if m.group(2) is not None and math.isfinite(se):
+                    caps.number(t, f"{kind} slope error", se, m.group(2))
+                caps.text(t, f"{kind} steps", len(of), m.group(3))
+                caps.numbers(t, f"{kind} lambda/k", lam / ks, split_numbers(m.group(4)))
 
     # Fig. 14: the largest average overlap of each positive step's last vector inside its step,
     # inside the conjugate step and elsewhere.
@@ -1944,7 +1960,7 @@ def main():
         deltas = dm["delta"].astype(int)
         mine = {}
         for delta in deltas:
-            for col, value in domination(windows(local, delta), n).items():
+            for col, value in domination(window_sums(local, delta), n).items():
                 mine.setdefault(col, []).append(value)
         for col in dm:
             if col in mine:
@@ -1963,7 +1979,7 @@ def main():
                     if col != "i":
                         c.bad.append(f"disagreement: domination_pairs.csv column {col} is not recomputed here")
                     continue
-                x = windows(local, int(col[len("delta_") :]))
+                x = window_sums(local, int(col[len("delta_") :]))
                 # the share of the windows in which exponent i + 1 exceeds exponent i
                 swaps = (x[:, 1:] > x[:, :-1]).sum(axis=0) / len(x) if len(x) else np.full(len(pairs), np.nan)
                 c.compare("domination_pairs.csv", col, pairs, swaps[pairs - 1], dp[col])
