@@ -9,6 +9,7 @@
 #
 # How long, on a 2-core machine of the CI kind (two threads): forward 1.18 h (measured
 # 2026-11-23), backward piped into every analysis 10.9 min (measured 2026-11-24); 1.36 h.
+# On a faster host (2026-11-27, gemm at 180-200 GFLOP/s): 53.6 + 8.7 min, 1.04 h.
 # The run is resumable: start the script again after a crash or a kill and it continues
 # (on THREADS threads, which need not be those it started with: the numbers do not change).
 # Disk: about 3 GB for the kept checkpoints; the frames are streamed to the analyses.
