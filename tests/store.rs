@@ -302,8 +302,25 @@ fn inspect_names_the_r_n_an_earlier_window_never_stored() {
     // 100 + 400 steps with 250 + 125: the window starts at 125, the run stored R_n from 251.
     ok(clv(&["forward", "--resume", r, "--steps", "400", "--clv-steps", "250", "--quiet"]));
     let (text, json) = inspect(r);
-    assert!(text.contains("note: the R_n of steps 126..250 are not stored (but at the checkpoints)") && text.contains("window to step 125"), "{text}");
+    assert!(text.contains("note: the R_n of steps 126..250 are not stored (but at the checkpoints)") && text.contains("(--clv-steps, --transient) to step 125"), "{text}");
     assert!(json["intact"] == true && json["r_not_stored"].as_str().is_some_and(|n| n.contains("126..250")), "{json}");
+    // A segment deleted there is a gap, named as damage with the R_n it held (251..380 of
+    // the old window), not taken into the note.
+    let holed = scratch("r-window-holed").join("run");
+    copy_dir(&run, &holed);
+    std::fs::remove_file(holed.join("seg-000000000200-000000000380.mcap")).unwrap();
+    let text = String::from_utf8(clv(&["inspect", holed.to_str().unwrap()]).stdout).unwrap();
+    assert!(text.contains("the checkpoints and R_n of steps 200..380 are missing") && text.contains("note: the R_n of steps 126..180 are not stored"), "{text}");
+    // Later (to 450), then earlier (to 210): the base run's 211..250 and the first extension's
+    // 401..450 are missing, 251..400 stored. 401..419 lie between two segments (the one
+    // written under the window of 450 begins at the checkpoint of 420).
+    let twice = scratch("r-window-twice").join("run");
+    let t = twice.to_str().unwrap();
+    ok(clv(&["forward", "--n", "8", "--aspect", "1", "--steps", "300", "--clv-steps", "100", "--checkpoint-every", "20", "--store-r", "all", "--out", t, "--quiet"]));
+    ok(clv(&["forward", "--resume", t, "--steps", "500", "--quiet"]));
+    ok(clv(&["forward", "--resume", t, "--steps", "560", "--clv-steps", "300", "--transient", "150", "--quiet"]));
+    let (text, _) = inspect(t);
+    assert!(text.contains("note: the R_n of steps 211..250, 401..450 are not stored"), "{text}");
 }
 
 /// run.json edited by hand (or damaged) so that it describes another trajectory is refused

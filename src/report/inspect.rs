@@ -197,7 +197,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
             let r_from = w[0].r_every_step_from.zip(w[1].r_every_step_from).map(|(a, b)| a.max(b));
             let from = crate::store::run::next_write_after(w[0].last_step, c, r_from);
             (w[1].first_step > from && !claimed(w[0].last_step + 1, w[1].first_step - 1)).then(|| {
-                let what = if r_from.is_some_and(|w| from > w) { "checkpoints and R_n" } else { "checkpoints" };
+                let what = if r_from.is_some_and(|start| w[1].first_step > start + 1) { "checkpoints and R_n" } else { "checkpoints" };
                 format!("the {what} of steps {from}..{} are missing: no segment holds them (moved out, or deleted); `clv forward --resume {}` recomputes them", w[1].first_step - 1, dir.path.display())
             })
         }))
@@ -258,22 +258,39 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
 /// With `--store-r all`, the steps after the window's start whose R_n the intact segments
 /// do not hold (but at their checkpoints): each segment stored them after the start of the
 /// window its run had when it was written, and an extension can move that start earlier.
-/// Nothing recomputes them: the backward stage does not read them.
+/// A segment written under a later start begins at a checkpoint, so the steps since the
+/// segment before it count too, unless a segment is missing there (that is a gap, named
+/// as damage). Nothing recomputes them: the backward stage does not read them.
 fn r_not_stored(meta: &RunMeta, segments: &[SegmentReport]) -> Option<String> {
     if meta.store.store_r != StoreR::All {
         return None;
     }
     let now = meta.store.window_start(&meta.config);
-    let (from, to) = segments
-        .iter()
-        .filter(|s| s.damage.is_none())
-        .filter_map(|s| {
-            let (from, to) = ((now + 1).max(s.first_step), s.r_every_step_from?.min(s.last_step));
-            (from <= to).then_some((from, to))
-        })
-        .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))?;
+    let c = meta.store.checkpoint_every.max(1);
+    let named: Vec<&SegmentReport> = segments.iter().filter(|s| !s.misnamed).collect();
+    let mut ranges: Vec<(u64, u64)> = Vec::new();
+    for (k, s) in named.iter().enumerate() {
+        let Some(then) = s.r_every_step_from.filter(|_| s.damage.is_none()) else { continue };
+        let begin = match k.checked_sub(1).map(|p| named[p]) {
+            Some(p) if !crate::store::run::gap_between(p.last_step, s.first_step, c, p.r_every_step_from.zip(Some(then)).map(|(a, b)| a.max(b))) => p.last_step + 1,
+            _ => s.first_step,
+        };
+        let (from, to) = ((now + 1).max(begin), then.min(s.last_step));
+        // Steps between checkpoints, not only checkpoints (whose R_n are stored).
+        if from <= to && to - from + 1 > to / c - (from - 1) / c {
+            match ranges.last_mut() {
+                Some(last) if last.1 + 1 >= from => last.1 = last.1.max(to),
+                _ => ranges.push((from, to)),
+            }
+        }
+    }
+    if ranges.is_empty() {
+        return None;
+    }
+    let steps: Vec<String> = ranges.iter().map(|(a, b)| format!("{a}..{b}")).collect();
     Some(format!(
-        "the R_n of steps {from}..{to} are not stored (but at the checkpoints): the run computed them before an extension moved the start of the --store-r all window to step {now}. The backward stage recomputes every R_n and does not need them; a run made at once with its final --steps and --clv-steps stores them all"
+        "the R_n of steps {} are not stored (but at the checkpoints): the run computed them before an extension moved the start of the --store-r all window (--clv-steps, --transient) to step {now}. The backward stage recomputes every R_n and does not need them; a run made at once with its final settings stores them all",
+        steps.join(", ")
     ))
 }
 
