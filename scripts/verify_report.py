@@ -5,7 +5,7 @@
     python3 scripts/verify_report.py REPORT_DIR FRAMES.mcap --run RUN_DIR   # lambda_gs from R_n too
 
 REPORT_DIR is the --out of `clv analyze FRAMES.mcap`, FRAMES.mcap a frame file of
-`clv backward --with-gs --out FRAMES.mcap` (without GS vectors the GS columns are skipped).
+`clv backward --with-gs --out FRAMES.mcap` (without GS vectors the GS columns of localization.csv and projections.csv must be NaN, and the other GS tables are skipped).
 Each quantity is recomputed here with numpy from the frames alone (read by read_frames.py)
 and compared with the report's CSV files. The tables compared column by column must hold
 exactly the expected rows (i = 1..k; one per frame; each chosen i with each Delta), none
@@ -1117,8 +1117,12 @@ def mode_tables(sampled, first, spectrum, lx, ly, d):
                         r = robust_range(np.concatenate(ys))
                         if r is not None:
                             off.append((fig, which) + r)
-                out["pattern_captions"].append({"title": f"Longitudinal-momentum mode {name} (Figs. 11, 12)" if not several else f"Longitudinal-momentum mode {name} of {family} (Figs. 11, 12)", "kind": "LP", "name": name, "several": several, "first": st[0] + 1, "last": st[0] + st[1], "step": first["step"], "rms": [(src, rms(cols[f"fig11_L_dq{t_name}_{src.lower()}"]) / rms(cols[f"fig11_L_dq{a_name}_{src.lower()}"])) for src in srcs], "off": off})
+                out["pattern_captions"].append({"title": f"Longitudinal-momentum mode {name} (Figs. 11, 12)" if not several else f"Longitudinal-momentum mode {name} of {family} (Figs. 11, 12)", "kind": "LP", "name": name, "family": f"the {family} step", "several": several, "first": st[0] + 1, "last": st[0] + st[1], "step": first["step"], "rms": [(src, rms(cols[f"fig11_L_dq{t_name}_{src.lower()}"]) / rms(cols[f"fig11_L_dq{a_name}_{src.lower()}"])) for src in srcs], "off": off})
     # modes_dispersion.csv: the positive, consistently classified steps by kind, then |k|.
+    titles = {}
+    for pc in out["pattern_captions"]:
+        pc["title"] = numbered(titles, pc["title"])
+        titles[pc["title"]] = True
     disp = [r for r in rows if r["side"] == "+" and r["consistent"] == "true" and np.isfinite(r["k"]) and np.isfinite(r["lambda"])]
     disp.sort(key=lambda r: (r["kind"], r["k"]))
     out["modes_dispersion.csv"] = [{"kind": r["kind"], "name": r["name"], "n_x": r["n_x"], "n_y": r["n_y"], "k": r["k"], "lambda": r["lambda"], "stderr": s[int(r["first"]) - 1 : int(r["last"])].sum() / int(r["degeneracy"]), "spread": r["spread"], "lambda_over_k": r["lambda"] / r["k"]} for r in disp]
@@ -1367,8 +1371,17 @@ def caption_sections(path):
     out = {}
     for title, body in re.findall(r"<section><h2>(.*?)</h2>(.*?)</section>", page, re.S):
         paragraphs = [html.unescape(re.sub(r"<[^>]*>", "", p)) for p in re.findall(r"<p>(.*?)</p>", body, re.S)]
-        out[html.unescape(title)] = " ".join(p for p in paragraphs if not p.startswith("Numbers:"))
+        out[numbered(out, html.unescape(title))] = " ".join(p for p in paragraphs if not p.startswith("Numbers:"))
     return out
+
+
+def numbered(seen, title):
+    """`title`, or "title #2", "#3", ... where `seen` has it already (two steps of one mode
+    give two sections of one title)."""
+    k = 1
+    while (title if k == 1 else f"{title} #{k}") in seen:
+        k += 1
+    return title if k == 1 else f"{title} #{k}"
 
 
 def half_unit(printed):
@@ -1712,12 +1725,13 @@ def check_captions(c, caps, f):
                 caps.text(t, "overlap sources", [src for src, _ in pc["overlaps"]], re.findall(r"(GS|CLV) ", m.group(6)))
                 caps.numbers(t, "overlaps", [o for _, o in pc["overlaps"]], split_numbers(m.group(6)))
         else:
-            m = caps.find(t, rf"reconstructed at step (\d+) inside the (\w+)-dimensional .*? {span} by least squares.*? here rms δq_\w / rms δq_\w = (.*?), and ", "step, rms check")
+            m = caps.find(t, rf"reconstructed at step (\d+) inside the (\w+)-dimensional (?:GS and covariant subspaces|covariant subspace) of (.*?) {span} by least squares.*? here rms δq_\w / rms δq_\w = (.*?), and ", "step, rms check")
             if m:
+                size = pc["last"] - pc["first"] + 1
                 caps.text(t, "frame's step", pc["step"], m.group(1))
-                caps.text(t, "step", f"{pc['first']}..{pc['last']}", f"{m.group(3)}..{m.group(4)}")
-                caps.text(t, "rms sources", [src for src, _ in pc["rms"]], re.findall(r"(GS|CLV) ", m.group(5)))
-                caps.numbers(t, "rms across / along", [r for _, r in pc["rms"]], split_numbers(m.group(5)))
+                caps.text(t, "step", f"{'four' if size == 4 else size}-dimensional, of {pc['family'] if pc['several'] else pc['name']}: {pc['first']}..{pc['last']}", f"{m.group(2)}-dimensional, of {m.group(3)}: {m.group(4)}..{m.group(5)}")
+                caps.text(t, "rms sources", [src for src, _ in pc["rms"]], re.findall(r"(GS|CLV) ", m.group(6)))
+                caps.numbers(t, "rms across / along", [r for _, r in pc["rms"]], split_numbers(m.group(6)))
             said = re.search(r"Off scale, so that the sinusoid is seen: (.*?) \(every value", caps.sections[t])
             listed = re.findall(rf"Fig\. (\d+) (L|P): (\d+) of (\d+) points beyond ({NUMBER})\.\.({NUMBER})", said.group(1)) if said else []
             caps.text(t, "figures with points off scale", [f"{fig} {which}" for fig, which, *_ in pc["off"]], [f"{fig} {which}" for fig, which, *_ in listed])
@@ -2008,6 +2022,11 @@ def main():
             for col, values in per_frame.items():  # eta_q_gs_std (eta_p_*_std where the report has it)
                 if f"{col}_{name}_std" in pr:
                     c.compare_std("projections.csv", f"{col}_{name}_std", i, values, pr[f"{col}_{name}_std"])
+
+    if "gs" not in vecs:  # frames without GS vectors: their columns must be NaN throughout
+        for table, t in (("localization.csv", loc), ("projections.csv", pr)):
+            for col in [col for col in t or {} if col.endswith(("_gs", "_gs_std"))]:
+                c.compare(table, col, t["i"].astype(int), np.nan, t[col])
 
     v, g = vecs["clv"], vecs.get("gs")
     ov = rep("overlap_gs_clv.csv")

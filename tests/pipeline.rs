@@ -974,6 +974,12 @@ fn an_independent_recomputation_agrees_with_the_report_tables() {
     ok(clv(&["analyze", sparse.to_str().unwrap(), "--every", "3", "--out", sparse_report.to_str().unwrap(), "--quiet"]));
     let s: serde_json::Value = serde_json::from_slice(&ok(verify(&sparse_report, &sparse)).stdout).unwrap();
     assert!(s["agree"] == true && s["frames"] == 100 && s["columns"]["spectrum.csv"].as_array().unwrap().iter().any(|c| c == "lambda_clv_null_shear"), "{s}");
+    // Frames without GS vectors: the report's GS columns are NaN, and checked to be.
+    let (covariant, covariant_report) = (base.join("frames-clv.mcap"), base.join("report-clv"));
+    ok(clv(&["backward", run.to_str().unwrap(), "--out", covariant.to_str().unwrap(), "--quiet"]));
+    ok(clv(&["analyze", covariant.to_str().unwrap(), "--every", "3", "--out", covariant_report.to_str().unwrap(), "--quiet"]));
+    let cv: serde_json::Value = serde_json::from_slice(&ok(verify(&covariant_report, &covariant)).stdout).unwrap();
+    assert!(cv["agree"] == true && cv["columns"]["localization.csv"].as_array().unwrap().iter().any(|c| c == "W_gs"), "{cv}");
 
     // The N = 8 system has no mode steps. N = 40 in the paper's box has a T(1,0) pair and an
     // LP(1,0) quadruplet next to it (and their mirrors): the mode table, the sine fits, the
