@@ -194,7 +194,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         .into_iter()
         .chain(named.windows(2)
         .filter_map(|w| {
-            let r_from = w[0].r_every_step_from.zip(w[1].r_every_step_from).map(|(a, b)| a.max(b));
+            let r_from = r_every_step_between(w[0], w[1]);
             let from = crate::store::run::next_write_after(w[0].last_step, c, r_from);
             (w[1].first_step > from && !claimed(w[0].last_step + 1, w[1].first_step - 1)).then(|| {
                 let what = if r_from.is_some_and(|start| w[1].first_step > start + 1) { "checkpoints and R_n" } else { "checkpoints" };
@@ -255,6 +255,11 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
     })
 }
 
+/// [`crate::store::run::r_every_step_between`] for the segments as inspect reads them.
+fn r_every_step_between(a: &SegmentReport, b: &SegmentReport) -> Option<u64> {
+    Some(a.r_every_step_from?.max(b.r_every_step_from?))
+}
+
 /// With `--store-r all`, the steps after the window's start whose R_n the intact segments
 /// do not hold (but at their checkpoints): each segment stored them after the start of the
 /// window its run had when it was written, and an extension can move that start earlier.
@@ -272,7 +277,7 @@ fn r_not_stored(meta: &RunMeta, segments: &[SegmentReport]) -> Option<String> {
     for (k, s) in named.iter().enumerate() {
         let Some(then) = s.r_every_step_from.filter(|_| s.damage.is_none()) else { continue };
         let begin = match k.checked_sub(1).map(|p| named[p]) {
-            Some(p) if !crate::store::run::gap_between(p.last_step, s.first_step, c, p.r_every_step_from.zip(Some(then)).map(|(a, b)| a.max(b))) => p.last_step + 1,
+            Some(p) if !crate::store::run::gap_between(p.last_step, s.first_step, c, r_every_step_between(p, s)) => p.last_step + 1,
             _ => s.first_step,
         };
         let (from, to) = ((now + 1).max(begin), then.min(s.last_step));
