@@ -73,6 +73,10 @@ pub struct Inspection {
     /// computed before an extension moved the window's start earlier.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub r_not_stored: Option<String>,
+    /// Why this build or machine cannot continue the run or run its backward stage (another
+    /// build's numerics, another kind of CPU), if it cannot.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub not_here: Option<String>,
 }
 
 /// [`crate::stage::analyze::kernels::convergence`] over the blocks completed so far.
@@ -242,6 +246,7 @@ pub fn inspect(path: &Path) -> Result<Inspection> {
         gaps,
         backward_sweep,
         r_not_stored,
+        not_here: meta.build.differs_here(),
         segments,
         partial_segments,
         set_aside,
@@ -464,6 +469,13 @@ impl Inspection {
         }
         if let Some(r) = &self.r_not_stored {
             let _ = writeln!(s, "note: {r}");
+        }
+        if let Some(why) = &self.not_here {
+            let _ = writeln!(
+                s,
+                "note: neither `clv forward --resume` nor the backward stage can run on this machine with this build ({why}): \
+                 they reproduce the run's numbers bit for bit only with the build and kind of CPU that made it (on a cluster: nodes of that kind)"
+            );
         }
         if let Some(m) = &self.meta_mismatch {
             let _ = writeln!(s, "DAMAGE: {m}");

@@ -364,19 +364,28 @@ impl BuildInfo {
     /// continuation would not match the stored part, and the backward stage's bitwise check
     /// would reject the mixed run later.
     pub fn check_can_continue(&self, run: &Path) -> Result<()> {
+        match self.differs_here() {
+            None => Ok(()),
+            Some(what) => Err(Error::Other(format!(
+                "{}: the run was made by another build or on another kind of CPU ({what}); continuing it here would not reproduce its numbers bit for bit. \
+                 Continue it with the build and kind of machine that started it, or start a new run",
+                run.display()
+            ))),
+        }
+    }
+
+    /// How this build and machine differ from the ones that made the run, where that changes
+    /// its bits: the numerics, or the instruction sets faer dispatches to (its matrix products
+    /// take AVX-512 kernels where the CPU has them, AVX2 ones otherwise).
+    pub fn differs_here(&self) -> Option<String> {
         let here = BuildInfo::current();
-        let what = if self.numerics != here.numerics {
-            format!("its numerics are {:?}, this build's are {:?}", self.numerics, here.numerics)
+        if self.numerics != here.numerics {
+            Some(format!("its numerics are {:?}, this build's are {:?}", self.numerics, here.numerics))
         } else if self.arch != here.arch || self.cpu_features != here.cpu_features {
-            format!("it ran on {} with {:?}, this machine is {} with {:?}", self.arch, self.cpu_features, here.arch, here.cpu_features)
+            Some(format!("it ran on {} with {:?}, this machine is {} with {:?}", self.arch, self.cpu_features, here.arch, here.cpu_features))
         } else {
-            return Ok(());
-        };
-        Err(Error::Other(format!(
-            "{}: the run was made by another build or on another kind of CPU ({what}); continuing it here would not reproduce its numbers bit for bit. \
-             Continue it with the build and kind of machine that started it, or start a new run",
-            run.display()
-        )))
+            None
+        }
     }
 }
 

@@ -200,8 +200,6 @@ pub fn kill_after(args: &[&str], delay_ms: u64) -> bool {
     running
 }
 
-/// Kill `args` after `delay_ms`; while the process ends before the kill (machines and their
-/// load vary), clear what it wrote with `reset` and try again with half the delay.
 /// Write `json` to `path` with a valid checksum: a record as another build or format
 /// version would have written it (an edit without one is refused as damage).
 pub fn reseal(path: &Path, json: &str) {
@@ -215,6 +213,8 @@ pub fn resume_flag(run: &Path) -> Vec<&'static str> {
     if run.join("backward.json").exists() { vec!["--resume"] } else { Vec::new() }
 }
 
+/// Kill `args` after `delay_ms`; while the process ends before the kill (machines and their
+/// load vary), clear what it wrote with `reset` and try again with half the delay.
 pub fn kill_landing(args: &[&str], mut delay_ms: u64, reset: impl Fn()) {
     while !kill_after(args, delay_ms) {
         assert!(delay_ms > 0, "{args:?} ends before it can be killed");
