@@ -374,7 +374,7 @@ impl BuildInfo {
         }
     }
 
-    /// How this build and machine differ from the ones that made the run, where that changes
+    /// How this build and machine differ from the ones that made the run, where that can change
     /// its bits: the numerics, or the instruction sets faer dispatches to (its matrix products
     /// take AVX-512 kernels where the CPU has them, AVX2 ones otherwise).
     pub fn differs_here(&self) -> Option<String> {
