@@ -387,6 +387,41 @@ fn sighup_stops_the_forward_stage_at_a_checkpoint_too() {
     assert!(step < 30000 && shown.contains(&format!("relaxing: step {step} of the 30000 relaxation steps")) && !shown.contains("spectrum so far"), "{shown}");
 }
 
+/// Batch systems warn a job before its time limit with SIGUSR1 or SIGUSR2 when asked
+/// (SLURM's `--signal=USR1@120`), whose default is to kill: the forward stage stops at a
+/// checkpoint of its own instead, exits as by the signal, and `--resume` finishes the run to
+/// the bits of one never stopped; the backward stage ends saying how to continue.
+#[test]
+fn batch_warning_signals_stop_at_a_checkpoint_as_sigterm_does() {
+    let args = |dir: &Path| -> Vec<String> {
+        ["forward", "--quiet", "--n", "16", "--aspect", "1", "--steps", "20000", "--checkpoint-every", "50", "--clv-steps", "200", "--out", dir.to_str().unwrap()].iter().map(|s| s.to_string()).collect()
+    };
+    let want = scratch("faults", "usr-ref").join("run");
+    ok(clv(&args(&want).iter().map(String::as_str).collect::<Vec<_>>()));
+    for (name, signal) in [("usr1", libc::SIGUSR1), ("usr2", libc::SIGUSR2)] {
+        let run = scratch("faults", name).join("run");
+        let (out, step) = stopped_after_a_segment(&args(&run), &run, signal);
+        let err = stderr(&out);
+        assert!(out.status.code() == Some(128 + signal) && err.contains("stopped by a signal after step") && err.contains("--resume"), "{name}: {:?}: {err}", out.status);
+        let dir = clv::store::RunDir { path: run.clone() };
+        assert!(step > 0 && dir.partial_segments().unwrap().is_empty() && dir.segments().unwrap().last().unwrap().last == step, "{name}: the last segment ends at the stop");
+        ok(clv(&["forward", "--resume", run.to_str().unwrap(), "--quiet"]));
+        assert_eq!(contents(&run).exponents, contents(&want).exponents, "{name}");
+    }
+    // The backward stage, streaming into a pipe nobody reads, is stopped mid-sweep.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", want.to_str().unwrap(), "--quiet", "--out", "-"]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let started = std::time::Instant::now();
+    while !want.join("backward.json").exists() && started.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    // SAFETY: a plain kill(2) of the child we spawned.
+    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGUSR1) };
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert_eq!(child.wait().unwrap().code(), Some(128 + libc::SIGUSR1), "{err}");
+    assert!(err.contains("clv backward: stopped by a signal"), "{err}");
+}
+
 /// Stopped by SIGTERM inside the window of a --store-r all run, the forward stage writes its
 /// own checkpoint at the stop, with one R_n there, not a second (an outside reader of the
 /// stored R_n saw that step twice; an outside check).

@@ -1,5 +1,7 @@
-//! What SIGTERM (a batch system's time limit, before its SIGKILL), SIGINT (Ctrl-C) and SIGHUP
-//! (the terminal of a job started without nohup gone, as when an ssh session drops) do.
+//! What SIGTERM (a batch system's time limit, before its SIGKILL), SIGINT (Ctrl-C), SIGHUP
+//! (the terminal of a job started without nohup gone, as when an ssh session drops) and
+//! SIGUSR1 and SIGUSR2 (the warning batch systems send ahead of a time limit when asked, as
+//! SLURM's `--signal=USR1@120`; by default they would kill the process) do.
 //!
 //! The forward stage stops cleanly after the step it is in ([`StopOnSignals`]): it writes a
 //! checkpoint there, so that `--resume` loses nothing. The backward stage and the analyses
@@ -12,7 +14,7 @@
 
 use std::sync::atomic::{AtomicI32, AtomicPtr, AtomicUsize, Ordering};
 
-const SIGNALS: [libc::c_int; 3] = [libc::SIGTERM, libc::SIGINT, libc::SIGHUP];
+const SIGNALS: [libc::c_int; 5] = [libc::SIGTERM, libc::SIGINT, libc::SIGHUP, libc::SIGUSR1, libc::SIGUSR2];
 
 /// The signal that asked for a stop; 0 for none.
 static STOP: AtomicI32 = AtomicI32::new(0);
@@ -69,7 +71,7 @@ impl Drop for Installed {
     }
 }
 
-/// While this lives, SIGTERM and SIGINT only ask for a stop, which the loop polls with
+/// While this lives, the signals above only ask for a stop, which the loop polls with
 /// [`StopOnSignals::requested`] (the signal's number, once one came). Guards nest: a stop
 /// asked for while an outer one lives is seen by the inner ones.
 pub struct StopOnSignals {
@@ -95,7 +97,7 @@ impl Drop for StopOnSignals {
     }
 }
 
-/// While this lives, SIGTERM and SIGINT end the process with `message` on standard error
+/// While this lives, the signals above end the process with `message` on standard error
 /// and the exit status of death by that signal (128 + its number, as a shell reports it).
 pub struct ExplainOnSignals {
     _handlers: Installed,
