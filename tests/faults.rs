@@ -929,10 +929,13 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
         let out = clv(&["inspect", dir.to_str().unwrap()]);
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(out.status.success() && text.contains("note: neither `clv forward --resume` nor the backward stage can run on this machine") && text.contains(needle), "{text}");
+        assert!(text.contains("made by: clv ") && text.contains("(not this machine and build: see the note below)"), "{text}");
     }
     std::fs::write(dir.join("run.json"), &original).unwrap();
     let out = clv(&["inspect", dir.to_str().unwrap()]);
-    assert!(out.status.success() && !String::from_utf8_lossy(&out.stdout).contains("can run on this machine"));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && !text.contains("can run on this machine") && !text.contains("not this machine"), "{text}");
+    assert!(text.lines().any(|l| l.starts_with("made by: clv ") && l.contains(std::env::consts::ARCH)), "{text}");
     std::fs::write(dir.join("run.json"), &original).unwrap();
     reseal(&dir.join("run.json"), &original.replace("clv-run/1", "clv-run/99"));
     let out = clv(&["forward", "--resume", dir.to_str().unwrap()]);

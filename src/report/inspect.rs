@@ -418,6 +418,16 @@ impl Inspection {
             self.run.store.clv_steps,
             self.run.store.transient
         );
+        let b = &self.run.build;
+        let numerics = b.numerics.split(" (").next().unwrap_or_default();
+        let _ = writeln!(
+            s,
+            "made by: clv {} ({numerics}) on {} with {}{}",
+            b.clv_version,
+            b.arch,
+            if b.cpu_features.is_empty() { "no features listed".to_string() } else { b.cpu_features.join(", ") },
+            if self.not_here.is_some() { " (not this machine and build: see the note below)" } else { "" }
+        );
         let _ = writeln!(s, "files: {} segments, {} checkpoints, {} on disk", self.segments.len(), self.checkpoints, human(self.disk_bytes));
         for seg in &self.segments {
             let state = seg.damage.as_deref().unwrap_or("intact");
