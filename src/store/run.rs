@@ -337,8 +337,8 @@ pub struct BuildInfo {
     #[serde(default)]
     pub numerics: String,
     pub arch: String,
-    /// CPU features faer may dispatch to; a run continued on a machine with others may
-    /// differ in the last bits.
+    /// CPU features faer dispatches on (recorded for the reader; [`BuildInfo::simd_level`]
+    /// is what must match for a run to continue).
     pub cpu_features: Vec<String>,
 }
 
@@ -375,17 +375,26 @@ impl BuildInfo {
     }
 
     /// How this build and machine differ from the ones that made the run, where that can change
-    /// its bits: the numerics, or the instruction sets faer dispatches to (its matrix products
-    /// take AVX-512 kernels where the CPU has them, AVX2 ones otherwise).
+    /// its bits: the numerics, the architecture, or [`BuildInfo::simd_level`].
     pub fn differs_here(&self) -> Option<String> {
         let here = BuildInfo::current();
         if self.numerics != here.numerics {
             Some(format!("its numerics are {:?}, this build's are {:?}", self.numerics, here.numerics))
-        } else if self.arch != here.arch || self.cpu_features != here.cpu_features {
+        } else if self.arch != here.arch || self.simd_level() != here.simd_level() {
             Some(format!("it ran on {} with {:?}, this machine is {} with {:?}", self.arch, self.cpu_features, here.arch, here.cpu_features))
         } else {
             None
         }
+    }
+
+    /// The instruction sets that decide the bits: whether faer's SIMD code runs (AVX2 and
+    /// FMA; without them it takes scalar paths that add in other orders). AVX-512 is left
+    /// out: in this build (faer without its `nightly` feature) only faer's matrix products
+    /// dispatch on it, to kernels that give the AVX2 kernels' bits at twice their speed
+    /// (tested: `avx512_and_avx2_products_agree_bit_for_bit`), so a run continues on a node
+    /// with or without it.
+    pub fn simd_level(&self) -> Vec<&str> {
+        self.cpu_features.iter().map(String::as_str).filter(|f| matches!(*f, "avx2" | "fma")).collect()
     }
 }
 
@@ -831,7 +840,72 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use super::{differences, differences_summary, free_bytes, gap_between, short_of_space, StoreConfig};
+    use super::{differences, differences_summary, free_bytes, gap_between, short_of_space, BuildInfo, StoreConfig};
+
+    /// A run made with or without AVX-512 continues on either kind of node; one made without
+    /// AVX2 and FMA (or with them, continued without) does not, nor one of other numerics.
+    #[test]
+    fn a_run_continues_with_or_without_avx512_only() {
+        let here = BuildInfo::current();
+        let with = |features: &[&str]| BuildInfo { cpu_features: features.iter().map(|f| f.to_string()).collect(), ..here.clone() };
+        let level: Vec<String> = here.simd_level().iter().map(|f| f.to_string()).collect();
+        let mut other = level.iter().map(String::as_str).collect::<Vec<_>>();
+        other.push("avx512f");
+        assert!(with(&other).differs_here().is_none() && with(&level.iter().map(String::as_str).collect::<Vec<_>>()).differs_here().is_none());
+        let fewer = if level.is_empty() { with(&["avx2", "fma"]) } else { with(&["avx2", "avx512f"]) };
+        assert!(fewer.differs_here().is_some_and(|why| why.contains("this machine is")));
+        let numerics = BuildInfo { numerics: "clv-numerics/0".into(), ..here.clone() };
+        assert!(numerics.differs_here().is_some_and(|why| why.contains("clv-numerics/0")));
+    }
+
+    /// What [`BuildInfo::simd_level`] rests on: faer's matrix products (private-gemm-x86)
+    /// give the same bits with their AVX-512 and their AVX2 kernels, for full and triangular
+    /// products, replacing or adding, column- and row-major, on one thread and two. The
+    /// kernels differ (the AVX-512 ones are about twice as fast) and are not the naive sums.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx512_and_avx2_products_agree_bit_for_bit() {
+        use private_gemm_x86::{gemm, Accum, DType, DstKind, IType, InstrSet};
+        if !std::arch::is_x86_feature_detected!("avx512f") || !std::arch::is_x86_feature_detected!("fma") {
+            eprintln!("no AVX-512 (or no FMA) here: the two kinds of kernels cannot be compared on this machine");
+            return;
+        }
+        let mut rng = crate::rng::Rng::new(7);
+        let product = |instr, (m, n, k): (usize, usize, usize), a: &[f64], b: &[f64], c: &[f64], kind, beta, a_rows: bool, threads| {
+            let mut c = c.to_vec();
+            let alpha = -0.75f64;
+            let (rs, cs) = if a_rows { (k as isize, 1) } else { (1, m as isize) };
+            // SAFETY: every pointer and stride describes a buffer of the stated shape.
+            unsafe {
+                gemm(DType::F64, IType::U64, instr, m, n, k, c.as_mut_ptr().cast(), 1, m as isize, std::ptr::null(), std::ptr::null(), kind, beta,
+                    a.as_ptr().cast(), rs, cs, false, std::ptr::null(), 0, b.as_ptr().cast(), 1, k as isize, false, (&raw const alpha).cast(), threads);
+            }
+            c
+        };
+        let mut rng2 = crate::rng::Rng::new(11);
+        let mut size = |hi: usize| 1 + (rng2.uniform() * hi as f64) as usize % hi;
+        let mut shapes: Vec<(usize, usize, usize)> = vec![(792, 64, 32), (32, 64, 792), (792, 792, 792)];
+        shapes.extend((0..120).map(|_| (size(500), size(200), size(500))));
+        for (case, &(m, n, k)) in shapes.iter().enumerate() {
+            let kind = [DstKind::Full, DstKind::Upper, DstKind::Lower][case % 3];
+            let shape = if kind == DstKind::Full { (m, n, k) } else { (m, m, k) };
+            let beta = if case % 2 == 0 { Accum::Add } else { Accum::Replace };
+            let (a_rows, threads) = (case % 5 == 0, if case % 7 == 0 { 2 } else { 1 });
+            let fill = |len: usize, rng: &mut crate::rng::Rng| (0..len).map(|_| rng.normal()).collect::<Vec<f64>>();
+            let (a, b, c) = (fill(shape.0 * shape.2, &mut rng), fill(shape.2 * shape.1, &mut rng), fill(shape.0 * shape.1, &mut rng));
+            let avx2 = product(InstrSet::Avx256, shape, &a, &b, &c, kind, beta, a_rows, threads);
+            let avx512 = product(InstrSet::Avx512, shape, &a, &b, &c, kind, beta, a_rows, threads);
+            let differ = avx2.iter().zip(&avx512).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+            assert_eq!(differ, 0, "{shape:?} {kind:?} {beta:?}, A row-major {a_rows}, {threads} thread(s): {differ} entries differ");
+        }
+        // Not the naive sums, which add in one order only: the test could not fail otherwise.
+        let n = 300;
+        let fill = |rng: &mut crate::rng::Rng| (0..n * n).map(|_| rng.normal()).collect::<Vec<f64>>();
+        let (a, b, c) = (fill(&mut rng), fill(&mut rng), vec![0.0; n * n]);
+        let kernel = product(InstrSet::Avx256, (n, n, n), &a, &b, &c, DstKind::Full, Accum::Replace, false, 1);
+        let naive = (0..n * n).filter(|&ij| (-0.75 * (0..n).map(|l| a[ij % n + l * n] * b[l + ij / n * n]).sum::<f64>()).to_bits() != kernel[ij].to_bits()).count();
+        assert!(naive > n * n / 2, "{naive} of {} differ from the naive sums", n * n);
+    }
 
     /// A gap is a step the run wrote that no segment holds; the one after a stop's own
     /// checkpoint may begin anywhere up to the next write.
