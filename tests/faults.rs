@@ -85,6 +85,32 @@ fn sigkill_at_many_points_then_resume_is_bit_identical() {
     assert!(kills >= 20, "only {kills} kills landed before the end of a stage");
 }
 
+/// A `clv run` killed at any durable step of writing its report (or the records before it)
+/// is finished by the same command given again: what the killed writer left behind is its
+/// own, not files of the user's that the report must not replace (an outside check found
+/// the manifest's temporary file refused as such).
+#[test]
+fn clv_run_killed_while_writing_its_report_is_finished_by_the_same_command() {
+    let out = scratch("faults", "run-report-crash");
+    let o = out.to_str().unwrap();
+    let args = ["run", "--n", "16", "--aspect", "1", "--steps", "1000", "--threads", "1", "--out", o, "--quiet"];
+    ok(clv(&args));
+    let mut landed = 0;
+    for point in ["atomic-synced", "atomic-renamed"] {
+        for n in 1..=4 {
+            let at = format!("{point}#{n}");
+            std::fs::remove_dir_all(out.join("report")).unwrap();
+            if crashed(&clv_env(&args, &[("CLV_FAULT_CRASH_AT", at.as_str())]), &at) {
+                landed += 1;
+                let again = clv(&args);
+                assert!(again.status.success(), "{at}: {}", stderr(&again));
+            }
+            assert!(out.join("report/summary.json").is_file() && out.join("report/index.html").is_file(), "{at}");
+        }
+    }
+    assert!(landed >= 4, "only {landed} crashes landed");
+}
+
 /// Did the process stop at the crash point it was given?
 fn crashed(out: &std::process::Output, at: &str) -> bool {
     if out.status.code() == Some(CRASH_STATUS) {

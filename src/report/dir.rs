@@ -400,7 +400,8 @@ pub enum ReportDir {
 /// What the directory `out` holds: a report (of which run), nothing, or other files.
 pub fn report_in(out: &Path) -> ReportDir {
     let Ok(entries) = std::fs::read_dir(out) else { return ReportDir::Empty };
-    let ours = |name: &str| name == WRITING || name == LOCK || (name.starts_with('.') && name.ends_with(TMP_SUFFIX));
+    // The manifest is written whole by `write_atomic`, through WRITING.tmp.
+    let ours = |name: &str| name == WRITING || name.strip_prefix(WRITING) == Some(".tmp") || name == LOCK || (name.starts_with('.') && name.ends_with(TMP_SUFFIX));
     if entries.flatten().all(|e| ours(&e.file_name().to_string_lossy())) {
         return ReportDir::Empty;
     }
