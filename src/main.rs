@@ -49,10 +49,26 @@ fn file_size_limit_as_an_error() {
     unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
 }
 
+/// The command line, refused with the argument named where it is not UTF-8 (a Latin-1
+/// directory name, say) instead of the panic of `std::env::args`.
+fn utf8_args() -> clv::error::Result<Vec<String>> {
+    std::env::args_os()
+        .enumerate()
+        .map(|(i, a)| {
+            a.into_string().map_err(|a| {
+                clv::error::Error::Other(format!(
+                    "argument {i} of the command line, {:?}, is not UTF-8, which clv takes its paths and values in: rename what it names, or reach it through a symbolic link with a UTF-8 name",
+                    a.to_string_lossy()
+                ))
+            })
+        })
+        .collect()
+}
+
 fn main() {
     one_malloc_arena();
     file_size_limit_as_an_error();
-    let result = cli::parse(std::env::args().collect()).and_then(|(cli, matches)| {
+    let result = utf8_args().and_then(cli::parse).and_then(|(cli, matches)| {
         if matches!(cli.command, cli::Command::Forward(_)) {
             large_allocations_from_mmap();
         }

@@ -448,6 +448,35 @@ fn batch_warning_signals_stop_at_a_checkpoint_as_sigterm_does() {
     assert!(err.contains("clv backward: stopped by a signal"), "{err}");
 }
 
+/// A soft CPU-time limit (`ulimit -S -t`, the warning of SGE, PBS and LSF before their hard
+/// one) sends SIGXCPU, whose default kills without a checkpoint: the forward stage stops at
+/// a checkpoint of its own instead, from which `--resume` continues.
+#[test]
+fn a_soft_cpu_time_limit_stops_the_forward_stage_at_a_checkpoint() {
+    use std::os::unix::process::CommandExt;
+    let run = scratch("faults", "xcpu").join("run");
+    let r = run.to_str().unwrap();
+    let mut command = Command::new(env!("CARGO_BIN_EXE_clv"));
+    command.args(["forward", "--quiet", "--n", "16", "--aspect", "1", "--relax-steps", "0", "--steps", "200000", "--checkpoint-every", "50", "--out", r]).stdout(Stdio::null()).stderr(Stdio::piped());
+    // SAFETY: setrlimit(2) and signal(2) are async-signal-safe, as a pre_exec closure must be.
+    unsafe {
+        command.pre_exec(|| {
+            let limit = libc::rlimit { rlim_cur: 1, rlim_max: 60 };
+            libc::setrlimit(libc::RLIMIT_CPU, &limit);
+            libc::signal(libc::SIGXCPU, libc::SIG_DFL);
+            Ok(())
+        })
+    };
+    let out = command.output().unwrap();
+    let err = stderr(&out);
+    assert!(out.status.code() == Some(128 + libc::SIGXCPU) && err.contains("stopped by a signal after step") && err.contains("--resume"), "{:?}: {err}", out.status);
+    let step: u64 = err.split("after step ").nth(1).and_then(|t| t.split(' ').next()).and_then(|n| n.parse().ok()).unwrap();
+    let dir = clv::store::RunDir { path: run.clone() };
+    assert!(step > 0 && step < 200000 && dir.partial_segments().unwrap().is_empty() && dir.segments().unwrap().last().unwrap().last == step, "the last segment ends at the stop");
+    let shown = String::from_utf8_lossy(&ok(clv(&["inspect", r])).stdout).into_owned();
+    assert!(shown.contains(&format!("steps: {step} of 200000 (not finished: clv forward --resume)")) && shown.contains("all finished files intact"), "{shown}");
+}
+
 /// Stopped by SIGTERM inside the window of a --store-r all run, the forward stage writes its
 /// own checkpoint at the stop, with one R_n there, not a second (an outside reader of the
 /// stored R_n saw that step twice; an outside check).

@@ -1,7 +1,9 @@
 //! What SIGTERM (a batch system's time limit, before its SIGKILL), SIGINT (Ctrl-C), SIGHUP
-//! (the terminal of a job started without nohup gone, as when an ssh session drops) and
+//! (the terminal of a job started without nohup gone, as when an ssh session drops),
 //! SIGUSR1 and SIGUSR2 (the warning batch systems send ahead of a time limit when asked, as
-//! SLURM's `--signal=USR1@120`; by default they would kill the process) do.
+//! SLURM's `--signal=USR1@120`) and SIGXCPU (a soft CPU-time limit reached, the warning of
+//! SGE, PBS and LSF before the hard one) do; by default the last three would kill the
+//! process without a checkpoint.
 //!
 //! The forward stage stops cleanly after the step it is in ([`StopOnSignals`]): it writes a
 //! checkpoint there, so that `--resume` loses nothing. The backward stage and the analyses
@@ -14,7 +16,7 @@
 
 use std::sync::atomic::{AtomicI32, AtomicPtr, AtomicUsize, Ordering};
 
-const SIGNALS: [libc::c_int; 5] = [libc::SIGTERM, libc::SIGINT, libc::SIGHUP, libc::SIGUSR1, libc::SIGUSR2];
+const SIGNALS: [libc::c_int; 6] = [libc::SIGTERM, libc::SIGINT, libc::SIGHUP, libc::SIGUSR1, libc::SIGUSR2, libc::SIGXCPU];
 
 /// The signal that asked for a stop; 0 for none.
 static STOP: AtomicI32 = AtomicI32::new(0);
