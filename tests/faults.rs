@@ -111,6 +111,18 @@ fn clv_run_killed_while_writing_its_report_is_finished_by_the_same_command() {
     assert!(landed >= 4, "only {landed} crashes landed");
 }
 
+/// An argument that is not UTF-8 (a Latin-1 directory name) is refused, named, with the way
+/// out; it was a panic.
+#[test]
+fn an_argument_that_is_not_utf8_is_named() {
+    use std::os::unix::ffi::OsStrExt;
+    let base = scratch("faults", "latin1");
+    let out = Command::new(env!("CARGO_BIN_EXE_clv")).arg("run").arg("--out").arg(base.join(std::ffi::OsStr::from_bytes(b"r\xe9sultats"))).output().unwrap();
+    let err = stderr(&out);
+    assert!(out.status.code() == Some(1) && err.contains("argument 3 of the command line") && err.contains("is not UTF-8") && !err.contains("panicked"), "{err}");
+    assert_eq!(std::fs::read_dir(&base).unwrap().count(), 0, "nothing written");
+}
+
 /// Did the process stop at the crash point it was given?
 fn crashed(out: &std::process::Output, at: &str) -> bool {
     if out.status.code() == Some(CRASH_STATUS) {
