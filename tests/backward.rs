@@ -317,6 +317,14 @@ fn out_of_core_segments_and_random_c_give_consistent_results() {
     assert_eq!(a["exponents"], b["exponents"], "the scratch-file path must give the same bits");
     let (fa, fb) = (frames(&dir.join("a.mcap")), frames(&dir.join("b.mcap")));
     assert!(fa == fb);
+    // A machine (or a job's memory limit) that offers less than --memory: out of core too,
+    // and said so, rather than left to the OOM killer.
+    let out = common::clv_env(&["backward", d, "--out", &format!("{d}/e.mcap")], &[("CLV_FAULT_MEMORY_AVAILABLE", "2000000")]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && err.contains("offered 1 MB, less than --memory's 4096 MB") && err.contains("scratch file"), "{err}");
+    assert!(frames(&dir.join("e.mcap")) == fa);
+    let out = clv(&["backward", d, "--out", &format!("{d}/f.mcap")]);
+    assert!(out.status.success() && !String::from_utf8_lossy(&out.stderr).contains("scratch file"), "no note where memory suffices");
     // A generic (random) start converges to the same covariant vectors outside degenerate
     // subspaces: compare v^1 and the most stable vector.
     let c = backward_json(&dir, &["--out", &format!("{d}/c.mcap"), "--c-init", "random"]);

@@ -279,6 +279,18 @@ fn a_real_full_file_system_stops_each_stage_and_resume_recovers() {
     tmpfs.resize("128m");
     ok(clv(&["analyze", frames_file.to_str().unwrap(), "--out", report.to_str().unwrap(), "--overwrite", "--quiet"]));
     assert!(report.join("summary.json").exists());
+
+    // A sweep whose segments go to a scratch file (past --memory) on a full file system: an
+    // error that says so, not SIGBUS (the scratch file was sparse, and writing through its
+    // mapping found no block).
+    let df = ok(Command::new("df").args(["-k", "--output=used"]).arg(&mnt).output().unwrap());
+    let used_kb: u64 = String::from_utf8_lossy(&df.stdout).lines().nth(1).unwrap().trim().parse().unwrap();
+    tmpfs.resize(&format!("{}k", used_kb + 100));
+    let out = clv(&["backward", d, "--quiet", "--memory", "0"]);
+    let err = stderr(&out);
+    assert!(out.status.code() == Some(1) && err.contains("disk full") && err.contains(".scratch-") && !err.contains("panicked"), "{:?}: {err}", out.status);
+    tmpfs.resize("256m");
+    ok(clv(&["backward", d, "--quiet", "--memory", "0", "--resume"]));
 }
 
 #[test]

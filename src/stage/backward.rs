@@ -671,7 +671,7 @@ pub fn run(
     if prior.as_ref().is_some_and(|p| p.done) {
         return finished_earlier(&dir, opts);
     }
-    let notes: Vec<String> = prior.as_ref().and_then(|p| frames_sent_before(p, opts, window)).into_iter().collect();
+    let mut notes: Vec<String> = prior.as_ref().and_then(|p| frames_sent_before(p, opts, window)).into_iter().collect();
 
     let cores = Arc::new(Cores::new(config.threads));
     let mut sweep = Sweep::start(opts, window, config, prior.as_ref(), &progress_file, par(cores.sweep_threads()), started)?;
@@ -698,7 +698,20 @@ pub fn run(
     // Two segment buffers, and a third share as headroom for what the sweep and the
     // consumers of its frames hold besides (C, the frames being formed and queued): a budget
     // that only just holds two segments goes out of core.
-    let out_of_core = (3 * segment_bytes > memory_bytes).then(|| dir.path.clone());
+    // The budget is --memory, or less where the machine or the job's memory limit (its
+    // control group) offers less: past it the OOM killer ends the stage without a word.
+    let offered = crate::machine::available_memory();
+    let budget = offered.map_or(memory_bytes, |m| m.min(memory_bytes));
+    let out_of_core = (3 * segment_bytes > budget).then(|| dir.path.clone());
+    if out_of_core.is_some() && budget < memory_bytes {
+        notes.push(format!(
+            "this machine (or the job's memory limit) offered {} MB, less than --memory's {} MB: the Gram-Schmidt bases of each segment ({} MB, two segments at a time) were kept in a scratch file in {}",
+            budget >> 20,
+            memory_bytes >> 20,
+            segment_bytes >> 20,
+            dir.path.display()
+        ));
+    }
     let planned = todo.len() as u64;
     let recomputation = Recomputation {
         config: config.clone(),

@@ -20,7 +20,7 @@ impl Storage {
         let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let path = dir.join(format!(".scratch-{}-{n}", std::process::id()));
         let file = std::fs::OpenOptions::new().read(true).write(true).create_new(true).open(&path).map_err(|e| Error::io(&path, e))?;
-        let result = file.set_len(8 * len as u64).map_err(|e| Error::io(&path, e)).and_then(|_| {
+        let result = file.set_len(8 * len as u64).and_then(|_| reserve(&file, 8 * len as u64)).map_err(|e| Error::io(&path, e)).and_then(|_| {
             // SAFETY: the file was just created by us and is unlinked below; nobody else maps it.
             unsafe { memmap2::MmapMut::map_mut(&file) }.map_err(|e| Error::io(&path, e))
         });
@@ -42,5 +42,19 @@ impl Storage {
             // SAFETY: as above, and we hold the only reference.
             Storage::Mapped(m) => unsafe { std::slice::from_raw_parts_mut(m.as_mut_ptr() as *mut f64, m.len() / 8) },
         }
+    }
+}
+
+/// Give the file its blocks now: a sparse file would get them when the mapping is first
+/// written, and a full disk then raises SIGBUS, which ends the process without a word.
+/// Reserved up front, a full disk is an error here, met like any other (free space, then
+/// resume). File systems that cannot reserve (EOPNOTSUPP, EINVAL) keep the sparse file.
+fn reserve(file: &std::fs::File, bytes: u64) -> std::io::Result<()> {
+    use std::os::fd::AsRawFd;
+    let Ok(len) = libc::off_t::try_from(bytes) else { return Ok(()) };
+    // SAFETY: posix_fallocate(3) on an open descriptor of ours; it returns the error number.
+    match unsafe { libc::posix_fallocate(file.as_raw_fd(), 0, len) } {
+        0 | libc::EOPNOTSUPP | libc::EINVAL => Ok(()),
+        errno => Err(std::io::Error::from_raw_os_error(errno)),
     }
 }
