@@ -414,6 +414,12 @@ fn killed_between_the_finished_file_and_its_record_resumes() {
     let interim = interim.expect("no kill landed after a finished segment");
     let shown = String::from_utf8(clv(&["inspect", &d]).stdout).unwrap();
     assert!(shown.contains("backward sweep: interrupted after ") && shown.contains(&format!("(frames to {o})")) && shown.contains("--resume` continues it"), "{shown}");
+    // Its FILE.tmp gone (a purged scratch directory): inspect says --resume cannot continue.
+    let tmp = dir.join("part.mcap.tmp");
+    std::fs::rename(&tmp, dir.join("aside.tmp")).unwrap();
+    let shown = String::from_utf8(clv(&["inspect", &d]).stdout).unwrap();
+    assert!(shown.contains("are gone, so --resume is refused") && !shown.contains("continues it"), "{shown}");
+    std::fs::rename(dir.join("aside.tmp"), &tmp).unwrap();
     ok(clv(&["backward", &d, "--quiet", "--out", o, "--resume"]));
     let shown = String::from_utf8(clv(&["inspect", &d]).stdout).unwrap();
     assert!(shown.contains(&format!("backward sweep: finished, {} frames (frames to {o})", want.len())), "{shown}");

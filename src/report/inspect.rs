@@ -326,14 +326,25 @@ fn backward_sweep(dir: &RunDir) -> Option<String> {
         format!("running now ({out}; {} frames at the last record, C at step {})", last.frames, last.at)
     } else {
         // Its frames so far are kept in FILE.tmp, which a sweep with other options would strand.
-        let kept = opts.frames_file(&dir.path).map(|f| crate::store::frames::tmp_path(&f)).filter(|t| t.exists());
-        format!(
-            "interrupted after {} frames ({out}), C recorded at step {}: `clv backward {} --resume` continues it{}",
-            last.frames,
-            last.at,
-            dir.path.display(),
-            kept.map(|t| format!("; a sweep with other options is refused until then (it would strand the frames in {})", t.display())).unwrap_or_default()
-        )
+        let tmp = opts.frames_file(&dir.path).map(|f| crate::store::frames::tmp_path(&f));
+        let run = dir.path.display();
+        let how = match (opts.destination(), &tmp) {
+            // Into a batch job's log, the frames would be bytes nobody reads.
+            (Destination::Stream, _) => format!(
+                "`clv backward {run} --resume | clv analyze - --out REPORT` continues it, streaming the frames after those it sent to their reader \
+                 (a sweep that `clv run` started is continued by the same `clv run` command, which starts the sweep over)"
+            ),
+            (_, Some(t)) if !t.exists() && last.frames > 0 => format!(
+                "its frames so far ({}) are gone, so --resume is refused: give the sweep's command again without --resume to start it over",
+                t.display()
+            ),
+            (_, Some(t)) if t.exists() => format!(
+                "`clv backward {run} --resume` continues it; a sweep with other options is refused until then (it would strand the frames in {})",
+                t.display()
+            ),
+            _ => format!("`clv backward {run} --resume` continues it"),
+        };
+        format!("interrupted after {} frames ({out}), C recorded at step {}: {how}", last.frames, last.at)
     })
 }
 
