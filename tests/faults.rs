@@ -1222,8 +1222,16 @@ fn a_closed_standard_output_is_no_success() {
         let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
         let out = Command::new(env!("CARGO_BIN_EXE_clv")).args(args).stdout(full).output().unwrap();
         let err = stderr(&out);
-        assert!(out.status.code() == Some(1) && err.contains("<standard output>") && !err.contains("panicked"), "{args:?}: {:?} {err}", out.status);
+        assert!(out.status.code() == Some(1) && err.contains("writing to standard output failed") && !err.contains("panicked"), "{args:?}: {:?} {err}", out.status);
     }
+    // A full disk where standard output goes (a batch job's log over quota): the run itself
+    // finished, and resuming it, as a full disk's message would say, has nothing to do.
+    let run = scratch("faults", "stdout-full").join("run");
+    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_clv")).args(["forward", "--n", "8", "--aspect", "1", "--steps", "200", "--quiet", "--out", run.to_str().unwrap()]).stdout(full).output().unwrap();
+    let err = stderr(&out);
+    assert!(out.status.code() == Some(1) && err.contains("the command itself finished") && !err.contains("--resume"), "{:?} {err}", out.status);
+    assert!(String::from_utf8_lossy(&ok(clv(&["inspect", run.to_str().unwrap()])).stdout).contains("(finished)"));
 }
 
 /// A run directory the user cannot write: the backward stage says so and how to go on.
