@@ -98,6 +98,12 @@ fn analyze_refuses_bad_sources_clearly() {
     let run = forward_in(&base);
     let err = common::stderr(&clv(&["analyze", run.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
     assert!(err.contains("a directory without a frame file") && err.contains("clv backward"), "{err}");
+    // A forward run not finished yet: finish it first (its backward stage would refuse).
+    let spectrum = run.join("spectrum.json");
+    std::fs::rename(&spectrum, base.join("aside.json")).unwrap();
+    let err = common::stderr(&clv(&["analyze", run.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
+    assert!(err.contains("a forward run that has not finished") && err.contains(&format!("clv forward --resume {}", run.display())), "{err}");
+    std::fs::rename(base.join("aside.json"), &spectrum).unwrap();
     let segment = clv::store::RunDir { path: run.clone() }.segments().unwrap().remove(0).path;
     let err = common::stderr(&clv(&["analyze", segment.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
     assert!(err.contains("is a segment of a run directory") && err.contains("clv backward"), "{err}");

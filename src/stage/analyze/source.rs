@@ -39,6 +39,12 @@ fn frame_source(source: &Path) -> Result<(PathBuf, Option<SweepFile>)> {
             let what = if source.join("index.html").exists() { "a report (what `clv analyze` writes)" } else { "no run directory" };
             return Err(Error::Other(format!("{d} is {what}: give a frame file (`clv analyze FILE --out REPORT`), a run directory whose backward stage wrote one, or - for a stream on standard input")));
         }
+        // A forward run not yet finished has no backward stage to ask for.
+        if !(crate::store::RunDir { path: source.to_path_buf() }).spectrum_path().exists() {
+            return Err(Error::Other(format!(
+                "{d} is a forward run that has not finished (no spectrum.json yet), so it has no frames: finish it with `clv forward --resume {d}`, then run its backward stage (`clv backward {d} --out - | clv analyze - --out REPORT`)"
+            )));
+        }
         return Err(Error::Other(format!(
             "{d} is a directory without a frame file ({}); analyse a run with `clv backward {d} --out - | clv analyze - --out REPORT`, or write {} with `clv backward {d}` first",
             frames.display(),
