@@ -347,10 +347,22 @@ impl BuildInfo {
         let mut cpu_features = Vec::new();
         #[cfg(target_arch = "x86_64")]
         {
+            use std::arch::is_x86_feature_detected as has;
             for (name, on) in [
-                ("avx2", std::arch::is_x86_feature_detected!("avx2")),
-                ("fma", std::arch::is_x86_feature_detected!("fma")),
-                ("avx512f", std::arch::is_x86_feature_detected!("avx512f")),
+                ("avx2", has!("avx2")),
+                ("fma", has!("fma")),
+                ("avx512f", has!("avx512f")),
+                // The rest of the x86-64-v2 and -v3 sets, which decide faer's (pulp's) code
+                // paths with the two above ([`BuildInfo::simd_level`]).
+                ("sse3", has!("sse3")),
+                ("ssse3", has!("ssse3")),
+                ("sse4.1", has!("sse4.1")),
+                ("sse4.2", has!("sse4.2")),
+                ("popcnt", has!("popcnt")),
+                ("avx", has!("avx")),
+                ("bmi1", has!("bmi1")),
+                ("bmi2", has!("bmi2")),
+                ("lzcnt", has!("lzcnt")),
             ] {
                 if on {
                     cpu_features.push(name.to_string());
@@ -381,20 +393,43 @@ impl BuildInfo {
         if self.numerics != here.numerics {
             Some(format!("its numerics are {:?}, this build's are {:?}", self.numerics, here.numerics))
         } else if self.arch != here.arch || self.simd_level() != here.simd_level() {
-            Some(format!("it ran on {} with {:?}, this machine is {} with {:?}", self.arch, self.cpu_features, here.arch, here.cpu_features))
+            Some(format!(
+                "it ran on {} with {:?} ({}), this machine is {} with {:?} ({})",
+                self.arch,
+                self.cpu_features,
+                self.simd_level(),
+                here.arch,
+                here.cpu_features,
+                here.simd_level()
+            ))
         } else {
             None
         }
     }
 
-    /// The instruction sets that decide the bits: whether faer's SIMD code runs (AVX2 and
-    /// FMA; without them it takes scalar paths that add in other orders). AVX-512 is left
-    /// out: in this build (faer without its `nightly` feature) only faer's matrix products
-    /// dispatch on it, to kernels that give the AVX2 kernels' bits at twice their speed
-    /// (tested: `avx512_and_avx2_products_agree_bit_for_bit`), so a run continues on a node
-    /// with or without it.
-    pub fn simd_level(&self) -> Vec<&str> {
-        self.cpu_features.iter().map(String::as_str).filter(|f| matches!(*f, "avx2" | "fma")).collect()
+    /// The level of x86-64 instruction sets that decides the bits: faer's SIMD code (pulp)
+    /// takes its x86-64-v3 paths (AVX2, FMA, BMI1/2, LZCNT and the v2 set), its v2 paths, or
+    /// scalar ones, which add in other orders; so do glibc's ln and exp with and without FMA.
+    /// AVX-512 is left out: in this build (faer without its `nightly` feature) only faer's
+    /// matrix products dispatch on it, to kernels that give the AVX2 kernels' bits at twice
+    /// their speed (`avx512_and_avx2_products_agree_bit_for_bit`), so a run continues on a
+    /// node with or without it. Records of builds before the v2/v3 sets were listed name only
+    /// AVX2 and FMA: there both stand for v3.
+    pub fn simd_level(&self) -> &'static str {
+        const V2: [&str; 5] = ["sse3", "ssse3", "sse4.1", "sse4.2", "popcnt"];
+        const V3: [&str; 6] = ["avx", "avx2", "bmi1", "bmi2", "fma", "lzcnt"];
+        let has = |f: &str| self.cpu_features.iter().any(|g| g == f);
+        if self.cpu_features.is_empty() {
+            ""
+        } else if !V2.iter().any(|f| has(f)) {
+            if has("avx2") && has("fma") { "x86-64-v3" } else { "below x86-64-v3 (not recorded further)" }
+        } else if V2.iter().chain(&V3).all(|f| has(f)) {
+            "x86-64-v3"
+        } else if V2.iter().all(|f| has(f)) {
+            "x86-64-v2"
+        } else {
+            "below x86-64-v2"
+        }
     }
 }
 
@@ -842,25 +877,36 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 mod tests {
     use super::{differences, differences_summary, free_bytes, gap_between, short_of_space, BuildInfo, StoreConfig};
 
-    /// A run made with or without AVX-512 continues on either kind of node; one made without
-    /// AVX2 and FMA (or with them, continued without) does not, nor one of other numerics.
+    /// A run made with or without AVX-512 continues on either kind of node; one made on a
+    /// CPU of another x86-64 level (a v3 feature such as BMI2 missing, as virtual machines
+    /// may hide it) does not, nor one of other numerics. Records that list only AVX2, FMA
+    /// and AVX-512 (earlier builds) count as v3 where they have both of the first two.
     #[test]
     fn a_run_continues_with_or_without_avx512_only() {
         let here = BuildInfo::current();
         let with = |features: &[&str]| BuildInfo { cpu_features: features.iter().map(|f| f.to_string()).collect(), ..here.clone() };
-        let level: Vec<String> = here.simd_level().iter().map(|f| f.to_string()).collect();
-        let mut other = level.iter().map(String::as_str).collect::<Vec<_>>();
-        other.push("avx512f");
-        assert!(with(&other).differs_here().is_none() && with(&level.iter().map(String::as_str).collect::<Vec<_>>()).differs_here().is_none());
-        let fewer = if level.is_empty() { with(&["avx2", "fma"]) } else { with(&["avx2", "avx512f"]) };
-        assert!(fewer.differs_here().is_some_and(|why| why.contains("this machine is")));
+        let v3 = ["avx2", "fma", "sse3", "ssse3", "sse4.1", "sse4.2", "popcnt", "avx", "bmi1", "bmi2", "lzcnt"];
+        let mut v3_avx512 = v3.to_vec();
+        v3_avx512.push("avx512f");
+        assert_eq!(with(&v3).simd_level(), "x86-64-v3");
+        assert_eq!(with(&v3_avx512).simd_level(), "x86-64-v3");
+        assert_eq!(with(&["avx2", "fma", "avx512f"]).simd_level(), "x86-64-v3", "an earlier build's record");
+        assert_eq!(with(&["avx2", "avx512f"]).simd_level(), "below x86-64-v3 (not recorded further)");
+        assert_eq!(with(&v3.iter().copied().filter(|f| *f != "bmi2").collect::<Vec<_>>()).simd_level(), "x86-64-v2");
+        assert_eq!(with(&["sse3", "popcnt"]).simd_level(), "below x86-64-v2");
+        if here.simd_level() == "x86-64-v3" {
+            assert!(with(&v3).differs_here().is_none() && with(&v3_avx512).differs_here().is_none() && with(&["avx2", "fma"]).differs_here().is_none());
+            let no_bmi2 = with(&v3.iter().copied().filter(|f| *f != "bmi2").collect::<Vec<_>>());
+            assert!(no_bmi2.differs_here().is_some_and(|why| why.contains("(x86-64-v2), this machine is") && why.contains("(x86-64-v3)")));
+        }
         let numerics = BuildInfo { numerics: "clv-numerics/0".into(), ..here.clone() };
         assert!(numerics.differs_here().is_some_and(|why| why.contains("clv-numerics/0")));
     }
 
     /// What [`BuildInfo::simd_level`] rests on: faer's matrix products (private-gemm-x86)
     /// give the same bits with their AVX-512 and their AVX2 kernels, for full and triangular
-    /// products, replacing or adding, column- and row-major, on one thread and two. The
+    /// products, replacing or adding, with several alphas, column- and row-major operands,
+    /// on one to three threads. (Without AVX-512 here, nothing can be compared.) The
     /// kernels differ (the AVX-512 ones are about twice as fast) and are not the naive sums.
     #[cfg(target_arch = "x86_64")]
     #[test]
@@ -871,38 +917,55 @@ mod tests {
             return;
         }
         let mut rng = crate::rng::Rng::new(7);
-        let product = |instr, (m, n, k): (usize, usize, usize), a: &[f64], b: &[f64], c: &[f64], kind, beta, a_rows: bool, threads| {
+        // Layouts: A, B and C column- or row-major (C only when full).
+        #[derive(Clone, Copy, Debug)]
+        struct Case {
+            kind: DstKind,
+            beta: Accum,
+            alpha: f64,
+            rows: [bool; 3],
+            threads: usize,
+        }
+        let product = |instr, (m, n, k): (usize, usize, usize), a: &[f64], b: &[f64], c: &[f64], case: Case| {
             let mut c = c.to_vec();
-            let alpha = -0.75f64;
-            let (rs, cs) = if a_rows { (k as isize, 1) } else { (1, m as isize) };
+            let strides = |row_major: bool, r: usize, cols: usize| if row_major { (cols as isize, 1) } else { (1, r as isize) };
+            let ((ars, acs), (brs, bcs), (crs, ccs)) = (strides(case.rows[0], m, k), strides(case.rows[1], k, n), strides(case.rows[2], m, n));
             // SAFETY: every pointer and stride describes a buffer of the stated shape.
             unsafe {
-                gemm(DType::F64, IType::U64, instr, m, n, k, c.as_mut_ptr().cast(), 1, m as isize, std::ptr::null(), std::ptr::null(), kind, beta,
-                    a.as_ptr().cast(), rs, cs, false, std::ptr::null(), 0, b.as_ptr().cast(), 1, k as isize, false, (&raw const alpha).cast(), threads);
+                gemm(DType::F64, IType::U64, instr, m, n, k, c.as_mut_ptr().cast(), crs, ccs, std::ptr::null(), std::ptr::null(), case.kind, case.beta,
+                    a.as_ptr().cast(), ars, acs, false, std::ptr::null(), 0, b.as_ptr().cast(), brs, bcs, false, (&raw const case.alpha).cast(), case.threads);
             }
             c
         };
         let mut rng2 = crate::rng::Rng::new(11);
         let mut size = |hi: usize| 1 + (rng2.uniform() * hi as f64) as usize % hi;
+        // The QR's shapes, a square one, and random ones, a third with depths past the
+        // kernels' k blocks (512).
         let mut shapes: Vec<(usize, usize, usize)> = vec![(792, 64, 32), (32, 64, 792), (792, 792, 792)];
-        shapes.extend((0..120).map(|_| (size(500), size(200), size(500))));
-        for (case, &(m, n, k)) in shapes.iter().enumerate() {
-            let kind = [DstKind::Full, DstKind::Upper, DstKind::Lower][case % 3];
+        shapes.extend((0..120).map(|i| (size(500), size(200), if i % 3 == 0 { 512 + size(700) } else { size(500) })));
+        for (i, &(m, n, k)) in shapes.iter().enumerate() {
+            let kind = [DstKind::Full, DstKind::Upper, DstKind::Lower][i % 3];
+            let case = Case {
+                kind,
+                beta: if i % 2 == 0 { Accum::Add } else { Accum::Replace },
+                alpha: [-0.75, 1.0, -1.0, 2.0, 0.0][i % 5],
+                rows: [i % 4 == 1, i % 6 == 2, kind == DstKind::Full && i % 9 == 3],
+                threads: [1, 2, 1, 3][i % 4],
+            };
             let shape = if kind == DstKind::Full { (m, n, k) } else { (m, m, k) };
-            let beta = if case % 2 == 0 { Accum::Add } else { Accum::Replace };
-            let (a_rows, threads) = (case % 5 == 0, if case % 7 == 0 { 2 } else { 1 });
             let fill = |len: usize, rng: &mut crate::rng::Rng| (0..len).map(|_| rng.normal()).collect::<Vec<f64>>();
             let (a, b, c) = (fill(shape.0 * shape.2, &mut rng), fill(shape.2 * shape.1, &mut rng), fill(shape.0 * shape.1, &mut rng));
-            let avx2 = product(InstrSet::Avx256, shape, &a, &b, &c, kind, beta, a_rows, threads);
-            let avx512 = product(InstrSet::Avx512, shape, &a, &b, &c, kind, beta, a_rows, threads);
+            let avx2 = product(InstrSet::Avx256, shape, &a, &b, &c, case);
+            let avx512 = product(InstrSet::Avx512, shape, &a, &b, &c, case);
             let differ = avx2.iter().zip(&avx512).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
-            assert_eq!(differ, 0, "{shape:?} {kind:?} {beta:?}, A row-major {a_rows}, {threads} thread(s): {differ} entries differ");
+            assert_eq!(differ, 0, "{shape:?} {case:?}: {differ} entries differ");
         }
         // Not the naive sums, which add in one order only: the test could not fail otherwise.
         let n = 300;
         let fill = |rng: &mut crate::rng::Rng| (0..n * n).map(|_| rng.normal()).collect::<Vec<f64>>();
         let (a, b, c) = (fill(&mut rng), fill(&mut rng), vec![0.0; n * n]);
-        let kernel = product(InstrSet::Avx256, (n, n, n), &a, &b, &c, DstKind::Full, Accum::Replace, false, 1);
+        let plain = Case { kind: DstKind::Full, beta: Accum::Replace, alpha: -0.75, rows: [false; 3], threads: 1 };
+        let kernel = product(InstrSet::Avx256, (n, n, n), &a, &b, &c, plain);
         let naive = (0..n * n).filter(|&ij| (-0.75 * (0..n).map(|l| a[ij % n + l * n] * b[l + ij / n * n]).sum::<f64>()).to_bits() != kernel[ij].to_bits()).count();
         assert!(naive > n * n / 2, "{naive} of {} differ from the naive sums", n * n);
     }
