@@ -436,7 +436,7 @@ impl Inspection {
             "made by: clv {} ({numerics}) on {} with {}{}",
             b.clv_version,
             b.arch,
-            if b.cpu_features.is_empty() { "no features listed".to_string() } else { b.cpu_features.join(", ") },
+            if b.cpu_features.is_empty() { "no features listed".to_string() } else { format!("{} ({})", b.cpu_features.join(", "), b.simd_level()) },
             if self.not_here.is_some() { " (not this machine and build: see the note below)" } else { "" }
         );
         let _ = writeln!(s, "files: {} segments, {} checkpoints, {} on disk", self.segments.len(), self.checkpoints, human(self.disk_bytes));
