@@ -48,13 +48,25 @@ impl Storage {
 /// Give the file its blocks now: a sparse file would get them when the mapping is first
 /// written, and a full disk then raises SIGBUS, which ends the process without a word.
 /// Reserved up front, a full disk is an error here, met like any other (free space, then
-/// resume). File systems that cannot reserve (EOPNOTSUPP, EINVAL) keep the sparse file.
+/// resume). File systems that cannot reserve (NFSv3, older Lustre: EOPNOTSUPP) keep the
+/// sparse file: fallocate(2) itself, not posix_fallocate(3), which would emulate it there by
+/// writing every block.
+#[cfg(not(target_os = "linux"))]
+fn reserve(_: &std::fs::File, _: u64) -> std::io::Result<()> {
+    Ok(())
+}
+
+#[cfg(target_os = "linux")]
 fn reserve(file: &std::fs::File, bytes: u64) -> std::io::Result<()> {
     use std::os::fd::AsRawFd;
     let Ok(len) = libc::off_t::try_from(bytes) else { return Ok(()) };
-    // SAFETY: posix_fallocate(3) on an open descriptor of ours; it returns the error number.
-    match unsafe { libc::posix_fallocate(file.as_raw_fd(), 0, len) } {
-        0 | libc::EOPNOTSUPP | libc::EINVAL => Ok(()),
-        errno => Err(std::io::Error::from_raw_os_error(errno)),
+    // SAFETY: fallocate(2) on an open descriptor of ours, mode 0 (allocate, extend size).
+    if unsafe { libc::fallocate(file.as_raw_fd(), 0, 0, len) } == 0 {
+        return Ok(());
+    }
+    let e = std::io::Error::last_os_error();
+    match e.raw_os_error() {
+        Some(libc::EOPNOTSUPP | libc::ENOSYS | libc::EINVAL) => Ok(()),
+        _ => Err(e),
     }
 }
