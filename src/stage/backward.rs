@@ -705,7 +705,7 @@ pub fn run(
     let out_of_core = (3 * segment_bytes > budget).then(|| dir.path.clone());
     if out_of_core.is_some() && budget < memory_bytes {
         notes.push(format!(
-            "this machine (or the job's memory limit) offered {} MB, less than --memory's {} MB: the Gram-Schmidt bases of each segment ({} MB, two segments at a time) were kept in a scratch file in {}",
+            "this machine (or the job's memory limit) offered {} MB, less than --memory's {} MB and less than three segments' Gram-Schmidt bases ({} MB each: two in use, a third's worth for the rest): they were kept in a scratch file in {}",
             budget >> 20,
             memory_bytes >> 20,
             segment_bytes >> 20,
