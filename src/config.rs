@@ -299,7 +299,8 @@ impl RunConfig {
             "vectors",
             format!(
                 "{which} need about {} for the tangent vectors and the QR step, and this machine has {} available; \
-                 follow the leading k vectors with --vectors k (about 24 D k bytes; a step then costs O(D k^2)), or choose a smaller system",
+                 a new run can follow the leading k vectors with --vectors k (about 24 D k bytes; a step then costs O(D k^2)), or a smaller system; \
+                 an existing run (resumed, or its backward stage) needs a machine or job with that much memory",
                 crate::store::run::human(need.min(u64::MAX as f64) as u64),
                 crate::store::run::human(have)
             ),

@@ -1230,7 +1230,7 @@ fn a_closed_standard_output_is_no_success() {
     let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_clv")).args(["forward", "--n", "8", "--aspect", "1", "--steps", "200", "--quiet", "--out", run.to_str().unwrap()]).stdout(full).output().unwrap();
     let err = stderr(&out);
-    assert!(out.status.code() == Some(1) && err.contains("the command itself finished") && !err.contains("--resume"), "{:?} {err}", out.status);
+    assert!(out.status.code() == Some(1) && err.contains("the files it wrote are complete") && !err.contains("--resume"), "{:?} {err}", out.status);
     assert!(String::from_utf8_lossy(&ok(clv(&["inspect", run.to_str().unwrap()])).stdout).contains("(finished)"));
 }
 

@@ -256,11 +256,12 @@ pub fn emit(text: &str) -> Result<()> {
     let mut out = std::io::stdout().lock();
     match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Err(Error::OutputClosed { what: "the output was written whole".into(), then: "what it did not read is not shown".into() }),
-        // Printed last, after the command's work: that work is done and saved, and resuming
+        // Printed last, after the command's work: files it wrote are complete, and resuming
         // (what a full disk's message would say) has nothing to do.
         written => written.map_err(|e| {
             Error::Other(format!(
-                "writing to standard output failed ({e}): the command itself finished, and the files it writes are complete; only what it prints there is missing (a full disk or quota where standard output goes, such as a batch job's log?)"
+                "writing to standard output failed ({e}; a full disk or quota where it goes, such as a batch job's log?): what the command printed there is incomplete, the files it wrote are complete. \
+                 Where the printed output was the result (a run without --out, `clv config > FILE`), give the command again once there is space"
             ))
         }),
     }
