@@ -440,7 +440,7 @@ fn sighup_stops_the_forward_stage_at_a_checkpoint_too() {
 /// Batch systems warn a job before its time limit with SIGUSR1 or SIGUSR2 when asked
 /// (SLURM's `--signal=USR1@120`), whose default is to kill: the forward stage stops at a
 /// checkpoint of its own instead, exits as by the signal, and `--resume` finishes the run to
-/// the bits of one never stopped; the backward stage ends saying how to continue.
+/// the bits of one never stopped; the backward stage works on until the SIGTERM after them.
 #[test]
 fn batch_warning_signals_stop_at_a_checkpoint_as_sigterm_does() {
     let args = |dir: &Path| -> Vec<String> {
@@ -458,17 +458,24 @@ fn batch_warning_signals_stop_at_a_checkpoint_as_sigterm_does() {
         ok(clv(&["forward", "--resume", run.to_str().unwrap(), "--quiet"]));
         assert_eq!(contents(&run).exponents, contents(&want).exponents, "{name}");
     }
-    // The backward stage, streaming into a pipe nobody reads, is stopped mid-sweep.
+    // The backward stage (streaming into a pipe nobody reads, so mid-sweep) keeps working
+    // through the warnings, whose end would only lose the work until the SIGTERM after them.
     let mut child = Command::new(env!("CARGO_BIN_EXE_clv")).args(["backward", want.to_str().unwrap(), "--quiet", "--out", "-"]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
     let started = std::time::Instant::now();
     while !want.join("backward.json").exists() && started.elapsed() < Duration::from_secs(60) {
         std::thread::sleep(Duration::from_millis(2));
     }
-    // SAFETY: a plain kill(2) of the child we spawned.
-    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGUSR1) };
+    for signal in [libc::SIGUSR1, libc::SIGUSR2, libc::SIGXCPU] {
+        // SAFETY: a plain kill(2) of the child we spawned.
+        unsafe { libc::kill(child.id() as libc::pid_t, signal) };
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(child.try_wait().unwrap().is_none(), "a warning ended the backward stage");
+    // SAFETY: as above.
+    unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
     let mut err = String::new();
     std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
-    assert_eq!(child.wait().unwrap().code(), Some(128 + libc::SIGUSR1), "{err}");
+    assert_eq!(child.wait().unwrap().code(), Some(128 + libc::SIGTERM), "{err}");
     assert!(err.contains("clv backward: stopped by a signal"), "{err}");
 }
 

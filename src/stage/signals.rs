@@ -9,7 +9,9 @@
 //! checkpoint there, so that `--resume` loses nothing. The backward stage and the analyses
 //! keep their work in files that are only ever renamed into place, so being killed loses at
 //! most the segment in hand; there a signal ends the process at once, as by default, but
-//! first says what was kept and how to continue ([`ExplainOnSignals`]).
+//! first says what was kept and how to continue ([`ExplainOnSignals`]). The warnings
+//! (SIGUSR1, SIGUSR2, SIGXCPU) they ignore: ending at once would only lose the work until
+//! the SIGTERM or SIGKILL that follows.
 //!
 //! A signal the process was started to ignore (SIGINT of a shell's background job) stays
 //! ignored under both.
@@ -17,6 +19,11 @@
 use std::sync::atomic::{AtomicI32, AtomicPtr, AtomicUsize, Ordering};
 
 const SIGNALS: [libc::c_int; 6] = [libc::SIGTERM, libc::SIGINT, libc::SIGHUP, libc::SIGUSR1, libc::SIGUSR2, libc::SIGXCPU];
+
+/// The signals of [`SIGNALS`] that warn of an end to come rather than ask for one now.
+fn is_warning(sig: libc::c_int) -> bool {
+    matches!(sig, libc::SIGUSR1 | libc::SIGUSR2 | libc::SIGXCPU)
+}
 
 /// The signal that asked for a stop; 0 for none.
 static STOP: AtomicI32 = AtomicI32::new(0);
@@ -51,10 +58,12 @@ struct Installed {
 }
 
 impl Installed {
-    fn new(handler: extern "C" fn(libc::c_int)) -> Self {
+    /// `handler` for every signal, or for all but the warnings, which are then ignored.
+    fn new(handler: extern "C" fn(libc::c_int), warnings_too: bool) -> Self {
         // SAFETY: both handlers above are async-signal-safe.
         let before = SIGNALS.map(|sig| unsafe {
-            let before = libc::signal(sig, handler as *const () as libc::sighandler_t);
+            let disposition = if warnings_too || !is_warning(sig) { handler as *const () as libc::sighandler_t } else { libc::SIG_IGN };
+            let before = libc::signal(sig, disposition);
             if before == libc::SIG_IGN {
                 libc::signal(sig, libc::SIG_IGN);
             }
@@ -85,7 +94,7 @@ impl StopOnSignals {
         if GUARDS.fetch_add(1, Ordering::SeqCst) == 0 {
             STOP.store(0, Ordering::SeqCst);
         }
-        StopOnSignals { _handlers: Installed::new(request_stop) }
+        StopOnSignals { _handlers: Installed::new(request_stop, true) }
     }
 
     pub fn requested(&self) -> Option<i32> {
@@ -99,8 +108,9 @@ impl Drop for StopOnSignals {
     }
 }
 
-/// While this lives, the signals above end the process with `message` on standard error
-/// and the exit status of death by that signal (128 + its number, as a shell reports it).
+/// While this lives, the signals above but the warnings end the process with `message` on
+/// standard error and the exit status of death by that signal (128 + its number, as a shell
+/// reports it); the warnings are ignored.
 pub struct ExplainOnSignals {
     _handlers: Installed,
 }
@@ -109,6 +119,6 @@ impl ExplainOnSignals {
     pub fn install(message: &str) -> Self {
         let text = Box::leak(Box::new(format!("{message}\n").into_bytes()));
         MESSAGE.store(text, Ordering::SeqCst);
-        ExplainOnSignals { _handlers: Installed::new(explain_and_exit) }
+        ExplainOnSignals { _handlers: Installed::new(explain_and_exit, false) }
     }
 }
