@@ -627,7 +627,7 @@ fn sigterm_stops_the_forward_stage_at_a_checkpoint_of_its_own() {
     assert!(err.contains("clv backward: stopped by a signal; the frames streamed so far went to the reader"), "{err}");
     // inspect continues a stream into its reader, not into a batch job's log.
     let shown = String::from_utf8_lossy(&clv(&["inspect", want.to_str().unwrap()]).stdout).into_owned();
-    assert!(shown.contains("(frames to a stream)") && shown.contains("--resume | clv analyze - --out REPORT` continues it"), "{shown}");
+    assert!(shown.contains("(frames to a stream)") && shown.contains("--out - --save-every") && shown.contains("| clv analyze - --out REPORT` streams the whole window again") && shown.contains("with --resume it streams only the frames after"), "{shown}");
     // Into a file: the message, if the signal lands before the end, and --resume then
     // finishes the sweep to the same frames.
     let o = run.join("term.mcap");

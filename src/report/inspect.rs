@@ -331,8 +331,9 @@ fn backward_sweep(dir: &RunDir) -> Option<String> {
         let how = match (opts.destination(), &tmp) {
             // Into a batch job's log, the frames would be bytes nobody reads.
             (Destination::Stream, _) => format!(
-                "`clv backward {run} --resume | clv analyze - --out REPORT` continues it, streaming the frames after those it sent to their reader \
-                 (a sweep that `clv run` started is continued by the same `clv run` command, which starts the sweep over)"
+                "`clv backward {run} {} | clv analyze - --out REPORT` streams the whole window again (a sweep that `clv run` started: the same `clv run` command); \
+                 with --resume it streams only the frames after those it sent, for a reader that kept them",
+                opts.as_flags()
             ),
             (_, Some(t)) if !t.exists() && last.frames > 0 => format!(
                 "its frames so far ({}) are gone, so --resume is refused: give the sweep's command again without --resume to start it over",
