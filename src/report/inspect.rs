@@ -496,7 +496,7 @@ impl Inspection {
             let _ = writeln!(
                 s,
                 "note: neither `clv forward --resume` nor the backward stage can run on this machine with this build ({why}): \
-                 they reproduce the run's numbers bit for bit only with the build and kind of CPU that made it (on a cluster: nodes of that kind)"
+                 they reproduce the run's numbers bit for bit only with a build of its numerics on a CPU of its x86-64 level, with or without AVX-512 (on a cluster: nodes of that level)"
             );
         }
         if let Some(m) = &self.meta_mismatch {
