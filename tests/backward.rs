@@ -743,6 +743,7 @@ fn analyze_run_dir_reads_only_the_last_sweeps_own_file() {
     assert!(read_text(&rep.join("index.html")).contains("outside.mcap"));
     std::fs::remove_file(&outside).unwrap();
     refused(analyze("gone"), &format!("wrote {}, which is gone", outside.display()));
+    refused(analyze("gone"), "analyse it by name: `clv analyze FILE --out REPORT`");
     // An unfinished sweep into a file: continue it first.
     let crashed = common::clv_env(&["backward", d, "--out", outside.to_str().unwrap(), "--quiet"], &[("CLV_FAULT_CRASH_AT", "atomic-renamed#2")]);
     assert_eq!(crashed.status.code(), Some(clv::store::fault::CRASH_STATUS), "{}", common::stderr(&crashed));

@@ -66,7 +66,10 @@ fn frame_source(source: &Path) -> Result<(PathBuf, Option<SweepFile>)> {
         return Err(Error::Other(format!("{d}: the run's last backward sweep ({flags}) has not finished writing {}; {then}", f.display())));
     }
     let what = match &file {
-        Some(f) => format!("wrote {}, which is gone (deleted or moved)", f.display()),
+        Some(f) => format!(
+            "wrote {}, which is gone (deleted or moved; if it is only elsewhere now, such as under another mount point on another node, analyse it by name: `clv analyze FILE --out REPORT`)",
+            f.display()
+        ),
         None if opts.streams() => "streamed its frames to a reader (`--out -`, or the analyses of `clv run`) and wrote no frame file".into(),
         None => "computed only the CLV spectrum (`--save-every 0`) and wrote no frame file".into(),
     };
