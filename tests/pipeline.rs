@@ -103,7 +103,15 @@ fn analyze_refuses_bad_sources_clearly() {
     std::fs::rename(&spectrum, base.join("aside.json")).unwrap();
     let err = common::stderr(&clv(&["analyze", run.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
     assert!(err.contains("a forward run that has not finished") && err.contains(&format!("clv forward --resume {}", run.display())), "{err}");
-    std::fs::rename(base.join("aside.json"), &spectrum).unwrap();
+    // An extension cut off after it moved the results aside: give its command again.
+    let (dir, meta) = clv::store::RunDir::open(&run).unwrap();
+    let previous = dir.previous_results(meta.config.steps);
+    std::fs::create_dir_all(&previous).unwrap();
+    std::fs::rename(base.join("aside.json"), previous.join("spectrum.json")).unwrap();
+    let err = common::stderr(&clv(&["analyze", run.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
+    assert!(err.contains("an extension of this run was interrupted") && err.contains(&previous.display().to_string()) && err.contains("--steps M"), "{err}");
+    std::fs::rename(previous.join("spectrum.json"), &spectrum).unwrap();
+    std::fs::remove_dir(&previous).unwrap();
     let segment = clv::store::RunDir { path: run.clone() }.segments().unwrap().remove(0).path;
     let err = common::stderr(&clv(&["analyze", segment.to_str().unwrap(), "--out", base.join("o").to_str().unwrap()]));
     assert!(err.contains("is a segment of a run directory") && err.contains("clv backward"), "{err}");

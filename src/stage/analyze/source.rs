@@ -40,7 +40,15 @@ fn frame_source(source: &Path) -> Result<(PathBuf, Option<SweepFile>)> {
             return Err(Error::Other(format!("{d} is {what}: give a frame file (`clv analyze FILE --out REPORT`), a run directory whose backward stage wrote one, or - for a stream on standard input")));
         }
         // A forward run not yet finished has no backward stage to ask for.
-        if !(crate::store::RunDir { path: source.to_path_buf() }).spectrum_path().exists() {
+        let run = crate::store::RunDir { path: source.to_path_buf() };
+        if let Some(steps) = crate::store::RunDir::open(source).ok().map(|(_, meta)| meta.config.steps).filter(|&s| run.extension_interrupted(s)) {
+            return Err(Error::Other(format!(
+                "{d}: an extension of this run was interrupted (the results of the run before it are in {}): give the extension's command again \
+                 (`clv forward --resume {d} --steps M` with its new length M), then run its backward stage",
+                run.previous_results(steps).display()
+            )));
+        }
+        if !run.spectrum_path().exists() {
             return Err(Error::Other(format!(
                 "{d} is a forward run that has not finished (no spectrum.json yet), so it has no frames: finish it with `clv forward --resume {d}`, then run its backward stage (`clv backward {d} --out - | clv analyze - --out REPORT`)"
             )));
