@@ -1051,6 +1051,22 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
     }
     std::fs::rename(dir.join("run.json.from-segments"), dir.join("run.json")).unwrap();
     ok(clv(&["inspect", dir.to_str().unwrap()]));
+    // On a CPU of other features (of the same level), a resume first recomputes the last
+    // checkpoint interval: bit for bit, it goes on, saying so; where a bit differs (here a
+    // checkpoint altered with valid CRCs, as another machine's numbers would look), it
+    // refuses before it writes anything.
+    let d = dir.to_str().unwrap();
+    reseal(&dir.join("run.json"), &other_avx512);
+    let out = ok(clv(&["forward", "--resume", d]));
+    assert!(stderr(&out).contains("its last checkpoint interval, recomputed here, matches bit for bit"), "{}", stderr(&out));
+    let last = (clv::store::RunDir { path: dir.clone() }).segments().unwrap().last().unwrap().last;
+    common::alter_checkpoint(&dir, last, |cp| cp.state.system.phase[0] = f64::from_bits(cp.state.system.phase[0].to_bits() ^ 1));
+    let files = |d: &Path| std::fs::read_dir(d).unwrap().map(|e| e.unwrap().file_name()).collect::<std::collections::BTreeSet<_>>();
+    let before = files(&dir);
+    let out = clv(&["forward", "--resume", d]);
+    let err = stderr(&out);
+    assert!(!out.status.success() && err.contains("does not reproduce the run's last checkpoint interval") && err.contains("a machine like the one that made it"), "{err}");
+    assert_eq!(files(&dir), before, "nothing written");
 }
 
 /// Damage anywhere in a frame file (magic, headers, chunk payload, CRCs, footer) is named

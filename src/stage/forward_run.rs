@@ -144,7 +144,41 @@ fn open_to_continue(path: &Path, feedback: &mut Feedback) -> Result<(RunDir, Run
     let lock = dir.lock("forward pass")?;
     meta.build.check_can_continue(path)?;
     dir.check_meta(&meta)?;
+    check_bits_here(&dir, &meta, feedback)?;
     Ok((dir, meta, lock))
+}
+
+/// On a CPU whose features differ from those the run was made on, though not in a way that
+/// should change the bits ([`crate::store::run::BuildInfo::simd_level`]: with or without
+/// AVX-512), recompute the newest segment's last checkpoint interval first and refuse if it
+/// differs in any bit, before anything is written: a continuation of other bits would make
+/// a run that no machine can verify. Costs one interval, only there. A segment that cannot
+/// be read is left to the repair that follows.
+fn check_bits_here(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Result<()> {
+    let here = crate::store::run::BuildInfo::current();
+    if here.cpu_features == meta.build.cpu_features {
+        return Ok(());
+    }
+    let Some(newest) = dir.segments()?.pop() else { return Ok(()) };
+    match last_interval_difference(dir, meta, &newest.path) {
+        Ok(Some(None)) => {
+            feedback.notice(format!(
+                "this machine's CPU ({}) is not the one the run was made on ({}); its last checkpoint interval, recomputed here, matches bit for bit",
+                here.cpu_features.join(", "),
+                meta.build.cpu_features.join(", ")
+            ));
+            Ok(())
+        }
+        Ok(Some(Some(why))) => Err(Error::Dynamics(format!(
+            "{}: this machine's CPU ({}) is not the one the run was made on ({}), and it does not reproduce the run's last checkpoint interval in {} bit for bit ({why}); \
+             continuing here would make a run no machine can verify: continue it on a machine like the one that made it",
+            dir.path.display(),
+            here.cpu_features.join(", "),
+            meta.build.cpu_features.join(", "),
+            newest.path.display()
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// A run made longer: `steps` accumulated steps in all, a CLV window of `clv_steps` plus
@@ -409,6 +443,15 @@ fn fill(dir: &RunDir, meta: &RunMeta, hole: &Hole, feedback: &mut Feedback) -> R
 /// Where the last checkpoint of the segment `path` does not follow from the checkpoint
 /// before it (in the segment, or the last of the segment before it), why, in words.
 fn follows_from_the_one_before(dir: &RunDir, meta: &RunMeta, path: &Path) -> Result<Option<String>> {
+    Ok(match last_interval_difference(dir, meta, path)? {
+        None => Some("whether that checkpoint is right cannot be checked (no checkpoint just before it is kept)".into()),
+        Some(difference) => difference.map(|d| format!("that checkpoint does not follow from the one before it either ({d})")),
+    })
+}
+
+/// The last checkpoint of the segment `path` recomputed from the one before it: None where
+/// no checkpoint just before it is kept, else how the two differ (None if in no bit).
+fn last_interval_difference(dir: &RunDir, meta: &RunMeta, path: &Path) -> Result<Option<Option<String>>> {
     let mut checkpoints = last_checkpoints(path)?;
     if checkpoints.len() < 2 {
         let c = meta.store.checkpoint_every;
@@ -417,7 +460,7 @@ fn follows_from_the_one_before(dir: &RunDir, meta: &RunMeta, path: &Path) -> Res
         let before = dir.segments()?.into_iter().rfind(|s| s.last < first && !gap_between(s.last, first, c, None));
         match before {
             Some(seg) => checkpoints.insert(0, read_last(&seg.path)?.1.checkpoint),
-            None => return Ok(Some("whether that checkpoint is right cannot be checked (no checkpoint just before it is kept)".into())),
+            None => return Ok(None),
         }
     }
     let (before, last) = (&checkpoints[checkpoints.len() - 2], &checkpoints[checkpoints.len() - 1]);
@@ -426,7 +469,7 @@ fn follows_from_the_one_before(dir: &RunDir, meta: &RunMeta, path: &Path) -> Res
         fwd.step()?;
     }
     let got = fwd.state();
-    Ok((got != last.state).then(|| format!("that checkpoint does not follow from the one before it either ({})", last.state.first_difference(&got))))
+    Ok(Some((got != last.state).then(|| last.state.first_difference(&got))))
 }
 
 fn report_of(meta: &RunMeta, fwd: &Forward, energy0: f64, wall: f64) -> SpectrumReport {
