@@ -1059,6 +1059,15 @@ fn bad_input_gets_one_clear_error_and_writes_nothing() {
     reseal(&dir.join("run.json"), &other_avx512);
     let out = ok(clv(&["forward", "--resume", d]));
     assert!(stderr(&out).contains("its last checkpoint interval, recomputed here, matches bit for bit"), "{}", stderr(&out));
+    // A record of an earlier build, which listed AVX2, FMA and AVX-512 only: the same
+    // machine, nothing recomputed.
+    let mut earlier: serde_json::Value = serde_json::from_str(&original).unwrap();
+    let listed = earlier["build"]["cpu_features"].as_array().unwrap().iter().filter(|f| ["avx2", "fma", "avx512f"].contains(&f.as_str().unwrap())).cloned().collect();
+    earlier["build"]["cpu_features"] = serde_json::Value::Array(listed);
+    reseal(&dir.join("run.json"), &earlier.to_string());
+    let out = ok(clv(&["forward", "--resume", d]));
+    assert!(!stderr(&out).contains("is not the one the run was made on"), "{}", stderr(&out));
+    reseal(&dir.join("run.json"), &other_avx512);
     let last = (clv::store::RunDir { path: dir.clone() }).segments().unwrap().last().unwrap().last;
     common::alter_checkpoint(&dir, last, |cp| cp.state.system.phase[0] = f64::from_bits(cp.state.system.phase[0].to_bits() ^ 1));
     let files = |d: &Path| std::fs::read_dir(d).unwrap().map(|e| e.unwrap().file_name()).collect::<std::collections::BTreeSet<_>>();

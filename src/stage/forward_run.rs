@@ -156,7 +156,11 @@ fn open_to_continue(path: &Path, feedback: &mut Feedback) -> Result<(RunDir, Run
 /// be read is left to the repair that follows.
 fn check_bits_here(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Result<()> {
     let here = crate::store::run::BuildInfo::current();
-    if here.cpu_features == meta.build.cpu_features {
+    // Records of earlier builds list only these three.
+    let earlier = ["avx2", "fma", "avx512f"];
+    let old_record = meta.build.cpu_features.iter().all(|f| earlier.contains(&f.as_str()));
+    let compared: Vec<&String> = here.cpu_features.iter().filter(|f| !old_record || earlier.contains(&f.as_str())).collect();
+    if compared.iter().copied().eq(meta.build.cpu_features.iter()) {
         return Ok(());
     }
     let Some(newest) = dir.segments()?.pop() else { return Ok(()) };
