@@ -156,11 +156,7 @@ fn open_to_continue(path: &Path, feedback: &mut Feedback) -> Result<(RunDir, Run
 /// be read is left to the repair that follows.
 fn check_bits_here(dir: &RunDir, meta: &RunMeta, feedback: &mut Feedback) -> Result<()> {
     let here = crate::store::run::BuildInfo::current();
-    // Records of earlier builds list only these three.
-    let earlier = ["avx2", "fma", "avx512f"];
-    let old_record = meta.build.cpu_features.iter().all(|f| earlier.contains(&f.as_str()));
-    let compared: Vec<&String> = here.cpu_features.iter().filter(|f| !old_record || earlier.contains(&f.as_str())).collect();
-    if compared.iter().copied().eq(meta.build.cpu_features.iter()) {
+    if meta.build.same_cpu_features(&here) {
         return Ok(());
     }
     let Some(newest) = dir.segments()?.pop() else { return Ok(()) };

@@ -347,27 +347,13 @@ impl BuildInfo {
         let mut cpu_features = Vec::new();
         #[cfg(target_arch = "x86_64")]
         {
-            use std::arch::is_x86_feature_detected as has;
-            for (name, on) in [
-                ("avx2", has!("avx2")),
-                ("fma", has!("fma")),
-                ("avx512f", has!("avx512f")),
-                // The rest of the x86-64-v2 and -v3 sets, which decide faer's (pulp's) code
-                // paths with the two above ([`BuildInfo::simd_level`]).
-                ("sse3", has!("sse3")),
-                ("ssse3", has!("ssse3")),
-                ("sse4.1", has!("sse4.1")),
-                ("sse4.2", has!("sse4.2")),
-                ("popcnt", has!("popcnt")),
-                ("avx", has!("avx")),
-                ("bmi1", has!("bmi1")),
-                ("bmi2", has!("bmi2")),
-                ("lzcnt", has!("lzcnt")),
-            ] {
-                if on {
-                    cpu_features.push(name.to_string());
-                }
+            // Each named once (the std macro takes a literal token); AVX2, FMA and AVX-512
+            // first, as earlier builds listed them, then the rest of the x86-64-v2 and -v3
+            // sets, which decide faer's (pulp's) code paths ([`BuildInfo::simd_level`]).
+            macro_rules! probe {
+                ($($name:tt),*) => { $(if std::arch::is_x86_feature_detected!($name) { cpu_features.push($name.to_string()); })* };
             }
+            probe!("avx2", "fma", "avx512f", "sse3", "ssse3", "sse4.1", "sse4.2", "popcnt", "avx", "bmi1", "bmi2", "lzcnt");
         }
         BuildInfo { clv_version: env!("CARGO_PKG_VERSION").into(), numerics: NUMERICS.into(), arch: std::env::consts::ARCH.into(), cpu_features }
     }
@@ -416,22 +402,38 @@ impl BuildInfo {
     /// node with or without it. Records of builds before the v2/v3 sets were listed name only
     /// AVX2 and FMA: there both stand for v3.
     pub fn simd_level(&self) -> &'static str {
-        const V2: [&str; 5] = ["sse3", "ssse3", "sse4.1", "sse4.2", "popcnt"];
         const V3: [&str; 6] = ["avx", "avx2", "bmi1", "bmi2", "fma", "lzcnt"];
         let has = |f: &str| self.cpu_features.iter().any(|g| g == f);
         if self.cpu_features.is_empty() {
             ""
-        } else if !V2.iter().any(|f| has(f)) {
+        } else if self.is_earlier_record() {
             if has("avx2") && has("fma") { "x86-64-v3" } else { "below x86-64-v3 (not recorded further)" }
-        } else if V2.iter().chain(&V3).all(|f| has(f)) {
+        } else if V2_FEATURES.iter().chain(&V3).all(|f| has(f)) {
             "x86-64-v3"
-        } else if V2.iter().all(|f| has(f)) {
+        } else if V2_FEATURES.iter().all(|f| has(f)) {
             "x86-64-v2"
         } else {
             "below x86-64-v2"
         }
     }
+
+    /// Whether the CPU this record was made on had the features `here` has, as far as the
+    /// record lists them (a record of an earlier build lists AVX2, FMA and AVX-512 only).
+    pub fn same_cpu_features(&self, here: &BuildInfo) -> bool {
+        let listed = |f: &&String| !self.is_earlier_record() || EARLIER_FEATURES.contains(&f.as_str());
+        here.cpu_features.iter().filter(listed).eq(self.cpu_features.iter())
+    }
+
+    /// A record of a build before the x86-64-v2 set was listed ([`EARLIER_FEATURES`] only).
+    fn is_earlier_record(&self) -> bool {
+        !self.cpu_features.iter().any(|f| V2_FEATURES.contains(&f.as_str()))
+    }
 }
+
+/// The CPU features earlier builds recorded.
+const EARLIER_FEATURES: [&str; 3] = ["avx2", "fma", "avx512f"];
+/// The x86-64-v2 set beyond the baseline.
+const V2_FEATURES: [&str; 5] = ["sse3", "ssse3", "sse4.1", "sse4.2", "popcnt"];
 
 /// Everything that says how a run was made (run.json).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
